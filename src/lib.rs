@@ -1,0 +1,16 @@
+//! matfit: recovers the reflectance of every surface of a scene from one photograph, a 3D model,
+//! the camera and the known lights, by inverse global illumination (Boivin & Gagalowicz 2001).
+//!
+//! Data flows one way: [`scene`] + [`photo`] → [`render`] → [`fit`] → [`report`].
+
+// `!(x > 0.0)` is how this crate says "not positive, or NaN": keep it.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+// Physics and camera constructors take their parameters plainly rather than through builders.
+#![allow(clippy::too_many_arguments)]
+
+pub mod bench;
+pub mod geometry;
+pub mod io;
+pub mod math;
+pub mod render;
+pub mod scene;

@@ -1,0 +1,188 @@
+//! The `matfit` command line: a thin layer of subcommands over the library.
+
+use anyhow::{bail, Context, Result};
+use clap::{Parser, Subcommand};
+use matfit::io::image::Image;
+use matfit::render::aov::{aov_image, Aov};
+use matfit::render::film::{render, RenderOptions};
+use matfit::scene::load_scene;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "matfit",
+    version,
+    about = "Recover the materials of a scene from one photograph"
+)]
+struct Cli {
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long, global = true)]
+    threads: Option<usize>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene (beauty image or an index buffer / AOV).
+    Render {
+        scene: PathBuf,
+        /// Output image: .exr, .hdr, .pfm or .png (sRGB preview).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Samples per pixel (default: the scene's [render] spp).
+        #[arg(long)]
+        spp: Option<u32>,
+        /// Random seed (default: the scene's [render] seed).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// What to write.
+        #[arg(long, value_enum, default_value = "beauty")]
+        aov: Aov,
+    },
+    /// Print a summary of a scene file (groups, objects, triangles, lights, camera).
+    Info { scene: PathBuf },
+    /// Benchmarks (figures for the issue notes, not tests).
+    Bench {
+        #[command(subcommand)]
+        which: BenchCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// Primary-ray throughput (Mrays/s) on a scene and on a generated mesh of ≥ 1M triangles.
+    Rays {
+        /// Scene to trace (default: scenes/figure6/scene.toml).
+        #[arg(long, default_value = "scenes/figure6/scene.toml")]
+        scene: PathBuf,
+        /// Triangles of the generated mesh.
+        #[arg(long, default_value_t = 1_000_000)]
+        triangles: usize,
+        /// Repetitions (the median is reported).
+        #[arg(long, default_value_t = 5)]
+        repeat: usize,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_env("MATFIT_LOG")
+                .unwrap_or_else(|_| "warn".into()),
+        )
+        .with_writer(std::io::stderr)
+        .without_time()
+        .init();
+    if let Some(n) = cli.threads {
+        if let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(n.max(1))
+            .build_global()
+        {
+            eprintln!("error: cannot set up {n} threads: {e}");
+            return ExitCode::from(2);
+        }
+    }
+    match run(cli.command) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn run(cmd: Command) -> Result<()> {
+    match cmd {
+        Command::Render {
+            scene,
+            output,
+            spp,
+            seed,
+            aov,
+        } => {
+            let sc = load_scene(&scene)?;
+            let ext = output
+                .extension()
+                .and_then(|e| e.to_str())
+                .unwrap_or("")
+                .to_ascii_lowercase();
+            if !["exr", "hdr", "pfm", "png"].contains(&ext.as_str()) {
+                bail!(
+                    "{}: output must end in .exr, .hdr, .pfm or .png",
+                    output.display()
+                );
+            }
+            let img: Image = match aov {
+                Aov::Beauty => {
+                    let opts = RenderOptions {
+                        spp: spp.unwrap_or(sc.render.spp).max(1),
+                        seed: seed.unwrap_or(sc.render.seed),
+                        progress: true,
+                    };
+                    let t = std::time::Instant::now();
+                    let img = render(&sc, &sc.camera, &opts);
+                    tracing::info!("rendered in {:.2} s", t.elapsed().as_secs_f64());
+                    img
+                }
+                other => aov_image(&sc, &sc.camera, other, ext == "png"),
+            };
+            img.write(&output).map_err(anyhow::Error::msg)?;
+            Ok(())
+        }
+        Command::Info { scene } => {
+            let sc = load_scene(&scene)?;
+            let c = &sc.camera;
+            println!("scene {}", scene.display());
+            println!(
+                "camera {}×{}, fx {:.2} fy {:.2}, fov_y {:.3}°, eye {:?}",
+                c.width,
+                c.height,
+                c.fx,
+                c.fy,
+                c.fov_y_deg(),
+                c.eye()
+            );
+            println!(
+                "triangles {}, ward variant {}",
+                sc.triangle_count(),
+                sc.render.ward_variant.name()
+            );
+            for g in &sc.groups {
+                let names: Vec<&str> = g
+                    .objects
+                    .iter()
+                    .map(|&o| sc.objects[o].name.as_str())
+                    .collect();
+                println!(
+                    "group {:<14} {}{}",
+                    g.name,
+                    names.join(", "),
+                    if g.fixed { " (fixed)" } else { "" }
+                );
+            }
+            for o in sc.objects.iter().filter(|o| o.is_emitter()) {
+                println!(
+                    "light {:<14} radiance {:?}, area {:.4}",
+                    o.name,
+                    o.emission.to_array(),
+                    o.area
+                );
+            }
+            Ok(())
+        }
+        Command::Bench { which } => match which {
+            BenchCommand::Rays {
+                scene,
+                triangles,
+                repeat,
+            } => {
+                let sc = load_scene(&scene).with_context(|| "loading the benchmark scene")?;
+                matfit::bench::rays(&sc, triangles, repeat);
+                Ok(())
+            }
+        },
+    }
+}

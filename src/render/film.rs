@@ -1,0 +1,74 @@
+//! Rendering a whole image: every pixel independently, in parallel over rows, each pixel with
+//! its own sampler stream keyed by (seed, pixel), so the image is bit-identical whatever the
+//! number of threads. Pixels use a box filter (uniform jitter inside the pixel).
+
+use super::PathTracer;
+use crate::io::image::Image;
+use crate::math::{Rgb, Sampler, Vec2};
+use crate::scene::{Camera, Scene};
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+
+/// Options of one render.
+#[derive(Clone, Debug)]
+pub struct RenderOptions {
+    pub spp: u32,
+    pub seed: u64,
+    /// Show a progress bar (it stays hidden anyway when stderr is not a terminal).
+    pub progress: bool,
+}
+
+/// A progress bar over `len` steps, hidden unless asked for and stderr is a terminal.
+pub fn progress_bar(len: u64, what: &str, show: bool) -> ProgressBar {
+    if !show {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::new(len);
+    pb.set_style(
+        ProgressStyle::with_template(
+            "{msg:>10} [{bar:40}] {percent:>3}% {elapsed_precise} eta {eta}",
+        )
+        .unwrap()
+        .progress_chars("=> "),
+    );
+    pb.set_message(what.to_string());
+    pb
+}
+
+/// Renders the scene through `camera` (normally `scene.camera`).
+pub fn render(scene: &Scene, camera: &Camera, opts: &RenderOptions) -> Image {
+    let pt = PathTracer::new(scene);
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let mut img = Image::new(w, h);
+    let pb = progress_bar(h as u64, "render", opts.progress);
+    img.data.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x, out) in row.iter_mut().enumerate() {
+            *out = render_pixel(&pt, camera, x, y, opts.spp, opts.seed);
+        }
+        pb.inc(1);
+    });
+    pb.finish_and_clear();
+    img
+}
+
+/// The mean of `spp` samples of pixel (x, y). Non-finite samples are dropped (and would be a bug).
+pub fn render_pixel(
+    pt: &PathTracer,
+    camera: &Camera,
+    x: usize,
+    y: usize,
+    spp: u32,
+    seed: u64,
+) -> Rgb {
+    let mut sampler = Sampler::new(seed, (y * camera.width as usize + x) as u64);
+    let mut sum = Rgb::ZERO;
+    for s in 0..spp {
+        sampler.start_sample(s);
+        let film = Vec2::new(x as f32, y as f32) + sampler.next_2d();
+        let l = pt.li(camera.ray(film), &mut sampler);
+        if l.is_finite() {
+            sum += l;
+        }
+    }
+    sum / spp as f32
+}

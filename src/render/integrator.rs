@@ -1,0 +1,212 @@
+//! The path tracer: next-event estimation on area lights combined with BSDF sampling by
+//! multiple importance sampling (power heuristic; Veach 1997), Russian roulette, and a maximum
+//! depth with Mitsuba's meaning: `max_depth` = the largest number of segments of a path
+//! (1: emitters seen directly, 2: direct lighting, …).
+//!
+//! Surfaces are two-sided: the shading frame is flipped towards the viewer.
+
+use super::bsdf::{Bsdf, WardLobe};
+use super::lights::Lights;
+use crate::geometry::{offset_origin, Ray};
+use crate::math::{power_heuristic, Frame, Rgb, Sampler, Vec3};
+use crate::scene::{Material, Scene, SurfaceHit, WardVariant};
+
+/// The BSDF of `material` at a hit, with the shading frame it is expressed in.
+pub fn bsdf_at(material: &Material, hit: &SurfaceHit, variant: WardVariant) -> (Bsdf, Frame) {
+    match material {
+        Material::Diffuse { rho_d } => (Bsdf::Diffuse { rho_d: *rho_d }, hit.frame),
+        Material::Mirror { rho_s } => (
+            Bsdf::DiffuseMirror {
+                rho_d: Rgb::ZERO,
+                rho_s: *rho_s,
+            },
+            hit.frame,
+        ),
+        Material::DiffuseMirror { rho_d, rho_s } => (
+            Bsdf::DiffuseMirror {
+                rho_d: *rho_d,
+                rho_s: *rho_s,
+            },
+            hit.frame,
+        ),
+        Material::Ward {
+            rho_d,
+            rho_s,
+            alpha_x,
+            alpha_y,
+            theta,
+        } => (
+            Bsdf::Ward {
+                rho_d: *rho_d,
+                rho_s: *rho_s,
+                lobe: WardLobe {
+                    alpha_x: *alpha_x,
+                    alpha_y: *alpha_y,
+                    variant,
+                },
+            },
+            hit.frame.rotated(*theta),
+        ),
+        Material::Textured { texture, scale } => (
+            Bsdf::Diffuse {
+                rho_d: *scale * texture.lookup(hit.uv),
+            },
+            hit.frame,
+        ),
+        Material::Black => (Bsdf::Black, hit.frame),
+    }
+}
+
+/// Flips a frame (and so the BSDF's hemisphere) to the side of `wo`; also flips the geometric
+/// normal it is paired with. Returns the frame and the geometric normal on the viewer's side.
+#[inline]
+pub fn facing(frame: Frame, ng: Vec3, wo: Vec3) -> (Frame, Vec3) {
+    if ng.dot(wo) >= 0.0 {
+        let f = if frame.n.dot(ng) < 0.0 {
+            Frame {
+                s: frame.s,
+                t: -frame.t,
+                n: -frame.n,
+            }
+        } else {
+            frame
+        };
+        (f, ng)
+    } else {
+        let f = if frame.n.dot(ng) > 0.0 {
+            Frame {
+                s: frame.s,
+                t: -frame.t,
+                n: -frame.n,
+            }
+        } else {
+            frame
+        };
+        (f, -ng)
+    }
+}
+
+pub struct PathTracer<'a> {
+    pub scene: &'a Scene,
+    pub lights: Lights,
+    pub max_depth: u32,
+}
+
+impl<'a> PathTracer<'a> {
+    pub fn new(scene: &'a Scene) -> PathTracer<'a> {
+        PathTracer {
+            scene,
+            lights: Lights::new(scene),
+            max_depth: scene.render.max_depth,
+        }
+    }
+
+    /// Radiance arriving along `ray` (towards its origin).
+    pub fn li(&self, ray: Ray, sampler: &mut Sampler) -> Rgb {
+        self.trace(ray, sampler, 0, true)
+    }
+
+    /// Radiance along `ray` for a path that already has `depth` segments before this one.
+    /// `count_emission`: whether emission seen at the first hit counts fully (a camera ray, or a
+    /// ray after a delta reflection); otherwise it is left out entirely (the caller did next-event
+    /// estimation for it without MIS).
+    pub fn trace(
+        &self,
+        mut ray: Ray,
+        sampler: &mut Sampler,
+        depth: u32,
+        count_emission: bool,
+    ) -> Rgb {
+        let scene = self.scene;
+        let variant = scene.render.ward_variant;
+        let mut l = Rgb::ZERO;
+        let mut beta = Rgb::ONE;
+        let mut segments = depth; // segments of the path before `ray`
+                                  // How the previous direction was drawn: None = delta or camera (emission counts fully).
+        let mut prev_pdf: Option<f32> = None;
+        let mut first = true;
+        loop {
+            segments += 1;
+            let Some(hit) = scene.intersect(&ray, f32::INFINITY) else {
+                break;
+            };
+            let obj = &scene.objects[hit.object as usize];
+            let wo_world = -ray.d;
+            // Emission (front side only).
+            if obj.is_emitter() && hit.ng.dot(wo_world) > 0.0 {
+                let w = match prev_pdf {
+                    _ if first => {
+                        if count_emission {
+                            1.0
+                        } else {
+                            0.0
+                        }
+                    }
+                    None => 1.0,
+                    Some(pb) => {
+                        let pl = self.lights.pdf(hit.prim, hit.t, ray.d, hit.ng);
+                        power_heuristic(pb, pl)
+                    }
+                };
+                l += beta * obj.emission * w;
+            }
+            first = false;
+            if segments >= self.max_depth {
+                break;
+            }
+            let (bsdf, frame) = bsdf_at(&obj.material, &hit, variant);
+            if matches!(bsdf, Bsdf::Black) {
+                break;
+            }
+            let (frame, ng) = facing(frame, hit.ng, wo_world);
+            let wo = frame.to_local(wo_world);
+            // Next-event estimation.
+            if bsdf.has_smooth_part() {
+                if let Some(ls) = self.lights.sample(scene, hit.p, sampler) {
+                    let wi = frame.to_local(ls.wi);
+                    let cos_g = ng.dot(ls.wi);
+                    if wi.z > 0.0 && cos_g > 0.0 {
+                        let f = bsdf.eval(wo, wi);
+                        if f.max_element() > 0.0 {
+                            let origin = offset_origin(hit.p, ng, ls.wi);
+                            if self.lights.visible(scene, origin, &ls) {
+                                let w = power_heuristic(ls.pdf, bsdf.pdf(wo, wi));
+                                l += beta * f * ls.radiance * (wi.z * w / ls.pdf);
+                            }
+                        }
+                    }
+                } else {
+                    // Keep the sampler's dimensions aligned whether or not a light was found.
+                }
+            } else {
+                // Consume the same dimensions so that paths stay stratified alike.
+                sampler.next_1d();
+                sampler.next_2d();
+            }
+            // Continue the path by sampling the BSDF.
+            let Some(bs) = bsdf.sample(wo, sampler) else {
+                break;
+            };
+            let wi_world = frame.to_world(bs.wi);
+            if ng.dot(wi_world) <= 0.0 {
+                break; // shading normal sent the path into the surface
+            }
+            beta *= bs.weight;
+            prev_pdf = (!bs.delta).then_some(bs.pdf);
+            if beta.max_element() <= 0.0 || !beta.is_finite() {
+                break;
+            }
+            // Russian roulette after three segments.
+            let u_rr = sampler.next_1d();
+            if segments >= 3 {
+                let q = (1.0 - beta.max_element()).max(0.05);
+                if u_rr < q {
+                    break;
+                }
+                beta /= 1.0 - q;
+            }
+            ray = Ray::new(offset_origin(hit.p, ng, wi_world), wi_world);
+        }
+        l
+    }
+}

@@ -1,0 +1,9 @@
+//! The renderer: BSDFs, lights, the path tracer, images and index buffers.
+
+pub mod aov;
+pub mod bsdf;
+pub mod film;
+pub mod integrator;
+pub mod lights;
+
+pub use integrator::PathTracer;

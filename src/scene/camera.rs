@@ -1,0 +1,186 @@
+//! Pinhole cameras, given either by look-at + vertical field of view or by calibrated intrinsics
+//! and extrinsics in the OpenCV convention, and converted to one model:
+//!
+//!   x_cam = R x_world + t            (camera x right, y down, z forward: OpenCV)
+//!   u = fx x_cam / z_cam + cx,  v = fy y_cam / z_cam + cy
+//!
+//! In OpenCV's convention integer (u, v) are pixel *centres*. Internally matfit uses continuous
+//! film coordinates in which pixel (i, j) covers [i, i+1) × [j, j+1) (its centre at i + ½, as
+//! Mitsuba and pbrt do), so `cx_film = cx_opencv + ½`. A look-at camera is centred:
+//! cx_opencv = (width − 1)/2, fy = (height/2) / tan(fov_y/2), fx = fy (square pixels).
+
+use crate::geometry::Ray;
+use crate::math::{Mat3, Vec2, Vec3};
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Camera {
+    pub width: u32,
+    pub height: u32,
+    pub fx: f32,
+    pub fy: f32,
+    /// Principal point in continuous film coordinates (see the module comment).
+    pub cx: f32,
+    pub cy: f32,
+    /// World-to-camera rotation (rows: right, down, forward in world coordinates).
+    pub r: Mat3,
+    /// World-to-camera translation.
+    pub t: Vec3,
+}
+
+impl Camera {
+    /// A camera at `eye` looking at `target`, `up` roughly up, vertical field of view in degrees.
+    /// Returns None if the view direction is zero or parallel to `up`, or the fov is not in (0, 180).
+    pub fn look_at(
+        width: u32,
+        height: u32,
+        eye: Vec3,
+        target: Vec3,
+        up: Vec3,
+        fov_y_deg: f32,
+    ) -> Option<Camera> {
+        let fwd = (target - eye).normalize_or_zero();
+        let right = fwd.cross(up).normalize_or_zero();
+        if fwd == Vec3::ZERO || right == Vec3::ZERO || !(fov_y_deg > 0.0 && fov_y_deg < 180.0) {
+            return None;
+        }
+        let down = fwd.cross(right);
+        let r = Mat3::from_cols(right, down, fwd).transpose();
+        let fy = 0.5 * height as f32 / (0.5 * fov_y_deg.to_radians()).tan();
+        Some(Camera {
+            width,
+            height,
+            fx: fy,
+            fy,
+            cx: 0.5 * width as f32,
+            cy: 0.5 * height as f32,
+            r,
+            t: -(r * eye),
+        })
+    }
+
+    /// A calibrated camera: OpenCV intrinsics (pixel centres at integers) and world-to-camera
+    /// R | t. Returns None if R is not a rotation (orthonormal, det +1, within 1e-3).
+    pub fn calibrated(
+        width: u32,
+        height: u32,
+        fx: f32,
+        fy: f32,
+        cx: f32,
+        cy: f32,
+        r: Mat3,
+        t: Vec3,
+    ) -> Option<Camera> {
+        let should_be_identity = r * r.transpose();
+        let err = (should_be_identity - Mat3::IDENTITY)
+            .to_cols_array()
+            .iter()
+            .fold(0.0f32, |m, x| m.max(x.abs()));
+        if err > 1e-3 || (r.determinant() - 1.0).abs() > 1e-3 || !(fx > 0.0 && fy > 0.0) {
+            return None;
+        }
+        Some(Camera {
+            width,
+            height,
+            fx,
+            fy,
+            cx: cx + 0.5,
+            cy: cy + 0.5,
+            r,
+            t,
+        })
+    }
+
+    /// Camera centre in world coordinates: −Rᵀ t.
+    pub fn eye(&self) -> Vec3 {
+        -(self.r.transpose() * self.t)
+    }
+
+    /// The primary ray through continuous film position (x, y); direction normalised.
+    pub fn ray(&self, film: Vec2) -> Ray {
+        let d_cam = Vec3::new(
+            (film.x - self.cx) / self.fx,
+            (film.y - self.cy) / self.fy,
+            1.0,
+        );
+        Ray::new(self.eye(), (self.r.transpose() * d_cam).normalize())
+    }
+
+    /// Continuous film position of a world point, or None if it is behind the camera.
+    pub fn project(&self, p: Vec3) -> Option<Vec2> {
+        let c = self.r * p + self.t;
+        if c.z <= 0.0 {
+            return None;
+        }
+        Some(Vec2::new(
+            self.fx * c.x / c.z + self.cx,
+            self.fy * c.y / c.z + self.cy,
+        ))
+    }
+
+    /// The same camera shifted by (dx, dy) pixels on the film: a misregistered model, for tests.
+    pub fn shifted(&self, dx: f32, dy: f32) -> Camera {
+        Camera {
+            cx: self.cx + dx,
+            cy: self.cy + dy,
+            ..self.clone()
+        }
+    }
+
+    /// Vertical field of view in degrees.
+    pub fn fov_y_deg(&self) -> f32 {
+        (2.0 * (0.5 * self.height as f32 / self.fy).atan()).to_degrees()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn look_at_projects_known_points_analytically() {
+        // Camera at the origin looking down −z, 90° vertical fov on a 200×100 film:
+        // fy = 50 px per unit of y/z; the point (0.5, 0.25, −1) is 0.5·50 = 25 px right of centre
+        // and 0.25·50 = 12.5 px above it.
+        let cam = Camera::look_at(200, 100, Vec3::ZERO, -Vec3::Z, Vec3::Y, 90.0).unwrap();
+        let p = cam.project(Vec3::new(0.5, 0.25, -1.0)).unwrap();
+        assert!(
+            (p - Vec2::new(100.0 + 25.0, 50.0 - 12.5)).length() < 1e-4,
+            "{p}"
+        );
+        assert!(cam.project(Vec3::new(0.0, 0.0, 1.0)).is_none());
+        // The ray through a film position passes through the point that projects there.
+        let r = cam.ray(p);
+        let q = r.o + r.d * (Vec3::new(0.5, 0.25, -1.0).length());
+        assert!((q - Vec3::new(0.5, 0.25, -1.0)).length() < 1e-4);
+    }
+
+    #[test]
+    fn calibrated_and_look_at_forms_agree() {
+        let eye = Vec3::new(1.0, 2.0, 5.0);
+        let la = Camera::look_at(640, 480, eye, Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 50.0).unwrap();
+        // The same camera written as OpenCV intrinsics (integer pixel centres) and R | t.
+        let cal =
+            Camera::calibrated(640, 480, la.fx, la.fy, 319.5, 239.5, la.r, -(la.r * eye)).unwrap();
+        for p in [
+            Vec3::new(0.3, 0.1, -0.4),
+            Vec3::new(-1.0, 2.0, 1.0),
+            Vec3::new(2.0, 0.0, 0.0),
+        ] {
+            let a = la.project(p).unwrap();
+            let b = cal.project(p).unwrap();
+            assert!((a - b).length() < 1e-3, "{a} vs {b}");
+        }
+        // An OpenCV projection by hand: u = fx X/Z + cx with pixel centres at integers.
+        let p = Vec3::new(0.3, 0.1, -0.4);
+        let c = la.r * p + la.t;
+        let u_cv = la.fx * c.x / c.z + 319.5;
+        assert!((cal.project(p).unwrap().x - (u_cv + 0.5)).abs() < 1e-3);
+    }
+
+    #[test]
+    fn non_rotations_are_refused() {
+        let m = Mat3::from_diagonal(Vec3::new(1.0, 1.0, 2.0));
+        assert!(Camera::calibrated(10, 10, 1.0, 1.0, 5.0, 5.0, m, Vec3::ZERO).is_none());
+        assert!(Camera::look_at(10, 10, Vec3::ZERO, Vec3::Y, Vec3::Y, 40.0).is_none());
+    }
+}

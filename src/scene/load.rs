@@ -1,0 +1,599 @@
+//! Scene loading: TOML → checked [`Scene`]. Every error names the scene file and the line, key or
+//! object at fault; nothing here panics on bad input.
+
+use super::error::SceneError;
+use super::schema::{Color, MaterialSpec, ObjectSpec, SceneFile, ShapeKind};
+use super::texture::Texture;
+use super::{Camera, Geometry, Group, Material, Object, RenderSettings, Scene, Tri};
+use crate::geometry::{shapes, Bvh, TriangleMesh};
+use crate::math::{Mat3, Rgb, Vec2, Vec3};
+use glam::{Affine3A, EulerRot, Quat};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Reads and checks a scene file. Relative paths inside it are relative to its folder.
+pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    parse_scene(&text, path)
+}
+
+/// Parses scene text as if it were the file at `path`.
+pub fn parse_scene(text: &str, path: &Path) -> Result<Scene, SceneError> {
+    let file: SceneFile = toml::from_str(text).map_err(|e| SceneError::Toml {
+        path: path.to_owned(),
+        message: with_suggestion(&e.to_string()),
+    })?;
+    build_scene(file, text, path)
+}
+
+/// 1-based line of a byte offset.
+fn line_of(text: &str, offset: usize) -> usize {
+    text.as_bytes()[..offset.min(text.len())]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+        + 1
+}
+
+/// Adds "did you mean `x`?" to serde's "unknown field `y`, expected one of `a`, `b`" messages.
+fn with_suggestion(msg: &str) -> String {
+    let Some(pos) = msg
+        .find("unknown field `")
+        .or_else(|| msg.find("unknown variant `"))
+    else {
+        return msg.to_string();
+    };
+    let rest = &msg[pos..];
+    let start = rest.find('`').unwrap() + 1;
+    let Some(len) = rest[start..].find('`') else {
+        return msg.to_string();
+    };
+    let bad = &rest[start..start + len];
+    let candidates: Vec<&str> = rest[start + len + 1..]
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .collect();
+    let best = candidates
+        .iter()
+        .map(|c| (strsim::damerau_levenshtein(bad, c), *c))
+        .min();
+    match best {
+        Some((d, c)) if d <= 3.max(bad.len() / 3) => {
+            format!("{}\n(did you mean `{c}`?)", msg.trim_end())
+        }
+        _ => msg.to_string(),
+    }
+}
+
+struct Ctx<'a> {
+    path: &'a Path,
+    text: &'a str,
+    dir: PathBuf,
+}
+
+impl Ctx<'_> {
+    fn at(&self, offset: usize, message: String) -> SceneError {
+        SceneError::At {
+            path: self.path.to_owned(),
+            line: line_of(self.text, offset),
+            message,
+        }
+    }
+    fn whole(&self, message: String) -> SceneError {
+        SceneError::Scene {
+            path: self.path.to_owned(),
+            message,
+        }
+    }
+}
+
+fn build_scene(file: SceneFile, text: &str, path: &Path) -> Result<Scene, SceneError> {
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let cx = Ctx { path, text, dir };
+    let camera = build_camera(&file, &cx)?;
+    let render = build_render(&file, &cx)?;
+
+    // Groups: declared ones first (with their options), then those objects name.
+    let mut groups: Vec<Group> = Vec::new();
+    let mut group_ix: HashMap<String, usize> = HashMap::new();
+    for g in &file.groups {
+        let name = g.name.get_ref();
+        if name.trim().is_empty() {
+            return Err(cx.at(g.name.span().start, "a group has an empty name".into()));
+        }
+        if group_ix.contains_key(name) {
+            return Err(cx.at(
+                g.name.span().start,
+                format!("group '{name}' is declared twice"),
+            ));
+        }
+        group_ix.insert(name.clone(), groups.len());
+        groups.push(Group {
+            name: name.clone(),
+            objects: Vec::new(),
+            fixed: g.fixed,
+        });
+    }
+    if file.objects.is_empty() {
+        return Err(cx.whole("the scene has no objects (add [[object]] tables)".into()));
+    }
+
+    let mut objects = Vec::new();
+    let mut meshes = Vec::new();
+    let mut seen: HashMap<&str, usize> = HashMap::new();
+    for spec in &file.objects {
+        let name = spec.name.get_ref();
+        let off = spec.name.span().start;
+        if name.trim().is_empty() {
+            return Err(cx.at(off, "an object has an empty name".into()));
+        }
+        if let Some(prev) = seen.insert(name.as_str(), off) {
+            return Err(cx.at(
+                off,
+                format!(
+                    "object '{name}' is defined twice (first at line {})",
+                    line_of(text, prev)
+                ),
+            ));
+        }
+        let Some(gname) = &spec.group else {
+            return Err(cx.at(
+                off,
+                format!("object '{name}' is in no group: add `group = \"...\"`"),
+            ));
+        };
+        let g = *group_ix.entry(gname.get_ref().clone()).or_insert_with(|| {
+            groups.push(Group {
+                name: gname.get_ref().clone(),
+                objects: Vec::new(),
+                fixed: false,
+            });
+            groups.len() - 1
+        });
+        let mut mesh = build_shape(spec, &cx)?;
+        if let Some(t) = &spec.transform {
+            mesh.transform(&transform_of(t));
+        }
+        // Problems of the mesh itself point at its `file` (or, for built-in shapes, `shape`) line.
+        let shape_off = spec
+            .file
+            .as_ref()
+            .map_or(spec.shape.span().start, |f| f.span().start);
+        mesh.validate()
+            .map_err(|p| cx.at(shape_off, format!("object '{name}': {p}")))?;
+        let area = mesh.area();
+        let emission = match &spec.emission {
+            None => Rgb::ZERO,
+            Some(e) => {
+                let c = Rgb::from(e.get_ref().0);
+                if !c.is_finite() || c.min_element() < 0.0 {
+                    return Err(cx.at(
+                        e.span().start,
+                        format!(
+                            "object '{name}': emission must be finite and non-negative, got {:?}",
+                            e.get_ref().0
+                        ),
+                    ));
+                }
+                if c.max_element() > 0.0 && !(area > 0.0) {
+                    return Err(cx.at(off, format!("light '{name}' has zero area")));
+                }
+                c
+            }
+        };
+        let material = match &spec.material {
+            Some(m) => build_material(m.get_ref(), &cx)
+                .map_err(|msg| cx.at(m.span().start, format!("object '{name}': {msg}")))?,
+            None if emission.max_element() > 0.0 => Material::Black,
+            None => Material::Diffuse {
+                rho_d: Rgb::splat(0.5),
+            },
+        };
+        let tangent = match spec.tangent {
+            Some(t) => {
+                let t = Vec3::from(t);
+                if !t.is_finite() || t.length_squared() == 0.0 {
+                    return Err(cx.at(
+                        off,
+                        format!("object '{name}': tangent must be a non-zero finite vector"),
+                    ));
+                }
+                Some(t.normalize())
+            }
+            None => None,
+        };
+        groups[g].objects.push(objects.len());
+        objects.push(Object {
+            name: name.clone(),
+            group: g,
+            material,
+            emission,
+            tangent,
+            tri_range: 0..0,
+            area,
+            line: line_of(text, off),
+        });
+        meshes.push(mesh);
+    }
+    if let Some(g) = groups.iter().find(|g| g.objects.is_empty()) {
+        return Err(cx.whole(format!(
+            "group '{}' is declared but no object is in it",
+            g.name
+        )));
+    }
+
+    let geometry = build_geometry(&mut objects, meshes);
+    let scene = Scene {
+        path: path.to_owned(),
+        camera,
+        render,
+        groups,
+        objects,
+        geometry: Arc::new(geometry),
+        source: file,
+    };
+    check_camera_sees_geometry(&scene, &cx)?;
+    Ok(scene)
+}
+
+fn build_render(file: &SceneFile, cx: &Ctx) -> Result<RenderSettings, SceneError> {
+    let mut r = RenderSettings::default();
+    if let Some(spec) = &file.render {
+        if let Some(spp) = spec.spp {
+            if spp == 0 {
+                return Err(cx.whole("[render] spp must be at least 1".into()));
+            }
+            r.spp = spp;
+        }
+        if let Some(d) = spec.max_depth {
+            r.max_depth = d;
+        }
+        if let Some(s) = spec.seed {
+            r.seed = s;
+        }
+        if let Some(v) = spec.ward_variant {
+            r.ward_variant = v;
+        }
+    }
+    Ok(r)
+}
+
+fn build_camera(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {
+    let c = &file.camera;
+    if c.width == 0 || c.height == 0 || c.width > 65536 || c.height > 65536 {
+        return Err(cx.whole(format!(
+            "[camera] width and height must be between 1 and 65536, got {}×{}",
+            c.width, c.height
+        )));
+    }
+    let look_at = [c.eye.is_some(), c.target.is_some(), c.fov_y_deg.is_some()];
+    let calib = [
+        c.fx.is_some(),
+        c.fy.is_some(),
+        c.cx.is_some(),
+        c.cy.is_some(),
+        c.rotation.is_some(),
+        c.translation.is_some(),
+    ];
+    let any_la = look_at.iter().any(|&b| b) || c.up.is_some();
+    let any_cal = calib.iter().any(|&b| b);
+    if any_la && any_cal {
+        return Err(cx.whole(
+            "[camera] mixes the look-at form (eye, target, up, fov_y_deg) with the calibrated form \
+             (fx, fy, cx, cy, rotation, translation): give one"
+                .into(),
+        ));
+    }
+    let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
+    if any_cal {
+        let names = ["fx", "fy", "cx", "cy", "rotation", "translation"];
+        let missing: Vec<&str> = names
+            .iter()
+            .zip(calib)
+            .filter(|(_, b)| !b)
+            .map(|(n, _)| *n)
+            .collect();
+        if !missing.is_empty() {
+            return Err(cx.whole(format!(
+                "[camera] calibrated form lacks {}",
+                missing.join(", ")
+            )));
+        }
+        let rot = c.rotation.unwrap();
+        let r = Mat3::from_cols_array_2d(&rot).transpose(); // rows in the file
+        let (fx, fy, ccx, ccy) = (c.fx.unwrap(), c.fy.unwrap(), c.cx.unwrap(), c.cy.unwrap());
+        let t = c.translation.unwrap();
+        if !finite(&[fx, fy, ccx, ccy]) || !finite(&t) || !finite(rot.as_flattened()) {
+            return Err(cx.whole("[camera] has a NaN or infinite value".into()));
+        }
+        Camera::calibrated(c.width, c.height, fx, fy, ccx, ccy, r, Vec3::from(t)).ok_or_else(|| {
+            cx.whole("[camera] rotation must be a rotation matrix (orthonormal rows, determinant +1) and fx, fy > 0".into())
+        })
+    } else {
+        let names = ["eye", "target", "fov_y_deg"];
+        let missing: Vec<&str> = names
+            .iter()
+            .zip(look_at)
+            .filter(|(_, b)| !b)
+            .map(|(n, _)| *n)
+            .collect();
+        if !missing.is_empty() {
+            return Err(cx.whole(format!(
+                "[camera] lacks {} (give eye, target, fov_y_deg and optionally up; or fx, fy, cx, cy, rotation, translation)",
+                missing.join(", ")
+            )));
+        }
+        let (eye, target, up) = (
+            c.eye.unwrap(),
+            c.target.unwrap(),
+            c.up.unwrap_or([0.0, 1.0, 0.0]),
+        );
+        if !finite(&eye) || !finite(&target) || !finite(&up) || !c.fov_y_deg.unwrap().is_finite() {
+            return Err(cx.whole("[camera] has a NaN or infinite value".into()));
+        }
+        Camera::look_at(c.width, c.height, eye.into(), target.into(), up.into(), c.fov_y_deg.unwrap()).ok_or_else(|| {
+            cx.whole("[camera] eye and target must differ, up must not be parallel to the view direction, and fov_y_deg must be in (0, 180)".into())
+        })
+    }
+}
+
+fn build_shape(spec: &ObjectSpec, cx: &Ctx) -> Result<TriangleMesh, SceneError> {
+    let name = spec.name.get_ref();
+    let off = spec.shape.span().start;
+    let need = |v: Option<[f32; 3]>, key: &str| -> Result<Vec3, SceneError> {
+        let v = v.ok_or_else(|| {
+            cx.at(
+                off,
+                format!(
+                    "object '{name}': shape '{:?}' needs `{key}`",
+                    spec.shape.get_ref()
+                )
+                .to_lowercase(),
+            )
+        })?;
+        if !v.iter().all(|x| x.is_finite()) {
+            return Err(cx.at(
+                off,
+                format!("object '{name}': `{key}` has a NaN or infinite value"),
+            ));
+        }
+        Ok(Vec3::from(v))
+    };
+    Ok(match spec.shape.get_ref() {
+        ShapeKind::Quad => {
+            let (c, u, v) = (
+                need(spec.corner, "corner")?,
+                need(spec.edge_u, "edge_u")?,
+                need(spec.edge_v, "edge_v")?,
+            );
+            shapes::quad(c, u, v)
+        }
+        ShapeKind::Box => {
+            let (lo, hi) = (need(spec.min, "min")?, need(spec.max, "max")?);
+            if !(hi.cmpgt(lo).all()) {
+                return Err(cx.at(
+                    off,
+                    format!("object '{name}': box `max` must exceed `min` on every axis"),
+                ));
+            }
+            shapes::cuboid(lo, hi)
+        }
+        ShapeKind::Sphere => {
+            let c = need(spec.center, "center")?;
+            let r = spec.radius.ok_or_else(|| {
+                cx.at(
+                    off,
+                    format!("object '{name}': shape 'sphere' needs `radius`"),
+                )
+            })?;
+            if !(r > 0.0 && r.is_finite()) {
+                return Err(cx.at(
+                    off,
+                    format!("object '{name}': sphere radius must be positive, got {r}"),
+                ));
+            }
+            shapes::sphere(c, r, spec.segments.unwrap_or(64).clamp(8, 4096))
+        }
+        ShapeKind::Mesh => {
+            let file = spec
+                .file
+                .as_ref()
+                .ok_or_else(|| cx.at(off, format!("object '{name}': shape 'mesh' needs `file`")))?;
+            let p = cx.dir.join(file.get_ref());
+            super::meshio::load_mesh(&p)
+                .map_err(|msg| cx.at(file.span().start, format!("object '{name}': {msg}")))?
+        }
+    })
+}
+
+fn transform_of(t: &super::schema::TransformSpec) -> Affine3A {
+    let s = t.scale.map(|c| Vec3::from(c.0)).unwrap_or(Vec3::ONE);
+    let r = t
+        .rotate_deg
+        .map(|[x, y, z]| {
+            Quat::from_euler(
+                EulerRot::ZYX,
+                z.to_radians(),
+                y.to_radians(),
+                x.to_radians(),
+            )
+        })
+        .unwrap_or(Quat::IDENTITY);
+    let tr = t.translate.map(Vec3::from).unwrap_or(Vec3::ZERO);
+    Affine3A::from_scale_rotation_translation(s, r, tr)
+}
+
+fn color(c: &Color, key: &str) -> Result<Rgb, String> {
+    let v = Rgb::from(c.0);
+    if !v.is_finite() || v.min_element() < 0.0 {
+        return Err(format!(
+            "`{key}` must be finite and non-negative, got {:?}",
+            c.0
+        ));
+    }
+    Ok(v)
+}
+
+/// Turns a material table into a material; the message says what is wrong.
+fn build_material(m: &MaterialSpec, cx_dir: &Ctx) -> Result<Material, String> {
+    build_material_in(m, &cx_dir.dir)
+}
+
+/// Same, resolving texture paths against `dir`.
+pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, String> {
+    let alpha_ok = |a: f32, key: &str| {
+        if a > 0.0 && a.is_finite() {
+            Ok(a)
+        } else {
+            Err(format!("`{key}` must be positive, got {a}"))
+        }
+    };
+    Ok(match m {
+        MaterialSpec::Diffuse { rho_d } => Material::Diffuse {
+            rho_d: color(rho_d, "rho_d")?,
+        },
+        MaterialSpec::Mirror { rho_s } => Material::Mirror {
+            rho_s: color(rho_s, "rho_s")?,
+        },
+        MaterialSpec::DiffuseMirror { rho_d, rho_s } => Material::DiffuseMirror {
+            rho_d: color(rho_d, "rho_d")?,
+            rho_s: color(rho_s, "rho_s")?,
+        },
+        MaterialSpec::Ward {
+            rho_d,
+            rho_s,
+            alpha,
+            alpha_x,
+            alpha_y,
+            theta_deg,
+        } => {
+            let (ax, ay) = match (alpha, alpha_x, alpha_y) {
+                (Some(a), None, None) => (alpha_ok(*a, "alpha")?, alpha_ok(*a, "alpha")?),
+                (None, Some(x), Some(y)) => (alpha_ok(*x, "alpha_x")?, alpha_ok(*y, "alpha_y")?),
+                _ => return Err("a ward material takes either `alpha` (isotropic) or both `alpha_x` and `alpha_y`".into()),
+            };
+            let theta = theta_deg.unwrap_or(0.0);
+            if !theta.is_finite() {
+                return Err("`theta_deg` must be finite".into());
+            }
+            Material::Ward {
+                rho_d: color(rho_d, "rho_d")?,
+                rho_s: color(rho_s, "rho_s")?,
+                alpha_x: ax,
+                alpha_y: ay,
+                theta: theta.to_radians(),
+            }
+        }
+        MaterialSpec::Textured { texture, scale } => {
+            let p = dir.join(texture);
+            let img = crate::io::image::read_linear(&p).map_err(|e| format!("texture: {e}"))?;
+            Material::Textured {
+                texture: Arc::new(Texture {
+                    width: img.width,
+                    height: img.height,
+                    texels: img.data,
+                    path: PathBuf::from(texture),
+                }),
+                scale: match scale {
+                    Some(s) => color(s, "scale")?,
+                    None => Rgb::ONE,
+                },
+            }
+        }
+        MaterialSpec::Black => Material::Black,
+    })
+}
+
+fn build_geometry(objects: &mut [Object], meshes: Vec<TriangleMesh>) -> Geometry {
+    let mut g = Geometry {
+        positions: Vec::new(),
+        normals: Vec::new(),
+        uvs: Vec::new(),
+        tris: Vec::new(),
+        bvh: Bvh::build(&[]),
+    };
+    for (oi, (obj, mut m)) in objects.iter_mut().zip(meshes).enumerate() {
+        let base = g.positions.len() as u32;
+        let first = g.tris.len() as u32;
+        if m.normals.is_none() {
+            // Flat shading: one vertex per triangle corner so each carries its face normal.
+            let mut flat = TriangleMesh::default();
+            let mut uvs = Vec::new();
+            for (i, tri) in m.indices.iter().enumerate() {
+                let [a, b, c] = m.triangle(i);
+                let n = (b - a).cross(c - a).normalize();
+                let k = flat.positions.len() as u32;
+                flat.positions.extend([a, b, c]);
+                flat.indices.push([k, k + 1, k + 2]);
+                flat.normals.get_or_insert_with(Vec::new).extend([n, n, n]);
+                if let Some(uv) = &m.uvs {
+                    uvs.extend(tri.map(|j| uv[j as usize]));
+                }
+            }
+            flat.uvs = m.uvs.is_some().then_some(uvs);
+            m = flat;
+        }
+        g.positions.extend_from_slice(&m.positions);
+        g.normals.extend_from_slice(m.normals.as_ref().unwrap());
+        match &m.uvs {
+            Some(uv) => g.uvs.extend_from_slice(uv),
+            None => g
+                .uvs
+                .extend(std::iter::repeat_n(Vec2::ZERO, m.positions.len())),
+        }
+        g.tris.extend(m.indices.iter().map(|t| Tri {
+            v: [t[0] + base, t[1] + base, t[2] + base],
+            object: oi as u32,
+        }));
+        obj.tri_range = first..g.tris.len() as u32;
+    }
+    let tri_pos: Vec<[Vec3; 3]> = g
+        .tris
+        .iter()
+        .map(|t| t.v.map(|i| g.positions[i as usize]))
+        .collect();
+    g.bvh = Bvh::build(&tri_pos);
+    g
+}
+
+fn check_camera_sees_geometry(scene: &Scene, cx: &Ctx) -> Result<(), SceneError> {
+    let cam = &scene.camera;
+    let n = 24;
+    for j in 0..n {
+        for i in 0..n {
+            let film = Vec2::new(
+                (i as f32 + 0.5) / n as f32 * cam.width as f32,
+                (j as f32 + 0.5) / n as f32 * cam.height as f32,
+            );
+            if scene.intersect(&cam.ray(film), f32::INFINITY).is_some() {
+                return Ok(());
+            }
+        }
+    }
+    Err(cx.whole(format!(
+        "the camera at {:?} sees no geometry (scene bounds {:?} to {:?})",
+        cam.eye(),
+        scene.geometry.bvh.bounds().min,
+        scene.geometry.bvh.bounds().max
+    )))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn suggestion_picks_nearest_key() {
+        let m = with_suggestion(
+            "unknown field `fovy_deg`, expected one of `width`, `fov_y_deg`, `eye`",
+        );
+        assert!(m.contains("did you mean `fov_y_deg`?"), "{m}");
+        let m = with_suggestion("unknown variant `quadd`, expected one of `quad`, `box`");
+        assert!(m.contains("did you mean `quad`?"), "{m}");
+    }
+}

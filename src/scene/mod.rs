@@ -1,0 +1,183 @@
+//! Scenes: the TOML schema, mesh loaders, cameras, materials, and the loaded [`Scene`] that the
+//! renderer and the fitter read.
+
+pub mod camera;
+pub mod error;
+pub mod load;
+pub mod material;
+pub mod meshio;
+pub mod schema;
+pub mod texture;
+pub mod write;
+
+pub use camera::Camera;
+pub use error::SceneError;
+pub use load::load_scene;
+pub use material::{Material, WardVariant};
+
+use crate::geometry::{Bvh, Hit, Ray};
+use crate::math::{Frame, Rgb, Vec2, Vec3};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+/// Render settings of a scene (the `[render]` table).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSettings {
+    pub spp: u32,
+    pub max_depth: u32,
+    pub seed: u64,
+    pub ward_variant: WardVariant,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            spp: 64,
+            max_depth: 8,
+            seed: 0,
+            ward_variant: WardVariant::Ward1992,
+        }
+    }
+}
+
+/// A group: objects assumed to share one reflectance (§3.1 of the notes).
+#[derive(Clone, Debug)]
+pub struct Group {
+    pub name: String,
+    /// Objects of this group, as indices into `Scene::objects`.
+    pub objects: Vec<usize>,
+    /// A fixed group keeps the material the scene gives it; `recover` does not fit it.
+    pub fixed: bool,
+}
+
+/// One object of the scene: its place in the triangle list, its group, its surface.
+#[derive(Clone, Debug)]
+pub struct Object {
+    pub name: String,
+    pub group: usize,
+    pub material: Material,
+    /// Emitted radiance (front side only); zero for objects that are not lights.
+    pub emission: Rgb,
+    /// Reference direction of the anisotropy angle θ (world space), if given.
+    pub tangent: Option<Vec3>,
+    /// Range of this object's triangles in `Geometry::tris`.
+    pub tri_range: std::ops::Range<u32>,
+    /// Total area (world units²).
+    pub area: f32,
+    /// Line of the object's entry in the scene file (1-based), for messages.
+    pub line: usize,
+}
+
+impl Object {
+    pub fn is_emitter(&self) -> bool {
+        self.emission.max_element() > 0.0
+    }
+}
+
+/// A triangle of the scene: vertex indices into the shared arrays and its object.
+#[derive(Clone, Copy, Debug)]
+pub struct Tri {
+    pub v: [u32; 3],
+    pub object: u32,
+}
+
+/// The immutable geometry of a scene, shared between the scene and its edited copies.
+pub struct Geometry {
+    pub positions: Vec<Vec3>,
+    /// Shading normals per vertex (the geometric normal where the source had none).
+    pub normals: Vec<Vec3>,
+    pub uvs: Vec<Vec2>,
+    pub tris: Vec<Tri>,
+    pub bvh: Bvh,
+}
+
+/// A loaded scene. Cloning is cheap: the geometry is shared; materials are per clone, which is
+/// how the fitter tries new parameters.
+#[derive(Clone)]
+pub struct Scene {
+    pub path: PathBuf,
+    pub camera: Camera,
+    pub render: RenderSettings,
+    pub groups: Vec<Group>,
+    pub objects: Vec<Object>,
+    pub geometry: Arc<Geometry>,
+    /// Groups' options and everything else of the source, for writing the scene back out.
+    pub source: schema::SceneFile,
+}
+
+/// Everything the renderer needs to know about a ray's hit point.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceHit {
+    pub p: Vec3,
+    pub t: f32,
+    /// Geometric normal, as wound (front side), unit length.
+    pub ng: Vec3,
+    /// Shading frame; its normal is the interpolated normal.
+    pub frame: Frame,
+    pub uv: Vec2,
+    pub object: u32,
+    pub prim: u32,
+}
+
+impl Scene {
+    pub fn group_index(&self, name: &str) -> Option<usize> {
+        self.groups.iter().position(|g| g.name == name)
+    }
+
+    /// The closest surface along `ray` within `t_max`.
+    pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<SurfaceHit> {
+        let hit = self.geometry.bvh.intersect(ray, t_max)?;
+        Some(self.surface_hit(ray, &hit))
+    }
+
+    pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
+        self.geometry.bvh.occluded(ray, t_max)
+    }
+
+    /// Expands a BVH hit into positions, normals, UVs and the shading frame.
+    pub fn surface_hit(&self, _ray: &Ray, hit: &Hit) -> SurfaceHit {
+        let g = &*self.geometry;
+        let tri = g.tris[hit.prim as usize];
+        let [i0, i1, i2] = tri.v.map(|i| i as usize);
+        let (p0, p1, p2) = (g.positions[i0], g.positions[i1], g.positions[i2]);
+        let b0 = 1.0 - hit.b1 - hit.b2;
+        let p = p0 * b0 + p1 * hit.b1 + p2 * hit.b2;
+        let ng = (p1 - p0).cross(p2 - p0).normalize();
+        let mut ns = (g.normals[i0] * b0 + g.normals[i1] * hit.b1 + g.normals[i2] * hit.b2)
+            .normalize_or_zero();
+        if ns == Vec3::ZERO || !ns.is_finite() {
+            ns = ng;
+        }
+        let (uv0, uv1, uv2) = (g.uvs[i0], g.uvs[i1], g.uvs[i2]);
+        let uv = uv0 * b0 + uv1 * hit.b1 + uv2 * hit.b2;
+        let obj = &self.objects[tri.object as usize];
+        let frame = match obj.tangent {
+            Some(t) => Frame::from_normal_tangent(ns, t),
+            None => {
+                // dp/du from the triangle's UV parametrisation, if it is not degenerate.
+                let (duv1, duv2) = (uv1 - uv0, uv2 - uv0);
+                let det = duv1.x * duv2.y - duv1.y * duv2.x;
+                if det.abs() > 1e-12 {
+                    let dpdu = ((p1 - p0) * duv2.y - (p2 - p0) * duv1.y) / det;
+                    Frame::from_normal_tangent(ns, dpdu)
+                } else {
+                    Frame::from_normal(ns)
+                }
+            }
+        };
+        SurfaceHit {
+            p,
+            t: hit.t,
+            ng,
+            frame,
+            uv,
+            object: tri.object,
+            prim: hit.prim,
+        }
+    }
+
+    /// The number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.geometry.tris.len()
+    }
+}

@@ -1,0 +1,252 @@
+//! The scene file's TOML schema, as serde types. Unknown keys are errors (with the nearest valid
+//! key suggested by `load.rs`). Loading turns this into a [`crate::scene::Scene`]; `write.rs`
+//! turns a scene back into it.
+//!
+//! ```toml
+//! [render]                      # optional
+//! spp = 64
+//! max_depth = 8
+//! seed = 0
+//! ward_variant = "ward1992"     # or "balanced"
+//!
+//! [camera]
+//! width = 512
+//! height = 384
+//! eye = [0, 1, 3]               # look-at form ...
+//! target = [0, 1, 0]
+//! up = [0, 1, 0]
+//! fov_y_deg = 40
+//! # fx = 500, fy = 500, cx = 255.5, cy = 191.5      # ... or the calibrated (OpenCV) form:
+//! # rotation = [[1,0,0],[0,-1,0],[0,0,-1]]         # world-to-camera R (rows)
+//! # translation = [0, 1, 3]                         # world-to-camera t: x_cam = R x + t
+//!
+//! [[group]]                     # optional: groups named by objects exist anyway
+//! name = "floor"
+//! fixed = false
+//!
+//! [[object]]
+//! name = "floor"
+//! group = "floor"
+//! shape = "quad"                # quad | box | sphere | mesh
+//! corner = [-1, 0, 1]
+//! edge_u = [2, 0, 0]
+//! edge_v = [0, 0, -2]
+//! tangent = [1, 0, 0]           # optional reference axis of the anisotropy angle
+//! material = { type = "ward", rho_d = 0.1, rho_s = 0.9, alpha_x = 0.07, alpha_y = 0.11, theta_deg = 0 }
+//! # emission = [10, 10, 10]     # makes the object an area light (front side, along edge_u × edge_v)
+//! ```
+
+use serde::{Deserialize, Serialize};
+use toml::Spanned;
+
+#[derive(Clone, Debug, Deserialize, Serialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub render: Option<RenderSpec>,
+    pub camera: CameraSpec,
+    #[serde(default, rename = "group", skip_serializing_if = "Vec::is_empty")]
+    pub groups: Vec<GroupSpec>,
+    #[serde(default, rename = "object")]
+    pub objects: Vec<ObjectSpec>,
+}
+
+#[derive(Clone, Debug, Deserialize, Serialize, Default, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RenderSpec {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spp: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_depth: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ward_variant: Option<crate::scene::WardVariant>,
+}
+
+#[derive(Clone, Debug, Deserialize, Serialize, Default, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSpec {
+    pub width: u32,
+    pub height: u32,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub eye: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub up: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fov_y_deg: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fx: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fy: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cx: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cy: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotation: Option<[[f32; 3]; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub translation: Option<[f32; 3]>,
+}
+
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct GroupSpec {
+    pub name: Spanned<String>,
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub fixed: bool,
+}
+
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectSpec {
+    pub name: Spanned<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub group: Option<Spanned<String>>,
+    pub shape: Spanned<ShapeKind>,
+    // quad
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub corner: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub edge_u: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub edge_v: Option<[f32; 3]>,
+    // box
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max: Option<[f32; 3]>,
+    // sphere
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub center: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub segments: Option<u32>,
+    // mesh
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub file: Option<Spanned<String>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub transform: Option<TransformSpec>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tangent: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub material: Option<Spanned<MaterialSpec>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub emission: Option<Spanned<Color>>,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum ShapeKind {
+    Quad,
+    Box,
+    Sphere,
+    Mesh,
+}
+
+/// Applied in the order scale, rotate (X then Y then Z, degrees), translate.
+#[derive(Clone, Debug, Deserialize, Serialize, Default, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TransformSpec {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale: Option<Color>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotate_deg: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub translate: Option<[f32; 3]>,
+}
+
+/// An RGB triple, written either as one number (grey) or as `[r, g, b]`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(into = "ColorOut")]
+pub struct Color(pub [f32; 3]);
+
+#[derive(Serialize)]
+#[serde(untagged)]
+enum ColorOut {
+    Grey(f32),
+    Rgb([f32; 3]),
+}
+
+impl From<Color> for ColorOut {
+    fn from(c: Color) -> ColorOut {
+        let [r, g, b] = c.0;
+        if r == g && g == b {
+            ColorOut::Grey(r)
+        } else {
+            ColorOut::Rgb(c.0)
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for Color {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Color, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = Color;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                write!(f, "a number or an array of three numbers [r, g, b]")
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<Color, E> {
+                Ok(Color([v as f32; 3]))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<Color, E> {
+                Ok(Color([v as f32; 3]))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut s: A) -> Result<Color, A::Error> {
+                let mut c = [0.0f32; 3];
+                for (i, slot) in c.iter_mut().enumerate() {
+                    *slot = s
+                        .next_element::<f32>()?
+                        .ok_or_else(|| serde::de::Error::invalid_length(i, &self))?;
+                }
+                if s.next_element::<f32>()?.is_some() {
+                    return Err(serde::de::Error::invalid_length(4, &self));
+                }
+                Ok(Color(c))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum MaterialSpec {
+    Diffuse {
+        rho_d: Color,
+    },
+    Mirror {
+        rho_s: Color,
+    },
+    DiffuseMirror {
+        rho_d: Color,
+        rho_s: Color,
+    },
+    Ward {
+        #[serde(default = "zero_color")]
+        rho_d: Color,
+        rho_s: Color,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        alpha: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        alpha_x: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        alpha_y: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        theta_deg: Option<f32>,
+    },
+    Textured {
+        texture: String,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        scale: Option<Color>,
+    },
+    Black,
+}
+
+fn zero_color() -> Color {
+    Color([0.0; 3])
+}

@@ -1,0 +1,34 @@
+//! Image textures over mesh UVs (bilinear, repeat), stored as linear RGB.
+
+use crate::math::{Rgb, Vec2};
+use std::path::PathBuf;
+
+#[derive(Debug)]
+pub struct Texture {
+    pub width: usize,
+    pub height: usize,
+    /// Row-major, top row first; linear RGB.
+    pub texels: Vec<Rgb>,
+    /// Where it came from (written back into scene files).
+    pub path: PathBuf,
+}
+
+impl Texture {
+    /// Bilinear lookup; v = 0 is the bottom row (OpenGL convention, as OBJ and glTF UVs... glTF
+    /// has v down, so loaders flip it to this convention).
+    pub fn lookup(&self, uv: Vec2) -> Rgb {
+        let x = (uv.x - uv.x.floor()) * self.width as f32 - 0.5;
+        let y = (1.0 - (uv.y - uv.y.floor())) * self.height as f32 - 0.5;
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let at = |xi: i64, yi: i64| {
+            let xi = xi.rem_euclid(self.width as i64) as usize;
+            let yi = yi.rem_euclid(self.height as i64) as usize;
+            self.texels[yi * self.width + xi]
+        };
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let top = at(x0, y0) * (1.0 - fx) + at(x0 + 1, y0) * fx;
+        let bottom = at(x0, y0 + 1) * (1.0 - fx) + at(x0 + 1, y0 + 1) * fx;
+        top * (1.0 - fy) + bottom * fy
+    }
+}

@@ -1,0 +1,5 @@
+//! End-to-end tests, in one binary (quicker to build on two cores than one binary per file).
+
+mod common;
+mod geometry;
+mod scene_errors;
