@@ -2,4 +2,5 @@
 
 mod common;
 mod geometry;
+mod render_physics;
 mod scene_errors;

@@ -1,0 +1,246 @@
+//! The path tracer against analytic answers (the kind pbrt-v4's integrators_test keeps).
+
+use crate::common::{run, write, SMALL_SCENE};
+use matfit::math::Rgb;
+use matfit::render::film::{render, RenderOptions};
+use matfit::scene::load::parse_scene;
+use std::path::Path;
+
+fn scene(text: &str) -> matfit::scene::Scene {
+    parse_scene(text, Path::new("inline.toml")).unwrap()
+}
+
+/// Six inward-facing quads of a cube [-1, 1]³, each with `material` and `emission`.
+fn enclosure(material: &str, emission: &str) -> String {
+    let faces = [
+        (
+            "px",
+            "[1.0, -1.0, -1.0]",
+            "[0.0, 0.0, 2.0]",
+            "[0.0, 2.0, 0.0]",
+        ),
+        (
+            "nx",
+            "[-1.0, -1.0, -1.0]",
+            "[0.0, 2.0, 0.0]",
+            "[0.0, 0.0, 2.0]",
+        ),
+        (
+            "py",
+            "[-1.0, 1.0, -1.0]",
+            "[2.0, 0.0, 0.0]",
+            "[0.0, 0.0, 2.0]",
+        ),
+        (
+            "ny",
+            "[-1.0, -1.0, -1.0]",
+            "[0.0, 0.0, 2.0]",
+            "[2.0, 0.0, 0.0]",
+        ),
+        (
+            "pz",
+            "[-1.0, -1.0, 1.0]",
+            "[0.0, 2.0, 0.0]",
+            "[2.0, 0.0, 0.0]",
+        ),
+        (
+            "nz",
+            "[-1.0, -1.0, -1.0]",
+            "[2.0, 0.0, 0.0]",
+            "[0.0, 2.0, 0.0]",
+        ),
+    ];
+    faces
+        .iter()
+        .map(|(n, c, u, v)| {
+            format!(
+                "[[object]]\nname = \"{n}\"\ngroup = \"walls\"\nshape = \"quad\"\ncorner = {c}\nedge_u = {u}\nedge_v = {v}\n\
+                 material = {material}\nemission = {emission}\n"
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn white_furnace_converges_to_le_over_one_minus_rho() {
+    // Every wall emits Le = 0.5 and reflects ρ = 0.5: L = Le Σ ρᵏ = Le / (1 − ρ) = 1 everywhere.
+    let text = format!(
+        "[render]\nmax_depth = 1000\n[camera]\nwidth = 16\nheight = 16\neye = [0.1, 0.2, 0.3]\ntarget = [0.5, -0.4, -1.0]\nfov_y_deg = 90.0\n{}",
+        enclosure("{ type = \"diffuse\", rho_d = 0.5 }", "0.5")
+    );
+    let sc = scene(&text);
+    // Inward-facing check: the camera sees the walls' front sides.
+    let img = render(
+        &sc,
+        &sc.camera,
+        &RenderOptions {
+            spp: 256,
+            seed: 3,
+            progress: false,
+        },
+    );
+    let mean = img.mean();
+    assert!(
+        (mean - Rgb::ONE).abs().max_element() < 0.01,
+        "furnace mean {mean}"
+    );
+    let worst = img
+        .data
+        .iter()
+        .map(|c| (c.x - 1.0).abs())
+        .fold(0.0, f32::max);
+    assert!(worst < 0.1, "worst pixel off by {worst}");
+}
+
+/// Form factor from a differential area to a parallel rectangle a × b at height c, with the
+/// area under one corner (Howell's catalogue, C-11).
+fn form_factor_corner(a: f64, b: f64, c: f64) -> f64 {
+    let (x, y) = (a / c, b / c);
+    let (sx, sy) = ((1.0 + x * x).sqrt(), (1.0 + y * y).sqrt());
+    (x / sx * (y / sx).atan() + y / sy * (x / sy).atan()) / (2.0 * std::f64::consts::PI)
+}
+
+#[test]
+fn lambert_plane_under_a_quad_light_matches_the_form_factor() {
+    // Floor ρ = 0.5 at y = 0; emitter 0.8 × 0.6 at height 0.5, centred above the origin, facing
+    // down, radiance 3. Direct light only. Radiance of the floor at the origin:
+    // L = ρ/π · E = ρ · Le · F, with F = 4 F_corner(0.4, 0.3, 0.5) by symmetry.
+    let text = r#"
+[render]
+max_depth = 2
+[camera]
+width = 3
+height = 3
+eye = [0.0, 0.25, 0.0]
+target = [0.0, 0.0, 0.0]
+up = [0.0, 0.0, -1.0]
+fov_y_deg = 0.5
+[[object]]
+name = "floor"
+group = "floor"
+shape = "quad"
+corner = [-5.0, 0.0, 5.0]
+edge_u = [10.0, 0.0, 0.0]
+edge_v = [0.0, 0.0, -10.0]
+material = { type = "diffuse", rho_d = 0.5 }
+[[object]]
+name = "lamp"
+group = "lamp"
+shape = "quad"
+corner = [-0.4, 0.5, -0.3]
+edge_u = [0.8, 0.0, 0.0]
+edge_v = [0.0, 0.0, 0.6]
+emission = 3.0
+"#;
+    let sc = scene(text);
+    let img = render(
+        &sc,
+        &sc.camera,
+        &RenderOptions {
+            spp: 16384,
+            seed: 5,
+            progress: false,
+        },
+    );
+    let l = img.get(1, 1).x as f64;
+    let expected = 0.5 * 3.0 * 4.0 * form_factor_corner(0.4, 0.3, 0.5);
+    let rel = (l - expected).abs() / expected;
+    assert!(
+        rel < 0.005,
+        "floor radiance {l:.5} vs analytic {expected:.5} ({:.3}%)",
+        rel * 100.0
+    );
+}
+
+#[test]
+fn mirror_shows_the_emitter_times_rho_s() {
+    // A mirror floor of reflectance (0.7, 0.5, 0.3) seen at 45° reflects an emitter of radiance 2.
+    let text = r#"
+[render]
+max_depth = 3
+[camera]
+width = 5
+height = 5
+eye = [0.0, 1.0, 1.0]
+target = [0.0, 0.0, 0.0]
+fov_y_deg = 2.0
+[[object]]
+name = "floor"
+group = "floor"
+shape = "quad"
+corner = [-2.0, 0.0, 2.0]
+edge_u = [4.0, 0.0, 0.0]
+edge_v = [0.0, 0.0, -4.0]
+material = { type = "mirror", rho_s = [0.7, 0.5, 0.3] }
+[[object]]
+name = "lamp"
+group = "lamp"
+shape = "quad"
+corner = [-1.0, -1.0, -2.0]
+edge_u = [2.0, 0.0, 0.0]
+edge_v = [0.0, 4.0, 2.0]
+emission = 2.0
+"#;
+    let sc = scene(text);
+    let img = render(
+        &sc,
+        &sc.camera,
+        &RenderOptions {
+            spp: 16,
+            seed: 1,
+            progress: false,
+        },
+    );
+    let c = img.get(2, 2);
+    assert!(
+        (c - Rgb::new(1.4, 1.0, 0.6)).abs().max_element() < 1e-4,
+        "mirror pixel {c}"
+    );
+}
+
+#[test]
+fn same_seed_gives_bit_identical_images_on_one_and_two_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    write(dir.path(), "scene.toml", SMALL_SCENE);
+    let mut outputs = Vec::new();
+    for threads in ["1", "2"] {
+        let out = format!("t{threads}.pfm");
+        let (code, _, err) = run(
+            &[
+                "--threads",
+                threads,
+                "render",
+                "scene.toml",
+                "-o",
+                &out,
+                "--spp",
+                "8",
+                "--seed",
+                "9",
+            ],
+            dir.path(),
+        );
+        assert_eq!(code, 0, "{err}");
+        outputs.push(std::fs::read(dir.path().join(out)).unwrap());
+    }
+    assert_eq!(outputs[0], outputs[1]);
+    let (code, _, _) = run(
+        &[
+            "render",
+            "scene.toml",
+            "-o",
+            "s2.pfm",
+            "--spp",
+            "8",
+            "--seed",
+            "10",
+        ],
+        dir.path(),
+    );
+    assert_eq!(code, 0);
+    assert_ne!(
+        std::fs::read(dir.path().join("s2.pfm")).unwrap(),
+        outputs[0],
+        "another seed, another image"
+    );
+}
