@@ -12,5 +12,6 @@ pub mod bench;
 pub mod geometry;
 pub mod io;
 pub mod math;
+pub mod photo;
 pub mod render;
 pub mod scene;
