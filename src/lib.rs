@@ -9,9 +9,13 @@
 #![allow(clippy::too_many_arguments)]
 
 pub mod bench;
+pub mod cli_recover;
+pub mod demo;
+pub mod fit;
 pub mod geometry;
 pub mod io;
 pub mod math;
 pub mod photo;
 pub mod render;
+pub mod report;
 pub mod scene;

@@ -41,6 +41,30 @@ enum Command {
         #[arg(long, value_enum, default_value = "beauty")]
         aov: Aov,
     },
+    /// Recover the materials of a scene's groups from a photograph.
+    Recover {
+        scene: PathBuf,
+        photo: PathBuf,
+        /// Output folder (created if needed).
+        #[arg(short, long)]
+        output: PathBuf,
+        #[command(flatten)]
+        fit: FitArgs,
+        /// Linear radiance = photo value / exposure (default 1).
+        #[arg(long)]
+        exposure: Option<f32>,
+    },
+    /// Render the figure6 photo, recover its materials blind, print the Figure 6 table.
+    Demo {
+        /// Output folder; the photo is kept there for the next run.
+        #[arg(short, long, default_value = "out/demo")]
+        output: PathBuf,
+        /// Samples per pixel of the photo.
+        #[arg(long, default_value_t = 512)]
+        photo_spp: u32,
+        #[command(flatten)]
+        fit: FitArgs,
+    },
     /// Print a summary of a scene file (groups, objects, triangles, lights, camera).
     Info { scene: PathBuf },
     /// Benchmarks (figures for the issue notes, not tests).
@@ -48,6 +72,46 @@ enum Command {
         #[command(subcommand)]
         which: BenchCommand,
     },
+}
+
+/// Options of the fitting engine shared by `recover` and `demo`.
+#[derive(clap::Args, Clone)]
+struct FitArgs {
+    /// Random seed of the caches and the final render.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// At most this many global iterations.
+    #[arg(long, default_value_t = 16)]
+    max_iterations: u32,
+    /// Light samples per cached pixel.
+    #[arg(long, default_value_t = 32)]
+    light_samples: u32,
+    /// Indirect samples per cached pixel.
+    #[arg(long, default_value_t = 32)]
+    indirect_samples: u32,
+    /// At most this many cached pixels per group.
+    #[arg(long, default_value_t = 12000)]
+    max_pixels: usize,
+    /// Samples per pixel of the final render.
+    #[arg(long, default_value_t = 64)]
+    final_spp: u32,
+    /// Width in pixels of the band removed around every object boundary.
+    #[arg(long, default_value_t = 2)]
+    band: usize,
+}
+
+impl FitArgs {
+    fn options(&self) -> matfit::fit::RecoverOptions {
+        let mut o = matfit::fit::RecoverOptions::default();
+        o.seed = self.seed;
+        o.max_iterations = self.max_iterations.max(1);
+        o.cache.light_samples = self.light_samples.max(2);
+        o.cache.indirect_samples = self.indirect_samples.max(2);
+        o.cache.max_pixels = self.max_pixels.max(16);
+        o.final_spp = self.final_spp.max(2);
+        o.mask.band = self.band;
+        o
+    }
 }
 
 #[derive(Subcommand)]
@@ -130,6 +194,30 @@ fn run(cmd: Command) -> Result<()> {
                 other => aov_image(&sc, &sc.camera, other, ext == "png"),
             };
             img.write(&output).map_err(anyhow::Error::msg)?;
+            Ok(())
+        }
+        Command::Recover { scene, photo, output, fit, exposure } => {
+            let sc = load_scene(&scene)?;
+            let opts = matfit::photo::PhotoOptions { exposure, ..Default::default() };
+            let ph = matfit::photo::load_photo(&photo, sc.camera.width, sc.camera.height, &opts).map_err(anyhow::Error::msg)?;
+            std::fs::create_dir_all(&output).with_context(|| format!("cannot create the output folder {}", output.display()))?;
+            let rec = matfit::cli_recover::run_recover(&sc, &ph, &fit.options(), &output).map_err(anyhow::Error::msg)?;
+            for g in &rec.groups {
+                println!(
+                    "{:<14} {:<17} {:<10} fit ε {:.4} (noise {:.4})",
+                    g.name,
+                    g.level.name(),
+                    format!("{:?}", g.status).to_lowercase(),
+                    g.error,
+                    g.noise_floor
+                );
+            }
+            println!("outputs in {} ({:.1} s)", output.display(), rec.total_s);
+            Ok(())
+        }
+        Command::Demo { output, photo_spp, fit } => {
+            let opts = matfit::demo::DemoOptions { out: output, photo_spp, recover: fit.options() };
+            matfit::demo::run(&opts).map_err(anyhow::Error::msg)?;
             Ok(())
         }
         Command::Info { scene } => {

@@ -1,0 +1,287 @@
+//! The incident-radiance cache (DESIGN.md, "Making it fast" 1).
+//!
+//! For the usable pixels of a group, each pixel's samples are drawn once: a jittered primary ray
+//! (box filter, as the renderer does), then either a light sample (next-event estimation) or an
+//! indirect direction from the defensive mixture of `mixture.rs`, whose radiance is path-traced
+//! through the current scene. Each sample keeps (ωo, ωi) in its hit's shading frame and its
+//! weight c = Li cos θi · w_MIS / (pdf · N). For *any* BSDF parameters the pixel is then
+//!
+//!   L = ρd · D + ρs · Σ_s g(ωo, ωi; α) c_s,    D = Σ_s c_s / π
+//!
+//! (g the Ward lobe per unit ρs), or L = ρd · D + ρs · M for the ideal mirror levels, with M the
+//! pixel's radiance along the mirror direction. No new rays per trial; the same samples for
+//! every trial. MIS between the two sampling techniques uses the balance heuristic with sample
+//! counts, whose weights do not depend on the fitted parameters, so L stays linear in ρd, ρs.
+//!
+//! Samples are split into two halves (even and odd sample index) to measure the noise floor.
+
+use crate::geometry::{offset_origin, Ray};
+use crate::math::{Rgb, Sampler, Vec2, Vec3, INV_PI};
+use crate::render::integrator::facing;
+use crate::render::PathTracer;
+use crate::scene::Scene;
+use rayon::prelude::*;
+
+/// How many samples the cache draws.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize, PartialEq)]
+pub struct CacheOptions {
+    /// Light samples per pixel.
+    pub light_samples: u32,
+    /// Indirect (mixture) samples per pixel.
+    pub indirect_samples: u32,
+    /// Samples of the mirror direction per pixel.
+    pub mirror_samples: u32,
+    /// At most this many pixels per group (a regular subsample of the usable ones).
+    pub max_pixels: usize,
+    /// About this many tiles per group: the error is aggregated over tiles (square blocks of
+    /// the group's usable pixels), so that tiles grow with the group and noise stays low.
+    pub tiles_per_group: usize,
+}
+
+impl Default for CacheOptions {
+    fn default() -> Self {
+        CacheOptions {
+            light_samples: 32,
+            indirect_samples: 32,
+            mirror_samples: 8,
+            max_pixels: 12_000,
+            tiles_per_group: 48,
+        }
+    }
+}
+
+/// One cached incident sample, in the local shading frame of its hit (unrotated by θ).
+#[derive(Clone, Copy, Debug)]
+pub struct Sample {
+    pub wo: Vec3,
+    pub wi: Vec3,
+    pub c: Rgb,
+}
+
+/// One cached pixel.
+#[derive(Clone, Debug)]
+pub struct CachePixel {
+    /// Index of the pixel in the image.
+    pub pixel: u32,
+    /// The photo's value.
+    pub photo: Rgb,
+    /// D of the module comment, for all samples and for each half.
+    pub d: Rgb,
+    pub d_half: [Rgb; 2],
+    /// Radiance along the mirror direction (all samples, each half).
+    pub mirror: Rgb,
+    pub mirror_half: [Rgb; 2],
+    /// The pixel's samples: half 0 is `samples[start..mid]`, half 1 `samples[mid..end]`.
+    pub start: u32,
+    pub mid: u32,
+    pub end: u32,
+    /// Tile for error aggregation.
+    pub tile: u32,
+}
+
+/// The cache of one group.
+#[derive(Clone, Debug, Default)]
+pub struct GroupCache {
+    pub pixels: Vec<CachePixel>,
+    pub samples: Vec<Sample>,
+    pub tiles: usize,
+    /// Jittered primary rays that left the group (counted, dropped).
+    pub stray: usize,
+}
+
+/// Which parts a cache needs: D alone suffices for a group confirmed at level 1.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CacheNeeds {
+    pub lobe_samples: bool,
+    pub mirror: bool,
+}
+
+impl CacheNeeds {
+    /// The mixture's cosine weight: a group that only needs D (diffuse, not climbing) draws its
+    /// indirect directions by cosine alone, which has the lowest variance for it.
+    pub fn cosine_weight(&self) -> f32 {
+        if self.lobe_samples || self.mirror {
+            super::mixture::DEFENSIVE_COSINE_WEIGHT
+        } else {
+            1.0
+        }
+    }
+}
+
+/// The subsample of `pixels` (row-major image indices of one group) that the cache uses, and
+/// each chosen pixel's tile. Keeps every `stride`-th row and column, stride chosen so that at
+/// most `max_pixels` remain.
+pub fn choose_pixels(pixels: &[usize], width: usize, opts: &CacheOptions) -> (Vec<usize>, Vec<u32>, usize) {
+    let stride = stride_of(pixels.len(), opts);
+    // Tiles of `cell` image pixels a side: about `tiles_per_group` of them over the group.
+    let cell = (((pixels.len() as f64) / opts.tiles_per_group.max(1) as f64).sqrt().ceil() as usize).max(stride).max(2);
+    let mut tile_ids = std::collections::BTreeMap::new();
+    let mut chosen = Vec::new();
+    let mut tiles = Vec::new();
+    for &p in pixels {
+        let (x, y) = (p % width, p / width);
+        if x % stride == 0 && y % stride == 0 {
+            let key = (y / cell, x / cell);
+            let n = tile_ids.len() as u32;
+            let t = *tile_ids.entry(key).or_insert(n);
+            chosen.push(p);
+            tiles.push(t);
+        }
+    }
+    (chosen, tiles, tile_ids.len())
+}
+
+/// The subsampling stride for a group of `n` usable pixels.
+fn stride_of(n: usize, opts: &CacheOptions) -> usize {
+    let mut stride = 1usize;
+    while n / (stride * stride) > opts.max_pixels {
+        stride += 1;
+    }
+    stride
+}
+
+/// Builds the cache of `group` for the chosen pixels, tracing through `scene` as it is now.
+pub fn build(
+    scene: &Scene,
+    pt: &PathTracer,
+    group: usize,
+    pixels: &[usize],
+    tiles: &[u32],
+    n_tiles: usize,
+    photo: &[Rgb],
+    needs: CacheNeeds,
+    opts: &CacheOptions,
+    seed: u64,
+) -> GroupCache {
+    let cam = &scene.camera;
+    let w = cam.width as usize;
+    let (nl, ni) = (opts.light_samples.max(1), opts.indirect_samples.max(1));
+    let cw = needs.cosine_weight();
+    let per_pixel: Vec<(CachePixel, [Vec<Sample>; 2], usize)> = pixels
+        .par_iter()
+        .zip(tiles)
+        .map(|(&p, &tile)| {
+            let mut sampler = Sampler::new(seed, p as u64);
+            let (x, y) = ((p % w) as f32, (p / w) as f32);
+            let mut samples: [Vec<Sample>; 2] = [Vec::new(), Vec::new()];
+            let mut d_half = [Rgb::ZERO; 2];
+            let mut stray = 0usize;
+            // Light samples then indirect samples; sample index k alternates the halves.
+            for k in 0..nl + ni {
+                sampler.start_sample(k);
+                let film = Vec2::new(x, y) + sampler.next_2d();
+                let ray = cam.ray(film);
+                let Some(hit) = scene.intersect(&ray, f32::INFINITY) else {
+                    stray += 1;
+                    continue;
+                };
+                if scene.objects[hit.object as usize].group != group {
+                    stray += 1;
+                    continue;
+                }
+                let wo_world = -ray.d;
+                let (frame, ng) = facing(hit.frame, hit.ng, wo_world);
+                let wo = frame.to_local(wo_world);
+                let half = (k % 2) as usize;
+                let (wi_world, c) = if k < nl {
+                    // Next-event estimation, MIS-weighted against the mixture.
+                    let Some(ls) = pt.lights.sample(scene, hit.p, &mut sampler) else { continue };
+                    let wi = frame.to_local(ls.wi);
+                    if wi.z <= 0.0 || ng.dot(ls.wi) <= 0.0 {
+                        continue;
+                    }
+                    if !pt.lights.visible(scene, offset_origin(hit.p, ng, ls.wi), &ls) {
+                        continue;
+                    }
+                    let pm = super::mixture::pdf(wo, wi, cw);
+                    let w_l = nl as f32 * ls.pdf / (nl as f32 * ls.pdf + ni as f32 * pm);
+                    (ls.wi, ls.radiance * (wi.z * w_l / (ls.pdf * nl as f32)))
+                } else {
+                    let Some(wi) = super::mixture::sample(wo, &mut sampler, cw) else { continue };
+                    let wi_world = frame.to_world(wi);
+                    if ng.dot(wi_world) <= 0.0 {
+                        continue;
+                    }
+                    let pm = super::mixture::pdf(wo, wi, cw);
+                    let r = Ray::new(offset_origin(hit.p, ng, wi_world), wi_world);
+                    // Emission at the first hit, MIS-weighted against light sampling; the rest
+                    // of the path as the path tracer computes it.
+                    let mut li = pt.trace(r, &mut sampler, 1, false);
+                    if let Some(h2) = scene.intersect(&r, f32::INFINITY) {
+                        let o2 = &scene.objects[h2.object as usize];
+                        if o2.is_emitter() && h2.ng.dot(-wi_world) > 0.0 {
+                            let pl = pt.lights.pdf(h2.prim, h2.t, wi_world, h2.ng);
+                            let w_b = ni as f32 * pm / (nl as f32 * pl + ni as f32 * pm);
+                            li += o2.emission * w_b;
+                        }
+                    }
+                    (wi_world, li * (wi.z / (pm * ni as f32)))
+                };
+                if !(c.is_finite()) || c.max_element() <= 0.0 {
+                    continue;
+                }
+                d_half[half] += c * INV_PI;
+                if needs.lobe_samples {
+                    samples[half].push(Sample {
+                        wo,
+                        wi: frame.to_local(wi_world),
+                        c,
+                    });
+                }
+            }
+            let mut mirror_half = [Rgb::ZERO; 2];
+            if needs.mirror {
+                let m = opts.mirror_samples.max(2);
+                let mut sm = Sampler::new(seed ^ 0x6D69_7272, p as u64);
+                let mut n_half = [0u32; 2];
+                for k in 0..m {
+                    sm.start_sample(k);
+                    let film = Vec2::new(x, y) + sm.next_2d();
+                    let ray = cam.ray(film);
+                    let half = (k % 2) as usize;
+                    n_half[half] += 1;
+                    let Some(hit) = scene.intersect(&ray, f32::INFINITY) else { continue };
+                    let (frame, ng) = facing(hit.frame, hit.ng, -ray.d);
+                    let r = crate::math::reflect(-ray.d, frame.n);
+                    if r.dot(ng) <= 0.0 {
+                        continue;
+                    }
+                    let l = pt.trace(Ray::new(offset_origin(hit.p, ng, r), r), &mut sm, 1, true);
+                    if l.is_finite() {
+                        mirror_half[half] += l;
+                    }
+                }
+                for h in 0..2 {
+                    mirror_half[h] /= n_half[h].max(1) as f32;
+                }
+            }
+            let px = CachePixel {
+                pixel: p as u32,
+                photo: photo[p],
+                d: d_half[0] + d_half[1],
+                d_half: [d_half[0] * 2.0, d_half[1] * 2.0],
+                mirror: 0.5 * (mirror_half[0] + mirror_half[1]),
+                mirror_half,
+                start: 0,
+                mid: 0,
+                end: 0,
+                tile,
+            };
+            (px, samples, stray)
+        })
+        .collect();
+    let mut cache = GroupCache {
+        tiles: n_tiles,
+        ..Default::default()
+    };
+    for (mut px, [s0, s1], stray) in per_pixel {
+        px.start = cache.samples.len() as u32;
+        cache.samples.extend(s0);
+        px.mid = cache.samples.len() as u32;
+        cache.samples.extend(s1);
+        px.end = cache.samples.len() as u32;
+        cache.pixels.push(px);
+        cache.stray += stray;
+    }
+    cache
+}

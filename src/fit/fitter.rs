@@ -1,0 +1,183 @@
+//! Fitting one level of the hierarchy to one group's cache: ρd and ρs by bounded least squares
+//! for each trial lobe (variable projection), the lobe shape by Levenberg–Marquardt with the
+//! analytic Ward derivatives and Kaufman's simplification of the variable-projection Jacobian
+//! (∂L/∂α at the current optimal ρ).
+
+use super::cache::GroupCache;
+use super::level::Level;
+use super::objective::{error, moments, pixel_specs, PixelSpec, Spec};
+use super::params::{GroupParams, ALPHA_MAX, ALPHA_MIN};
+use super::solve::{levenberg_marquardt, solve_rho, Free, Linearisation};
+use crate::math::Rgb;
+use crate::scene::WardVariant;
+
+/// The outcome of fitting one level.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LevelFit {
+    pub level: Level,
+    pub params: GroupParams,
+    pub error: f32,
+    pub noise_floor: f32,
+    /// ε of each half of the cache's samples alone.
+    pub halves: [f32; 2],
+    /// Evaluations of the objective (passes over the cache).
+    pub evals: u32,
+}
+
+/// ρd, ρs per channel for given specular terms, and the least-squares cost.
+fn project_rho(cache: &GroupCache, specs: &[PixelSpec], free: Free) -> (Rgb, Rgb, f64) {
+    let m = moments(cache, specs);
+    let (mut rd, mut rs, mut cost) = (Rgb::ZERO, Rgb::ZERO, 0.0);
+    for c in 0..3 {
+        let (d, s) = solve_rho(&m[c], free);
+        rd[c] = d as f32;
+        rs[c] = s as f32;
+        cost += m[c].cost(d, s);
+    }
+    (rd, rs, cost)
+}
+
+/// Gauss–Newton linearisation for lobe parameters x, where `shape` maps x to (αx, αy, θ) and
+/// `chain` maps ∂S/∂(ln αx, ln αy, θ) to ∂S/∂x. The gradient is that of the cross-half cost of
+/// `solve::Moments` at the current optimal ρ (Kaufman's variable-projection simplification), so
+/// LM converges to the unbiased optimum; JᵀJ, which only shapes the steps, uses the mean
+/// derivatives.
+fn linearise<const N: usize>(
+    cache: &GroupCache,
+    variant: WardVariant,
+    x: &[f64; N],
+    shape: impl Fn(&[f64; N]) -> (f32, f32, f32),
+    chain: impl Fn(&[Rgb; 3]) -> [Rgb; N],
+) -> Linearisation<N> {
+    let (ax, ay, th) = shape(x);
+    let specs = pixel_specs(cache, Spec::Lobe { alpha_x: ax, alpha_y: ay, theta: th }, variant, true);
+    let (rd, rs, cost) = project_rho(cache, &specs, Free::Both);
+    let mut lin = Linearisation {
+        cost,
+        jtj: [[0.0; N]; N],
+        jtr: [0.0; N],
+    };
+    for (p, s) in cache.pixels.iter().zip(&specs) {
+        let j0 = chain(&s.ds_half[0]);
+        let j1 = chain(&s.ds_half[1]);
+        for c in 0..3 {
+            let (rdc, rsc) = (rd[c] as f64, rs[c] as f64);
+            let (d0, d1) = (p.d_half[0][c] as f64, p.d_half[1][c] as f64);
+            let (s0, s1) = (s.s_half[0][c] as f64, s.s_half[1][c] as f64);
+            let ph = p.photo[c] as f64;
+            for a in 0..N {
+                let (g0, g1) = (j0[a][c] as f64, j1[a][c] as f64);
+                // ½ ∂cost/∂x_a for cost = pp − 2(ρd dp + ρs sp) + ρd² dd + 2ρdρs ds + ρs² ss.
+                lin.jtr[a] += -rsc * 0.5 * (g0 + g1) * ph
+                    + rdc * rsc * 0.5 * (d0 * g1 + d1 * g0)
+                    + rsc * rsc * 0.5 * (g0 * s1 + s0 * g1);
+                for b in 0..N {
+                    let (h0, h1) = (j0[b][c] as f64, j1[b][c] as f64);
+                    lin.jtj[a][b] += rsc * rsc * 0.25 * (g0 + g1) * (h0 + h1);
+                }
+            }
+        }
+    }
+    lin
+}
+
+fn finish(cache: &GroupCache, level: Level, spec: Spec, free: Free, base: GroupParams, variant: WardVariant, evals: u32) -> LevelFit {
+    let specs = pixel_specs(cache, spec, variant, false);
+    let (rd, rs, _) = match level {
+        Level::PerfectSpecular => (Rgb::ZERO, Rgb::ONE, 0.0),
+        _ => project_rho(cache, &specs, free),
+    };
+    let mut params = GroupParams { rho_d: rd, rho_s: rs, ..base };
+    if let Spec::Lobe { alpha_x, alpha_y, theta } = spec {
+        params.alpha_x = alpha_x;
+        params.alpha_y = alpha_y;
+        params.theta = theta;
+    }
+    let params = if level == Level::Anisotropic { params.clamped().canonical() } else { params.clamped() };
+    let st = error(cache, &specs, params.rho_d, params.rho_s);
+    LevelFit {
+        level,
+        params,
+        error: st.error,
+        noise_floor: st.noise_floor,
+        halves: st.halves,
+        evals: evals + 1,
+    }
+}
+
+/// Fits `level` to the cache, starting from `start` where the level has a nonlinear part.
+pub fn fit_level(cache: &GroupCache, level: Level, start: &GroupParams, variant: WardVariant) -> LevelFit {
+    let ln_lo = (ALPHA_MIN as f64).ln();
+    let ln_hi = (ALPHA_MAX as f64).ln();
+    match level {
+        Level::Diffuse | Level::Textured => finish(cache, level, Spec::None, Free::Diffuse, *start, variant, 0),
+        Level::PerfectSpecular => finish(cache, level, Spec::Mirror, Free::Specular, *start, variant, 0),
+        Level::Specular => finish(cache, level, Spec::Mirror, Free::Specular, *start, variant, 0),
+        Level::DiffuseSpecular => finish(cache, level, Spec::Mirror, Free::Both, *start, variant, 0),
+        Level::Isotropic => {
+            // Coarse scan of α (plus the warm start), then LM in ln α.
+            let mut evals = 0;
+            let mut best = (f64::INFINITY, start.alpha_x.clamp(ALPHA_MIN, ALPHA_MAX));
+            for a in [start.alpha_x, 0.01, 0.02, 0.04, 0.07, 0.12, 0.2, 0.35, 0.6] {
+                let a = a.clamp(ALPHA_MIN, ALPHA_MAX);
+                let specs = pixel_specs(cache, Spec::Lobe { alpha_x: a, alpha_y: a, theta: 0.0 }, variant, false);
+                let cost = project_rho(cache, &specs, Free::Both).2;
+                evals += 1;
+                if cost < best.0 {
+                    best = (cost, a);
+                }
+            }
+            let (x, _, n) = levenberg_marquardt(
+                [(best.1 as f64).ln()],
+                |x| {
+                    linearise(cache, variant, x, |x| { let a = x[0].exp() as f32; (a, a, 0.0) }, |d| [d[0] + d[1]])
+                },
+                |x| [x[0].clamp(ln_lo, ln_hi)],
+                40,
+            );
+            let a = x[0].exp() as f32;
+            finish(cache, level, Spec::Lobe { alpha_x: a, alpha_y: a, theta: 0.0 }, Free::Both, *start, variant, evals + n)
+        }
+        Level::Anisotropic => {
+            // Several starts around the isotropic answer (the lobe is symmetric under
+            // (αx, αy, θ) → (αy, αx, θ + 90°), so two orientations and two orderings cover the
+            // quarter turns), plus the warm start; keep the best.
+            let a = (start.alpha_x * start.alpha_y).sqrt().clamp(ALPHA_MIN, ALPHA_MAX) as f64;
+            let r = 1.3f64;
+            let mut starts = vec![[(start.alpha_x as f64).ln(), (start.alpha_y as f64).ln(), start.theta as f64]];
+            for th in [0.0f64, std::f64::consts::FRAC_PI_4] {
+                starts.push([(a * r).ln(), (a / r).ln(), th]);
+                starts.push([(a / r).ln(), (a * r).ln(), th]);
+            }
+            let mut evals = 0;
+            let mut best: Option<([f64; 3], f64)> = None;
+            for s in starts {
+                let (x, cost, n) = levenberg_marquardt(
+                    s,
+                    |x| {
+                        linearise(
+                            cache,
+                            variant,
+                            x,
+                            |x| (x[0].exp() as f32, x[1].exp() as f32, x[2] as f32),
+                            |d| [d[0], d[1], d[2]],
+                        )
+                    },
+                    |x| [x[0].clamp(ln_lo, ln_hi), x[1].clamp(ln_lo, ln_hi), x[2]],
+                    60,
+                );
+                evals += n;
+                if best.is_none_or(|b| cost < b.1) {
+                    best = Some((x, cost));
+                }
+            }
+            let x = best.unwrap().0;
+            let spec = Spec::Lobe {
+                alpha_x: x[0].exp() as f32,
+                alpha_y: x[1].exp() as f32,
+                theta: x[2] as f32,
+            };
+            finish(cache, level, spec, Free::Both, *start, variant, evals)
+        }
+    }
+}

@@ -1,0 +1,105 @@
+//! The hierarchy of reflectance models (DESIGN.md, "The hierarchy"): every group starts at
+//! level 1 and climbs while its error stays above the level's threshold.
+
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Level {
+    /// 1: Lambert, ρd.
+    Diffuse = 1,
+    /// 2: ideal mirror with ρs = 1 (a hypothesis test, no free parameter).
+    PerfectSpecular = 2,
+    /// 3: ideal mirror, ρs.
+    Specular = 3,
+    /// 4: Lambert + ideal mirror, ρd and ρs.
+    DiffuseSpecular = 4,
+    /// 5: Lambert + isotropic Ward, ρd, ρs, α.
+    Isotropic = 5,
+    /// 6: Lambert + anisotropic Ward, ρd, ρs, αx, αy, θ.
+    Anisotropic = 6,
+    /// 7: a per-texel diffuse map (radiosity texture, §5.2).
+    Textured = 7,
+}
+
+impl Level {
+    pub const FITTED: [Level; 6] = [
+        Level::Diffuse,
+        Level::PerfectSpecular,
+        Level::Specular,
+        Level::DiffuseSpecular,
+        Level::Isotropic,
+        Level::Anisotropic,
+    ];
+
+    pub fn number(self) -> u8 {
+        self as u8
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Level::Diffuse => "diffuse",
+            Level::PerfectSpecular => "perfect_specular",
+            Level::Specular => "specular",
+            Level::DiffuseSpecular => "diffuse_specular",
+            Level::Isotropic => "isotropic",
+            Level::Anisotropic => "anisotropic",
+            Level::Textured => "textured",
+        }
+    }
+
+    /// The next level of the hierarchy among those the fitter tries.
+    pub fn next(self) -> Option<Level> {
+        let i = Level::FITTED.iter().position(|&l| l == self)?;
+        Level::FITTED.get(i + 1).copied()
+    }
+
+    /// Whether the level's specular part is an ideal mirror (as opposed to a Ward lobe).
+    pub fn is_mirror(self) -> bool {
+        matches!(self, Level::PerfectSpecular | Level::Specular | Level::DiffuseSpecular)
+    }
+
+    pub fn is_ward(self) -> bool {
+        matches!(self, Level::Isotropic | Level::Anisotropic)
+    }
+}
+
+/// Error thresholds per level: a group whose error falls below its level's threshold is
+/// confirmed at that level.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Thresholds {
+    pub diffuse: f32,
+    pub perfect_specular: f32,
+    pub specular: f32,
+    pub diffuse_specular: f32,
+    pub isotropic: f32,
+    pub anisotropic: f32,
+}
+
+impl Default for Thresholds {
+    /// 2% for the diffuse and mirror levels, 1% for the glossy ones: the notes' example switches
+    /// from isotropic to anisotropic at 1%.
+    fn default() -> Self {
+        Thresholds {
+            diffuse: 0.02,
+            perfect_specular: 0.02,
+            specular: 0.02,
+            diffuse_specular: 0.02,
+            isotropic: 0.01,
+            anisotropic: 0.01,
+        }
+    }
+}
+
+impl Thresholds {
+    pub fn of(&self, level: Level) -> f32 {
+        match level {
+            Level::Diffuse => self.diffuse,
+            Level::PerfectSpecular => self.perfect_specular,
+            Level::Specular => self.specular,
+            Level::DiffuseSpecular => self.diffuse_specular,
+            Level::Isotropic => self.isotropic,
+            Level::Anisotropic | Level::Textured => self.anisotropic,
+        }
+    }
+}

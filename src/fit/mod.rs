@@ -1,0 +1,16 @@
+//! The recovery engine: per-group incident-radiance caches, the solvers, the hierarchy's state
+//! machine, and the global iterations that tie them together (§4 of the notes).
+
+pub mod cache;
+pub mod fitter;
+pub mod hierarchy;
+pub mod level;
+pub mod mixture;
+pub mod objective;
+pub mod params;
+pub mod recover;
+pub mod solve;
+
+pub use level::Level;
+pub use params::GroupParams;
+pub use recover::{recover, RecoverOptions, Recovery};

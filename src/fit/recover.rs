@@ -1,0 +1,290 @@
+//! The global loop of the recovery (§4.1, Figure 1 of the notes): every global iteration
+//! re-renders what each fitted group sees with *all* current parameters (so light bounced off a
+//! surface whose BRDF changed reaches the others), refits each group on its fresh cache and lets
+//! the hierarchy decide its level; then one final render gives the synthetic image.
+
+use super::cache::{build, choose_pixels, CacheOptions};
+use super::hierarchy::{Event, GroupState, HierarchyOptions, Status};
+use super::params::GroupParams;
+use crate::io::image::Image;
+use crate::math::sampler::hash_seed;
+use crate::math::Rgb;
+use crate::photo::{usable_pixels, GroupPixelStats, MaskOptions, Photo, UsableMask};
+use crate::render::aov::index_buffers;
+use crate::render::film::{progress_bar, render, RenderOptions};
+use crate::render::PathTracer;
+use crate::scene::{Material, Scene};
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct RecoverOptions {
+    pub cache: CacheOptions,
+    pub hierarchy: HierarchyOptions,
+    pub mask: MaskOptionsSer,
+    /// At most this many global iterations.
+    pub max_iterations: u32,
+    /// Stop once every group is confirmed and no ρ moved by more than this (α: relative).
+    pub tolerance: f32,
+    /// Groups may climb the hierarchy only after an iteration in which no level changed and no
+    /// parameter moved by more than this.
+    pub settle: f32,
+    /// Diffuse reflectance given to groups with no usable pixels (the notes: white).
+    pub default_rho_d: f32,
+    /// Samples per pixel of the final render.
+    pub final_spp: u32,
+    pub seed: u64,
+    pub progress: bool,
+}
+
+/// The serialisable part of the mask options.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct MaskOptionsSer {
+    pub band: usize,
+}
+
+impl Default for RecoverOptions {
+    fn default() -> Self {
+        RecoverOptions {
+            cache: CacheOptions::default(),
+            hierarchy: HierarchyOptions::default(),
+            mask: MaskOptionsSer { band: MaskOptions::default().band },
+            max_iterations: 16,
+            tolerance: 5e-3,
+            settle: 0.03,
+            default_rho_d: 1.0,
+            final_spp: 64,
+            seed: 0,
+            progress: true,
+        }
+    }
+}
+
+/// One line of the log: a group's event in a global iteration.
+#[derive(Clone, Debug, Serialize)]
+pub struct LogLine {
+    pub iteration: u32,
+    pub group: String,
+    #[serde(flatten)]
+    pub event: Event,
+    pub params: std::collections::BTreeMap<&'static str, super::params::Value>,
+    pub seconds: f64,
+}
+
+/// Everything a recovery produced.
+pub struct Recovery {
+    pub groups: Vec<GroupState>,
+    pub pixel_stats: Vec<GroupPixelStats>,
+    /// The scene with the recovered materials.
+    pub scene: Scene,
+    pub synthetic: Image,
+    /// Per-group ε and noise floor of the final render against the photo (usable pixels).
+    pub final_error: Vec<Option<(f32, f32)>>,
+    pub mask: UsableMask,
+    pub iterations: u32,
+    pub cache_builds: u32,
+    pub objective_evals: u64,
+    pub total_s: f64,
+    pub final_render_s: f64,
+}
+
+/// Applies each group's current parameters to its objects.
+fn apply(scene: &mut Scene, states: &[GroupState]) {
+    for obj in scene.objects.iter_mut() {
+        let st = &states[obj.group];
+        if matches!(st.status, Status::Analysing | Status::Confirmed | Status::Default) {
+            obj.material = st.params.material(st.level);
+        }
+    }
+}
+
+/// Parameters equivalent to a scene material (for fixed groups, in the report).
+fn params_of(m: &Material) -> GroupParams {
+    let mut p = GroupParams {
+        rho_d: m.rho_d(),
+        rho_s: m.rho_s(),
+        ..Default::default()
+    };
+    if let Material::Ward { alpha_x, alpha_y, theta, .. } = m {
+        p.alpha_x = *alpha_x;
+        p.alpha_y = *alpha_y;
+        p.theta = *theta;
+    }
+    p
+}
+
+/// Recovers the materials of `scene`'s non-fixed groups from `photo`. `log` receives every
+/// event as it happens.
+pub fn recover(scene: &Scene, photo: &Photo, opts: &RecoverOptions, mut log: impl FnMut(&LogLine)) -> Recovery {
+    let t0 = Instant::now();
+    let variant = scene.render.ward_variant;
+    let ib = index_buffers(scene, &scene.camera);
+    let mask = usable_pixels(&ib, photo, scene.groups.len(), &MaskOptions { band: opts.mask.band });
+
+    let mut states: Vec<GroupState> = scene
+        .groups
+        .iter()
+        .enumerate()
+        .map(|(g, grp)| {
+            let objs: Vec<_> = grp.objects.iter().map(|&o| &scene.objects[o]).collect();
+            if objs.iter().all(|o| o.is_emitter()) {
+                GroupState::new(&grp.name, Status::Light, params_of(&objs[0].material))
+            } else if grp.fixed {
+                GroupState::new(&grp.name, Status::Fixed, params_of(&objs[0].material))
+            } else if mask.stats[g].usable == 0 {
+                let mut s = GroupState::new(
+                    &grp.name,
+                    Status::Default,
+                    GroupParams {
+                        rho_d: Rgb::splat(opts.default_rho_d),
+                        ..Default::default()
+                    },
+                );
+                s.note = Some(format!(
+                    "no usable pixels ({} visible): given the default diffuse reflectance {}",
+                    mask.stats[g].visible, opts.default_rho_d
+                ));
+                tracing::warn!("group '{}': {}", grp.name, s.note.as_ref().unwrap());
+                s
+            } else {
+                GroupState::new(&grp.name, Status::Analysing, GroupParams::default())
+            }
+        })
+        .collect();
+
+    let mut current = scene.clone();
+    apply(&mut current, &states);
+    let photo_px = &photo.image.data;
+    let w = scene.camera.width as usize;
+    let pixel_lists: Vec<_> = (0..scene.groups.len())
+        .map(|g| choose_pixels(&mask.pixels_of(g), w, &opts.cache))
+        .collect();
+
+    let pb = progress_bar(opts.max_iterations as u64, "recover", opts.progress);
+    let (mut iterations, mut cache_builds, mut evals) = (0u32, 0u32, 0u64);
+    // Whether the previous iteration left the scene nearly unchanged (see `GroupState::step`).
+    let mut settled = false;
+    for it in 0..opts.max_iterations {
+        let levels_before: Vec<_> = states.iter().map(|s| s.level).collect();
+        iterations = it + 1;
+        let before: Vec<GroupParams> = states.iter().map(|s| s.params).collect();
+        let pt = PathTracer::new(&current);
+        // At most one group climbs per iteration: the one furthest above its threshold, and
+        // only once the previous iteration changed no level and moved no parameter much.
+        let climber = if settled {
+            (0..states.len())
+                .filter_map(|g| states[g].climb_priority(&opts.hierarchy).map(|p| (g, p)))
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|(g, _)| g)
+        } else {
+            None
+        };
+        for g in 0..states.len() {
+            if !states[g].is_fitted() {
+                continue;
+            }
+            let tg = Instant::now();
+            let (px, tiles, n_tiles) = &pixel_lists[g];
+            let cache = build(
+                &current,
+                &pt,
+                g,
+                px,
+                tiles,
+                *n_tiles,
+                photo_px,
+                states[g].cache_needs(climber == Some(g)),
+                &opts.cache,
+                hash_seed(&[opts.seed, it as u64, g as u64]),
+            );
+            cache_builds += 1;
+            let events = states[g].step(&cache, variant, &opts.hierarchy, climber == Some(g));
+            let secs = tg.elapsed().as_secs_f64();
+            for e in events {
+                if let Event::Fit { evals: n, .. } = e {
+                    evals += n as u64;
+                }
+                log(&LogLine {
+                    iteration: it,
+                    group: states[g].name.clone(),
+                    params: states[g].params.named(states[g].level).into_iter().collect(),
+                    event: e,
+                    seconds: secs,
+                });
+            }
+        }
+        apply(&mut current, &states);
+        pb.inc(1);
+        let moved = states
+            .iter()
+            .zip(&before)
+            .filter(|(s, _)| s.is_fitted())
+            .map(|(s, b)| {
+                let dr = (s.params.rho_d - b.rho_d).abs().max_element().max((s.params.rho_s - b.rho_s).abs().max_element());
+                let da = ((s.params.alpha_x - b.alpha_x) / b.alpha_x).abs().max(((s.params.alpha_y - b.alpha_y) / b.alpha_y).abs());
+                if s.level.is_ward() { dr.max(da) } else { dr }
+            })
+            .fold(0.0f32, f32::max);
+        let level_changed = states.iter().zip(&levels_before).any(|(s, l)| s.level != *l);
+        settled = !level_changed && moved < opts.settle;
+        let all_confirmed = states.iter().all(|s| s.status != Status::Analysing);
+        if all_confirmed && moved < opts.tolerance {
+            break;
+        }
+    }
+    pb.finish_and_clear();
+
+    // The final render, as two half-sample images with different seeds: their mean is the
+    // synthetic image, their difference the noise floor.
+    let tf = Instant::now();
+    let half = (opts.final_spp / 2).max(1);
+    let a = render(&current, &current.camera, &RenderOptions { spp: half, seed: hash_seed(&[opts.seed, 101]), progress: opts.progress });
+    let b = render(&current, &current.camera, &RenderOptions { spp: half, seed: hash_seed(&[opts.seed, 202]), progress: opts.progress });
+    let final_render_s = tf.elapsed().as_secs_f64();
+    let mut synthetic = a.clone();
+    for (s, bb) in synthetic.data.iter_mut().zip(&b.data) {
+        *s = 0.5 * (*s + *bb);
+    }
+    let final_error = (0..states.len())
+        .map(|g| image_error(&mask, g, &synthetic, &a, &b, &photo.image))
+        .collect();
+    Recovery {
+        groups: states,
+        pixel_stats: mask.stats.clone(),
+        scene: current,
+        synthetic,
+        final_error,
+        mask,
+        iterations,
+        cache_builds,
+        objective_evals: evals,
+        total_s: t0.elapsed().as_secs_f64(),
+        final_render_s,
+    }
+}
+
+/// ε of group `g` between a rendered image and the photo over its usable pixels, aggregated
+/// over 4×4-pixel tiles (as on the cache), and the noise floor from the two half renders.
+pub fn image_error(mask: &UsableMask, g: usize, syn: &Image, a: &Image, b: &Image, photo: &Image) -> Option<(f32, f32)> {
+    use std::collections::BTreeMap;
+    let mut tiles: BTreeMap<(usize, usize), [Rgb; 4]> = BTreeMap::new();
+    for (i, &grp) in mask.group.iter().enumerate() {
+        if grp != g as i32 {
+            continue;
+        }
+        let key = ((i / mask.width) / 4, (i % mask.width) / 4);
+        let t = tiles.entry(key).or_insert([Rgb::ZERO; 4]);
+        t[0] += syn.data[i];
+        t[1] += photo.data[i];
+        t[2] += a.data[i];
+        t[3] += b.data[i];
+    }
+    let sum = |c: Rgb| c.x + c.y + c.z;
+    let total: f32 = tiles.values().map(|t| sum(t[1])).sum();
+    if tiles.is_empty() || !(total > 0.0) {
+        return None;
+    }
+    let e: f32 = tiles.values().map(|t| sum((t[0] - t[1]).abs())).sum();
+    let n: f32 = tiles.values().map(|t| sum((t[2] - t[3]).abs())).sum();
+    Some((e / total, 0.5 * n / total))
+}

@@ -1,0 +1,51 @@
+//! The HTML report: photo | synthetic | error side by side, and the parameter table.
+
+use super::Results;
+use crate::fit::params::Value;
+
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+}
+
+fn value(v: &Value) -> String {
+    match v {
+        Value::Rgb([r, g, b]) => format!("({r:.4}, {g:.4}, {b:.4})"),
+        Value::Scalar(x) => format!("{x:.4}"),
+    }
+}
+
+pub fn report(res: &Results) -> String {
+    let mut rows = String::new();
+    for g in &res.groups {
+        let params: Vec<String> = g.params.iter().map(|(k, v)| format!("{k} = {}", value(v))).collect();
+        let pct = |x: Option<f32>| x.map_or("–".to_string(), |e| format!("{:.2}%", 100.0 * e));
+        rows += &format!(
+            "<tr><td>{}</td><td>{} ({})</td><td>{:?}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
+            esc(&g.name),
+            g.level,
+            g.level_number,
+            g.status,
+            pct(g.error),
+            pct(g.noise_floor),
+            g.usable_pixels,
+            esc(&params.join(", ")),
+            esc(g.note.as_deref().unwrap_or(""))
+        );
+    }
+    format!(
+        r#"<!doctype html>
+<html><head><meta charset="utf-8"><title>matfit recovery</title>
+<style>body{{font-family:sans-serif;margin:2em}} img{{max-width:32%;margin-right:1%;image-rendering:pixelated}}
+table{{border-collapse:collapse}} td,th{{border:1px solid #ccc;padding:4px 8px;font-size:90%}}</style></head>
+<body><h1>matfit recovery</h1>
+<p>photo | synthetic | relative error (black 0 → white ≥ 20%; grey: pixels not used)</p>
+<p><img src="photo.png" alt="photo"><img src="synthetic.png" alt="synthetic"><img src="error.png" alt="error"></p>
+<table><tr><th>group</th><th>level</th><th>status</th><th>ε</th><th>noise floor</th><th>usable px</th><th>parameters</th><th>note</th></tr>
+{rows}</table>
+<p>{} global iterations, {} cache builds, {} objective evaluations; total {:.1} s, final render {:.1} s; Ward variant {}.</p>
+<p>The log of every decision is <a href="log.jsonl">log.jsonl</a>; the recovered scene is <a href="recovered.toml">recovered.toml</a>.</p>
+</body></html>
+"#,
+        res.iterations, res.cache_builds, res.objective_evals, res.timing.total_s, res.timing.final_render_s, res.ward_variant
+    )
+}

@@ -1,0 +1,151 @@
+//! What `recover` writes: the recovered scene, results.json, images, and the HTML report.
+//! Every file is written atomically.
+
+pub mod html;
+
+use crate::fit::hierarchy::Status;
+use crate::fit::params::Value;
+use crate::fit::Recovery;
+use crate::io::atomic::write_atomic;
+use crate::io::image::Image;
+use crate::math::Rgb;
+use crate::photo::Photo;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+#[derive(Serialize)]
+pub struct GroupResult {
+    pub name: String,
+    pub level: &'static str,
+    pub level_number: u8,
+    pub status: Status,
+    /// ε of the final render against the photo (usable pixels, 4×4 tiles); absent without pixels.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<f32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise_floor: Option<f32>,
+    /// ε and noise floor on the cache at the last fit (what the hierarchy decided on).
+    pub fit_error: f32,
+    pub fit_noise_floor: f32,
+    pub visible_pixels: usize,
+    pub usable_pixels: usize,
+    pub rejected_pixels: usize,
+    pub params: BTreeMap<&'static str, Value>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
+}
+
+#[derive(Serialize)]
+pub struct Timing {
+    pub total_s: f64,
+    pub final_render_s: f64,
+}
+
+#[derive(Serialize)]
+pub struct Results {
+    pub groups: Vec<GroupResult>,
+    pub timing: Timing,
+    pub iterations: u32,
+    pub cache_builds: u32,
+    pub objective_evals: u64,
+    pub ward_variant: &'static str,
+}
+
+pub fn results(rec: &Recovery) -> Results {
+    let groups = rec
+        .groups
+        .iter()
+        .enumerate()
+        .map(|(g, s)| {
+            let fe = rec.final_error[g];
+            let st = &rec.pixel_stats[g];
+            GroupResult {
+                name: s.name.clone(),
+                level: s.level.name(),
+                level_number: s.level.number(),
+                status: s.status,
+                error: fe.map(|e| e.0),
+                noise_floor: fe.map(|e| e.1),
+                fit_error: s.error,
+                fit_noise_floor: s.noise_floor,
+                visible_pixels: st.visible,
+                usable_pixels: st.usable,
+                rejected_pixels: st.rejected,
+                params: s.params.named(s.level).into_iter().collect(),
+                note: s.note.clone(),
+            }
+        })
+        .collect();
+    Results {
+        groups,
+        timing: Timing {
+            total_s: rec.total_s,
+            final_render_s: rec.final_render_s,
+        },
+        iterations: rec.iterations,
+        cache_builds: rec.cache_builds,
+        objective_evals: rec.objective_evals,
+        ward_variant: rec.scene.render.ward_variant.name(),
+    }
+}
+
+/// A false-colour ramp (black → blue → green → yellow → red → white) for t in [0, 1].
+pub fn false_colour(t: f32) -> Rgb {
+    let stops = [
+        Rgb::new(0.0, 0.0, 0.0),
+        Rgb::new(0.0, 0.05, 0.6),
+        Rgb::new(0.0, 0.6, 0.1),
+        Rgb::new(0.9, 0.85, 0.0),
+        Rgb::new(0.9, 0.05, 0.0),
+        Rgb::new(1.0, 1.0, 1.0),
+    ];
+    let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 1.0 } * (stops.len() - 1) as f32;
+    let i = (t as usize).min(stops.len() - 2);
+    let f = t - i as f32;
+    stops[i] * (1.0 - f) + stops[i + 1] * f
+}
+
+/// |synthetic − photo| per channel, and its false-colour picture of the relative error
+/// (mean over channels of |Δ| / photo, full scale at `scale`), usable pixels only.
+pub fn error_images(rec: &Recovery, photo: &Photo, scale: f32) -> (Image, Image) {
+    let (w, h) = (rec.synthetic.width, rec.synthetic.height);
+    let mut abs = Image::new(w, h);
+    let mut pic = Image::new(w, h);
+    for i in 0..w * h {
+        let d = (rec.synthetic.data[i] - photo.image.data[i]).abs();
+        abs.data[i] = d;
+        if rec.mask.group[i] >= 0 {
+            let p = photo.image.data[i];
+            let rel = (d.x + d.y + d.z) / (p.x + p.y + p.z).max(1e-6);
+            // The picture is an sRGB preview: linearise the ramp so it shows as designed.
+            let c = false_colour(rel / scale);
+            pic.data[i] = Rgb::new(c.x.powf(2.2), c.y.powf(2.2), c.z.powf(2.2));
+        } else {
+            pic.data[i] = Rgb::splat(0.02);
+        }
+    }
+    (abs, pic)
+}
+
+/// Writes every output of a recovery into `dir` (which must exist).
+pub fn write_outputs(dir: &Path, rec: &Recovery, photo: &Photo) -> Result<(), String> {
+    let io = |p: &Path, e: std::io::Error| format!("cannot write {}: {e}", p.display());
+    let scene_path = dir.join("recovered.toml");
+    let text = crate::scene::write::scene_to_toml(&rec.scene, &scene_path);
+    write_atomic(&scene_path, text.as_bytes()).map_err(|e| io(&scene_path, e))?;
+    let res = results(rec);
+    let json = serde_json::to_string_pretty(&res).expect("results serialise");
+    let rp = dir.join("results.json");
+    write_atomic(&rp, json.as_bytes()).map_err(|e| io(&rp, e))?;
+    rec.synthetic.write(&dir.join("synthetic.exr"))?;
+    rec.synthetic.write(&dir.join("synthetic.png"))?;
+    photo.image.write(&dir.join("photo.png"))?;
+    let (abs, pic) = error_images(rec, photo, 0.2);
+    abs.write(&dir.join("error.exr"))?;
+    pic.write(&dir.join("error.png"))?;
+    let page = html::report(&res);
+    let hp = dir.join("report.html");
+    write_atomic(&hp, page.as_bytes()).map_err(|e| io(&hp, e))?;
+    Ok(())
+}
