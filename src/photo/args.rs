@@ -4,9 +4,10 @@
 
 use crate::math::Rgb;
 use crate::photo::exposure::{self, ExposureCalibration, ExposureSource};
+use crate::photo::register::{estimate_shift, Registration};
 use crate::photo::{load_photo, mask, Photo, PhotoOptions, Response, UsableMask};
 use crate::render::aov::{index_buffers, IndexBuffers};
-use crate::scene::Scene;
+use crate::scene::{Camera, Scene};
 use std::path::Path;
 
 /// How to read a photograph and choose its usable pixels.
@@ -37,6 +38,13 @@ pub struct PhotoArgs {
     /// objects on diffuse walls; do not use it on glossy groups, it would drop highlights).
     #[arg(long)]
     pub planar_outliers: bool,
+    /// Do not correct the camera by the translation that aligns the model's outlines with the
+    /// photo's edges (see `photo::register`).
+    #[arg(long = "no-register", action = clap::ArgAction::SetFalse)]
+    pub register: bool,
+    /// Largest misregistration searched, in pixels.
+    #[arg(long, default_value_t = 4)]
+    pub max_shift: i32,
 }
 
 impl Default for PhotoArgs {
@@ -49,6 +57,8 @@ impl Default for PhotoArgs {
             band: 2,
             edge_threshold: 0.12,
             planar_outliers: false,
+            register: true,
+            max_shift: 4,
         }
     }
 }
@@ -109,6 +119,12 @@ impl PhotoArgs {
 pub struct PreparedPhoto {
     /// Linear radiance: the exposure (given or calibrated) is divided out.
     pub photo: Photo,
+    /// The scene's camera corrected by `registration`: render the synthetic images with it,
+    /// so that they line up with the photo pixel for pixel.
+    pub camera: Camera,
+    /// The translation found between model and photo (None when registration is off).
+    pub registration: Option<Registration>,
+    /// The index buffers through `camera`.
     pub index: IndexBuffers,
     pub mask: UsableMask,
     /// Set when the exposure was calibrated rather than given.
@@ -119,9 +135,34 @@ pub struct PreparedPhoto {
 /// and calibrates the exposure if asked. The mask does not depend on the exposure (the edge
 /// detector and the planar test work on ln-intensity), so it is computed once, before.
 pub fn prepare(scene: &Scene, path: &Path, args: &PhotoArgs) -> Result<PreparedPhoto, String> {
-    let cam = &scene.camera;
-    let mut photo = load_photo(path, cam.width, cam.height, &args.photo_options())?;
-    let index = index_buffers(scene, cam);
+    let mut camera = scene.camera.clone();
+    let mut photo = load_photo(path, camera.width, camera.height, &args.photo_options())?;
+    let mut index = index_buffers(scene, &camera);
+    let mut registration = None;
+    if args.register {
+        let r = estimate_shift(&index, &photo, args.max_shift);
+        if r.dx.abs().max(r.dy.abs()) >= 0.1 {
+            camera = camera.shifted(r.dx, r.dy);
+            index = index_buffers(scene, &camera);
+            tracing::info!(
+                "{}: the model is off the photo by ({:.2}, {:.2}) px; camera corrected",
+                path.display(),
+                r.dx,
+                r.dy
+            );
+        }
+        registration = Some(r);
+    }
+    let scene_reg;
+    let scene = if camera != scene.camera {
+        scene_reg = Scene {
+            camera: camera.clone(),
+            ..scene.clone()
+        };
+        &scene_reg
+    } else {
+        scene
+    };
     let mask = mask::usable_pixels(
         &index,
         &photo,
@@ -144,6 +185,8 @@ pub fn prepare(scene: &Scene, path: &Path, args: &PhotoArgs) -> Result<PreparedP
     }
     Ok(PreparedPhoto {
         photo,
+        camera,
+        registration,
         index,
         mask,
         calibration,

@@ -41,6 +41,8 @@ fn preview_scale(p: &PreparedPhoto) -> f32 {
 }
 
 /// Runs the inspection: writes the pictures into `out` and returns the text report.
+// Pixel loops index several parallel buffers by the same pixel index.
+#[allow(clippy::needless_range_loop)]
 pub fn inspect(
     scene: &Scene,
     photo_path: &Path,
@@ -125,6 +127,21 @@ pub fn inspect(
             None => format!("{} (given)", ph.exposure),
         }
     );
+    if let Some(g) = &p.registration {
+        let _ = writeln!(
+            r,
+            "registration: the model is off the photo by ({:.2}, {:.2}) px (edge alignment {:.3}× \
+             better than uncorrected){}",
+            g.dx,
+            g.dy,
+            g.gain,
+            if p.camera != scene.camera {
+                "; masks use the corrected camera"
+            } else {
+                ""
+            }
+        );
+    }
     let _ = writeln!(
         r,
         "invalid pixels: {} NaN/infinite, {} negative, {} saturated",

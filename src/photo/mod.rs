@@ -10,6 +10,7 @@ pub mod estimate;
 pub mod exposure;
 pub mod inspect;
 pub mod mask;
+pub mod register;
 pub mod response;
 pub mod robust;
 
@@ -218,8 +219,13 @@ pub fn load_photo(
         .all(|(c, &v)| !v || c.max_element() <= 0.0)
     {
         return Err(format!(
-            "{}: the photo is all black (no valid pixel above zero)",
-            path.display()
+            "{}: the photo is all black (no valid pixel above zero{})",
+            path.display(),
+            if photo.invalid_saturated > 0 {
+                format!("; {} saturated pixels", photo.invalid_saturated)
+            } else {
+                String::new()
+            }
         ));
     }
     if photo.invalid() > 0 {

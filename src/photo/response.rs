@@ -128,6 +128,7 @@ impl ResponseTable {
     }
 
     /// Parses table text as if it were the file at `path`.
+    #[allow(clippy::needless_range_loop)]
     pub fn parse(text: &str, path: &Path) -> Result<ResponseTable, String> {
         let err = |line: usize, m: String| format!("{}:{line}: {m}", path.display());
         let mut rows: Vec<(usize, Vec<f64>)> = Vec::new();
