@@ -67,6 +67,17 @@ enum Command {
     },
     /// Print a summary of a scene file (groups, objects, triangles, lights, camera).
     Info { scene: PathBuf },
+    /// Check a photo against the model before fitting: group outlines over the photo, the
+    /// usable-pixel masks, and per-group visible / usable / rejected pixel counts.
+    Inspect {
+        scene: PathBuf,
+        photo: PathBuf,
+        /// Output folder (outlines.png, usable.png, edges.png).
+        #[arg(short, long)]
+        output: PathBuf,
+        #[command(flatten)]
+        photo_args: matfit::photo::PhotoArgs,
+    },
     /// Benchmarks (figures for the issue notes, not tests).
     Bench {
         #[command(subcommand)]
@@ -259,6 +270,18 @@ fn run(cmd: Command) -> Result<()> {
                     o.area
                 );
             }
+            Ok(())
+        }
+        Command::Inspect {
+            scene,
+            photo,
+            output,
+            photo_args,
+        } => {
+            let sc = load_scene(&scene)?;
+            let report = matfit::photo::inspect::inspect(&sc, &photo, &photo_args, &output)
+                .map_err(anyhow::Error::msg)?;
+            print!("{report}");
             Ok(())
         }
         Command::Bench { which } => match which {

@@ -2,5 +2,6 @@
 
 mod common;
 mod geometry;
+mod photo;
 mod render_physics;
 mod scene_errors;

@@ -169,7 +169,7 @@ pub fn read_raw(path: &Path) -> Result<RawImage, String> {
     }
     let img = reader
         .decode()
-        .map_err(|e| bad(format!("cannot decode: {e}")))?;
+        .map_err(|e| bad(format!("cannot decode (truncated or corrupt file?): {e}")))?;
     let (w, h) = (img.width() as usize, img.height() as usize);
     if w == 0 || h == 0 {
         return Err(bad(format!("the image is {w}×{h}")));

@@ -1,27 +1,77 @@
-//! Usable pixels per group: the index buffer minus a band of `band` pixels around every id
-//! boundary (so a model a few pixels off does not poison a group), minus invalid photo pixels.
+//! Usable pixels per group (§3.3 of the notes): the index buffer, minus
+//!
+//! 1. photo pixels that are not valid (NaN/Inf, negative, saturated: see [`Photo`]);
+//! 2. a band of `band` pixels around every boundary between object ids, so a model a few pixels
+//!    off does not poison a group with its neighbour's pixels;
+//! 3. strong photo edges (`edges`) within `edge_reach` pixels of an id boundary, grown by one
+//!    pixel: where the model is off by more than the band, the photo's real boundary is an edge
+//!    just beyond the band, and the pixels on it belong to the wrong surface;
+//! 4. optionally, for planar groups, pixels far from a plane fitted to their log-intensity (the
+//!    planar approximation, [`robust::planar_inliers`]): an unmodelled object on a wall or floor.
+//!
+//! Step 4 is off unless `planar_groups` names groups: a plane over the intensities of a glossy
+//! floor would throw its highlight away as an "outlier", so use it for surfaces known diffuse,
+//! or prefer the ratio form in [`estimate`](super::estimate) which compares the photo with a
+//! rendering and so keeps highlights the model predicts.
 
-use crate::photo::Photo;
+use crate::photo::{edges, robust, Photo};
 use crate::render::aov::IndexBuffers;
+use crate::scene::Scene;
 
 #[derive(Clone, Debug)]
 pub struct MaskOptions {
     /// Half-width, in pixels, of the band removed around every boundary between ids.
     pub band: usize,
+    /// Edge detector threshold on |∇ ln Y| in ln units per pixel ([`edges`]); 0 disables it.
+    pub edge_threshold: f32,
+    /// Strong edges are removed only within this many pixels of an id boundary (elsewhere they
+    /// are shadows, texture: signal).
+    pub edge_reach: usize,
+    /// Groups to which the planar-intensity outlier test applies (index = group); empty = none.
+    pub planar_groups: Vec<bool>,
+    /// Outlier threshold of the planar test, in robust σ.
+    pub planar_k: f32,
 }
 
 impl Default for MaskOptions {
     fn default() -> Self {
-        MaskOptions { band: 2 }
+        MaskOptions {
+            band: 2,
+            edge_threshold: 0.12,
+            edge_reach: 6,
+            planar_groups: Vec::new(),
+            planar_k: 4.0,
+        }
     }
 }
 
-/// Per-group pixel counts.
+/// Why a pixel is not usable.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reject {
+    /// Usable.
+    None,
+    /// The model sees nothing there.
+    Background,
+    Invalid,
+    Band,
+    Edge,
+    Outlier,
+}
+
+/// Per-group pixel counts: `visible` = `usable` + `rejected`, and `rejected` split by reason.
 #[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct GroupPixelStats {
     pub visible: usize,
     pub usable: usize,
     pub rejected: usize,
+    /// Rejected because the photo pixel is NaN/Inf, negative or saturated.
+    pub invalid: usize,
+    /// Rejected by the band around id boundaries.
+    pub band: usize,
+    /// Rejected as a strong photo edge near an id boundary.
+    pub edge: usize,
+    /// Rejected by the planar approximation.
+    pub outlier: usize,
 }
 
 #[derive(Clone, Debug)]
@@ -31,6 +81,10 @@ pub struct UsableMask {
     /// Group of each usable pixel, −1 where the pixel is not usable.
     pub group: Vec<i32>,
     pub stats: Vec<GroupPixelStats>,
+    /// Why each pixel is not usable (`Reject::None` where it is).
+    pub reason: Vec<Reject>,
+    /// The strong-edge map of the photo (all strong edges, wherever they are).
+    pub edges: Vec<bool>,
 }
 
 impl UsableMask {
@@ -45,6 +99,102 @@ impl UsableMask {
     }
 }
 
+/// Chessboard distance of every pixel to the nearest pixel whose 4-neighbour has another object
+/// id (two-pass chamfer), capped at `cap`.
+fn boundary_distance(ib: &IndexBuffers, cap: u32) -> Vec<u32> {
+    let (w, h) = (ib.width, ib.height);
+    let mut d = vec![cap; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let id = ib.object[i];
+            let diff = (x > 0 && ib.object[i - 1] != id)
+                || (x + 1 < w && ib.object[i + 1] != id)
+                || (y > 0 && ib.object[i - w] != id)
+                || (y + 1 < h && ib.object[i + w] != id);
+            if diff {
+                d[i] = 0;
+            }
+        }
+    }
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let mut m = d[i];
+            if x > 0 {
+                m = m.min(d[i - 1] + 1);
+            }
+            if y > 0 {
+                m = m.min(d[i - w] + 1);
+                if x > 0 {
+                    m = m.min(d[i - w - 1] + 1);
+                }
+                if x + 1 < w {
+                    m = m.min(d[i - w + 1] + 1);
+                }
+            }
+            d[i] = m;
+        }
+    }
+    for y in (0..h).rev() {
+        for x in (0..w).rev() {
+            let i = y * w + x;
+            let mut m = d[i];
+            if x + 1 < w {
+                m = m.min(d[i + 1] + 1);
+            }
+            if y + 1 < h {
+                m = m.min(d[i + w] + 1);
+                if x + 1 < w {
+                    m = m.min(d[i + w + 1] + 1);
+                }
+                if x > 0 {
+                    m = m.min(d[i + w - 1] + 1);
+                }
+            }
+            d[i] = m;
+        }
+    }
+    d
+}
+
+/// Groups whose triangles all lie in one plane (the planar approximation applies to them).
+/// Emitters are never planar groups here: they are not fitted.
+pub fn planar_groups(scene: &Scene) -> Vec<bool> {
+    let g = &*scene.geometry;
+    let mut out = vec![true; scene.groups.len()];
+    let mut plane: Vec<Option<(crate::math::Vec3, f32)>> = vec![None; scene.groups.len()];
+    for t in &g.tris {
+        let obj = &scene.objects[t.object as usize];
+        let gi = obj.group;
+        if obj.is_emitter() {
+            out[gi] = false;
+        }
+        if !out[gi] {
+            continue;
+        }
+        let [a, b, c] = t.v.map(|i| g.positions[i as usize]);
+        let n = (b - a).cross(c - a).normalize_or_zero();
+        if n == crate::math::Vec3::ZERO {
+            continue;
+        }
+        let scale = a.abs().max_element().max(1.0);
+        match plane[gi] {
+            None => plane[gi] = Some((n, n.dot(a))),
+            Some((n0, d0)) => {
+                let same = n.dot(n0).abs() > 1.0 - 1e-4
+                    && [a, b, c]
+                        .iter()
+                        .all(|p| (n0.dot(*p) - d0).abs() < 1e-4 * scale);
+                if !same {
+                    out[gi] = false;
+                }
+            }
+        }
+    }
+    out
+}
+
 /// Computes the usable pixels of every group.
 pub fn usable_pixels(
     ib: &IndexBuffers,
@@ -55,7 +205,29 @@ pub fn usable_pixels(
     let (w, h) = (ib.width, ib.height);
     let b = opts.band as i64;
     let mut group = vec![-1i32; w * h];
+    let mut reason = vec![Reject::Background; w * h];
     let mut stats = vec![GroupPixelStats::default(); groups];
+    let edges = if opts.edge_threshold > 0.0 {
+        edges::strong_edges(photo, opts.edge_threshold, 4.0).0
+    } else {
+        vec![false; w * h]
+    };
+    // Strong edges near an id boundary, grown by one pixel.
+    let reach = (opts.edge_reach.max(opts.band) + 1) as u32;
+    let dist = boundary_distance(ib, reach + 1);
+    let mut edge_near = vec![false; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            if edges[i] && dist[i] <= reach {
+                for yy in y.saturating_sub(1)..(y + 2).min(h) {
+                    for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                        edge_near[yy * w + xx] = true;
+                    }
+                }
+            }
+        }
+    }
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
@@ -79,18 +251,104 @@ pub fn usable_pixels(
                     }
                 }
             }
-            if clean && photo.valid[i] {
-                group[i] = g;
-                stats[g as usize].usable += 1;
+            let s = &mut stats[g as usize];
+            reason[i] = if !photo.valid[i] {
+                s.invalid += 1;
+                Reject::Invalid
+            } else if !clean {
+                s.band += 1;
+                Reject::Band
+            } else if edge_near[i] {
+                s.edge += 1;
+                Reject::Edge
             } else {
-                stats[g as usize].rejected += 1;
+                group[i] = g;
+                Reject::None
+            };
+        }
+    }
+    // The planar approximation, on ln-luminance, for the groups asked for.
+    for (g, _) in opts.planar_groups.iter().enumerate().filter(|(_, &p)| p) {
+        if g >= groups {
+            break;
+        }
+        let px: Vec<usize> = (0..w * h).filter(|&i| group[i] == g as i32).collect();
+        let pts: Vec<(f32, f32, f32)> = px
+            .iter()
+            .map(|&i| {
+                let c = photo.image.data[i];
+                let y = ((c.x + c.y + c.z) / 3.0).max(1e-12);
+                ((i % w) as f32, (i / w) as f32, y.ln())
+            })
+            .collect();
+        let (_, keep) = robust::planar_inliers(&pts, opts.planar_k, 0.02);
+        for (&i, k) in px.iter().zip(keep) {
+            if !k {
+                group[i] = -1;
+                reason[i] = Reject::Outlier;
+                stats[g].outlier += 1;
             }
         }
+    }
+    for s in &mut stats {
+        s.rejected = s.invalid + s.band + s.edge + s.outlier;
+        s.usable = s.visible - s.rejected;
     }
     UsableMask {
         width: w,
         height: h,
         group,
         stats,
+        reason,
+        edges,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::image::Image;
+    use crate::math::Rgb;
+
+    /// Two objects split at x = 20 in the model, at x = 23 in the photo (3 px misregistration);
+    /// the band (2) alone would keep a wrong strip; the edge detector removes it.
+    #[test]
+    fn edges_remove_the_strip_a_misregistered_model_leaves() {
+        let (w, h) = (40, 10);
+        let object: Vec<i32> = (0..w * h).map(|i| if i % w < 20 { 0 } else { 1 }).collect();
+        let ib = IndexBuffers {
+            width: w,
+            height: h,
+            group: object.clone(),
+            object,
+            mirror_object: vec![-1; w * h],
+            mirror_group: vec![-1; w * h],
+        };
+        let mut img = Image::new(w, h);
+        for (i, c) in img.data.iter_mut().enumerate() {
+            *c = Rgb::splat(if i % w < 23 { 0.2 } else { 0.8 });
+        }
+        let photo = Photo::from_linear(img);
+        let no_edges = MaskOptions {
+            edge_threshold: 0.0,
+            ..Default::default()
+        };
+        let m = usable_pixels(&ib, &photo, 2, &no_edges);
+        assert_eq!(
+            m.group[5 * w + 22],
+            1,
+            "without edges the wrong strip is kept"
+        );
+        let m = usable_pixels(&ib, &photo, 2, &MaskOptions::default());
+        for y in 0..h {
+            for x in 20..23 {
+                assert_eq!(m.group[y * w + x], -1, "({x}, {y})");
+            }
+        }
+        let s = &m.stats[1];
+        assert_eq!(s.visible, 200);
+        assert_eq!(s.usable + s.rejected, s.visible);
+        assert!(s.edge > 0 && s.band > 0);
+        assert!(m.stats[0].usable > 100);
     }
 }

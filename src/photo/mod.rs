@@ -4,44 +4,46 @@
 //! The fitter reads only [`Photo`] and [`UsableMask`]; everything about cameras' responses,
 //! exposure and robust pixel selection lives here.
 
+pub mod args;
+pub mod edges;
+pub mod estimate;
+pub mod exposure;
+pub mod inspect;
 pub mod mask;
+pub mod register;
+pub mod response;
+pub mod robust;
 
+pub use args::{prepare, PhotoArgs, PreparedPhoto};
 pub use mask::{usable_pixels, GroupPixelStats, MaskOptions, UsableMask};
+pub use response::{Response, ResponseTable};
 
-use crate::io::image::{read_raw, srgb_decode, Image};
+use crate::io::image::{read_raw, Image};
 use crate::math::Rgb;
 use std::path::Path;
 
-/// How integer-coded photos are turned into linear values.
-#[derive(Clone, Debug, PartialEq, Default)]
-pub enum Response {
-    /// The sRGB curve (the default for 8/16-bit files).
-    #[default]
-    Srgb,
-    /// v^g.
-    Gamma(f32),
-    /// Already linear.
-    Linear,
-}
-
-impl Response {
-    pub fn linearize(&self, v: f32) -> f32 {
-        match self {
-            Response::Srgb => srgb_decode(v),
-            Response::Gamma(g) => v.max(0.0).powf(*g),
-            Response::Linear => v,
-        }
-    }
-}
+/// Largest fraction of NaN/infinite pixels, and separately of negative pixels, that a photo may
+/// have: up to it they are masked (never used) and counted; above it the photo is refused.
+pub const MAX_BAD_FRACTION: f64 = 0.01;
+/// Largest fraction of saturated pixels (8/16-bit photos): above it the photo is refused.
+pub const MAX_SATURATED_FRACTION: f64 = 0.5;
 
 #[derive(Clone, Debug, Default)]
 pub struct PhotoOptions {
+    /// Response curve of 8/16-bit photos (ignored for float formats, which are linear).
     pub response: Response,
     /// Linear radiance = pixel value / exposure. 1 when not given.
     pub exposure: Option<f32>,
 }
 
 /// A photograph as linear radiance, with a per-pixel validity flag.
+///
+/// Validity rule (stated once, applied by [`load_photo`]): a pixel is invalid if any channel is
+/// NaN or infinite (the pixel is then zeroed), negative, or — for 8/16-bit files — at the top
+/// code value (clipped: its radiance is unknown). Invalid pixels are never used and are counted
+/// by reason. A photo is refused when more than [`MAX_BAD_FRACTION`] (1%) of its pixels are
+/// non-finite, or more than 1% are negative, when more than [`MAX_SATURATED_FRACTION`] (50%) are
+/// saturated, or when no valid pixel is above zero (all black).
 #[derive(Clone, Debug)]
 pub struct Photo {
     pub image: Image,
@@ -51,6 +53,10 @@ pub struct Photo {
     pub invalid_nonfinite: usize,
     pub invalid_negative: usize,
     pub invalid_saturated: usize,
+    /// Bit depth of an integer-coded file (None: float file or rendering).
+    pub bits: Option<u32>,
+    /// The exposure factor the values have been divided by (1 until one is applied).
+    pub exposure: f32,
 }
 
 impl Photo {
@@ -62,6 +68,8 @@ impl Photo {
             invalid_nonfinite: 0,
             invalid_negative: 0,
             invalid_saturated: 0,
+            bits: None,
+            exposure: 1.0,
         };
         for (c, v) in p.image.data.iter_mut().zip(p.valid.iter_mut()) {
             if !c.is_finite() {
@@ -75,23 +83,75 @@ impl Photo {
         }
         p
     }
+
+    /// Divides every pixel by `factor` more (a calibrated exposure), recording it.
+    pub fn apply_exposure(&mut self, factor: f32) {
+        for c in &mut self.image.data {
+            *c /= factor;
+        }
+        self.exposure *= factor;
+    }
+
+    /// Number of invalid pixels.
+    pub fn invalid(&self) -> usize {
+        self.invalid_nonfinite + self.invalid_negative + self.invalid_saturated
+    }
+}
+
+/// The message for a photo whose size is not the camera's: same aspect ratio at another
+/// resolution, a rotated photo, or another aspect ratio altogether.
+fn size_mismatch(path: &Path, w: usize, h: usize, cw: usize, ch: usize) -> String {
+    let head = format!(
+        "{}: the photo is {w}×{h} but the scene's camera is {cw}×{ch}",
+        path.display()
+    );
+    if (w, h) == (ch, cw) && w != h {
+        return format!(
+            "{head}: the photo is rotated by 90° (portrait vs landscape); rotate it or fix the camera"
+        );
+    }
+    let (a, ca) = (w as f64 / h as f64, cw as f64 / ch as f64);
+    if (a / ca - 1.0).abs() < 2e-3 {
+        format!(
+            "{head}: same aspect ratio ({a:.4}), different resolution; resize the photo to \
+             {cw}×{ch}, or scale the camera (width, height and fx, fy, cx, cy) by {:.4}",
+            w as f64 / cw as f64
+        )
+    } else {
+        format!(
+            "{head}: different aspect ratio ({a:.4} vs {ca:.4}); the photo does not fit this \
+             camera (cropped? wrong calibration?)"
+        )
+    }
 }
 
 /// Loads a photo (EXR, HDR, PFM as linear; PNG/JPEG through `opts.response`), checks it against
-/// the camera's size, and divides by the exposure.
+/// the camera's size and the validity rule of [`Photo`], and divides by the exposure.
 pub fn load_photo(
     path: &Path,
     width: u32,
     height: u32,
     opts: &PhotoOptions,
 ) -> Result<Photo, String> {
+    let exposure = opts.exposure.unwrap_or(1.0);
+    if !(exposure > 0.0 && exposure.is_finite()) {
+        return Err(format!("exposure must be positive, got {exposure}"));
+    }
+    match std::fs::metadata(path) {
+        Ok(m) if m.len() == 0 => {
+            return Err(format!(
+                "{}: the photo file is empty (0 bytes)",
+                path.display()
+            ))
+        }
+        Ok(m) if m.is_dir() => return Err(format!("{}: is a folder, not a photo", path.display())),
+        Ok(_) => {}
+        Err(e) => return Err(format!("{}: cannot read the photo: {e}", path.display())),
+    }
     let raw = read_raw(path)?;
     let (w, h) = (raw.image.width, raw.image.height);
     if (w, h) != (width as usize, height as usize) {
-        return Err(format!(
-            "{}: the photo is {w}×{h} but the scene's camera is {width}×{height}",
-            path.display()
-        ));
+        return Err(size_mismatch(path, w, h, width as usize, height as usize));
     }
     let mut image = raw.image;
     let mut saturated = vec![false; image.data.len()];
@@ -101,20 +161,18 @@ pub fn load_photo(
         for (c, s) in image.data.iter_mut().zip(saturated.iter_mut()) {
             *s = c.max_element() >= top;
             *c = Rgb::new(
-                opts.response.linearize(c.x),
-                opts.response.linearize(c.y),
-                opts.response.linearize(c.z),
+                opts.response.linearize_channel(c.x, 0),
+                opts.response.linearize_channel(c.y, 1),
+                opts.response.linearize_channel(c.z, 2),
             );
         }
-    }
-    let exposure = opts.exposure.unwrap_or(1.0);
-    if !(exposure > 0.0 && exposure.is_finite()) {
-        return Err(format!("exposure must be positive, got {exposure}"));
     }
     for c in &mut image.data {
         *c /= exposure;
     }
     let mut photo = Photo::from_linear(image);
+    photo.bits = raw.bits;
+    photo.exposure = exposure;
     for (v, s) in photo.valid.iter_mut().zip(&saturated) {
         if *s && *v {
             *v = false;
@@ -122,10 +180,35 @@ pub fn load_photo(
         }
     }
     let n = photo.valid.len();
-    if photo.invalid_nonfinite + photo.invalid_negative > n / 2 {
+    let pct = |k: usize| 100.0 * k as f64 / n as f64;
+    let limit = (MAX_BAD_FRACTION * n as f64) as usize;
+    if photo.invalid_nonfinite > limit {
         return Err(format!(
-            "{}: most pixels are NaN, infinite or negative",
-            path.display()
+            "{}: {} of {n} pixels ({:.1}%) are NaN or infinite; matfit masks up to {}% of them \
+             and refuses more",
+            path.display(),
+            photo.invalid_nonfinite,
+            pct(photo.invalid_nonfinite),
+            MAX_BAD_FRACTION * 100.0
+        ));
+    }
+    if photo.invalid_negative > limit {
+        return Err(format!(
+            "{}: {} of {n} pixels ({:.1}%) have negative values, which radiance cannot have; \
+             matfit masks up to {}% of them and refuses more",
+            path.display(),
+            photo.invalid_negative,
+            pct(photo.invalid_negative),
+            MAX_BAD_FRACTION * 100.0
+        ));
+    }
+    if photo.invalid_saturated as f64 > MAX_SATURATED_FRACTION * n as f64 {
+        return Err(format!(
+            "{}: the photo is saturated: {} of {n} pixels ({:.1}%) are at the top code value, \
+             their radiance is unknown (over-exposed; take it with a shorter exposure or as HDR)",
+            path.display(),
+            photo.invalid_saturated,
+            pct(photo.invalid_saturated)
         ));
     }
     if photo
@@ -135,14 +218,24 @@ pub fn load_photo(
         .zip(&photo.valid)
         .all(|(c, &v)| !v || c.max_element() <= 0.0)
     {
-        return Err(format!("{}: the photo is all black", path.display()));
-    }
-    if photo.invalid_saturated > n * 9 / 10 {
         return Err(format!(
-            "{}: the photo is saturated ({} of {n} pixels clipped)",
+            "{}: the photo is all black (no valid pixel above zero{})",
             path.display(),
-            photo.invalid_saturated
+            if photo.invalid_saturated > 0 {
+                format!("; {} saturated pixels", photo.invalid_saturated)
+            } else {
+                String::new()
+            }
         ));
+    }
+    if photo.invalid() > 0 {
+        tracing::warn!(
+            "{}: {} NaN/infinite, {} negative, {} saturated pixels masked",
+            path.display(),
+            photo.invalid_nonfinite,
+            photo.invalid_negative,
+            photo.invalid_saturated
+        );
     }
     Ok(photo)
 }

@@ -1,0 +1,196 @@
+//! The photo's command-line options, shared by `inspect` and `recover` (flatten [`PhotoArgs`]
+//! into a clap subcommand), and [`prepare`]: photo file + scene → linear photo with its
+//! exposure divided out, index buffers and usable-pixel mask.
+
+use crate::math::Rgb;
+use crate::photo::exposure::{self, ExposureCalibration, ExposureSource};
+use crate::photo::register::{estimate_shift, Registration};
+use crate::photo::{load_photo, mask, Photo, PhotoOptions, Response, UsableMask};
+use crate::render::aov::{index_buffers, IndexBuffers};
+use crate::scene::{Camera, Scene};
+use std::path::Path;
+
+/// How to read a photograph and choose its usable pixels.
+#[derive(clap::Args, Clone, Debug)]
+pub struct PhotoArgs {
+    /// Response curve of 8/16-bit photos: srgb, linear, gamma:G (linear = code^G) or
+    /// table:FILE (see `photo::response` for the table format). Float photos are linear.
+    #[arg(long, default_value = "srgb", value_parser = Response::parse)]
+    pub response: Response,
+    /// Exposure factor k: the photo's linear values are k × radiance.
+    #[arg(long, value_name = "K", conflicts_with_all = ["grey_card", "exposure_from_lights"])]
+    pub exposure: Option<f32>,
+    /// Calibrate the exposure from a group of known diffuse reflectance: GROUP=RHO or
+    /// GROUP=R,G,B (e.g. a grey card: --grey-card card=0.18).
+    #[arg(long, value_name = "GROUP=RHO", value_parser = parse_grey_card,
+          conflicts_with = "exposure_from_lights")]
+    pub grey_card: Option<(String, Rgb)>,
+    /// Calibrate the exposure from the light sources seen in the photo (known radiance).
+    #[arg(long)]
+    pub exposure_from_lights: bool,
+    /// Half-width in pixels of the band removed around every boundary between objects.
+    #[arg(long, default_value_t = 2)]
+    pub band: usize,
+    /// Edge-detector threshold on |∇ ln luminance| per pixel; 0 turns the detector off.
+    #[arg(long, default_value_t = 0.12)]
+    pub edge_threshold: f32,
+    /// Reject pixels of planar groups far from a plane fitted to their intensity (unmodelled
+    /// objects on diffuse walls; do not use it on glossy groups, it would drop highlights).
+    #[arg(long)]
+    pub planar_outliers: bool,
+    /// Do not correct the camera by the translation that aligns the model's outlines with the
+    /// photo's edges (see `photo::register`).
+    #[arg(long = "no-register", action = clap::ArgAction::SetFalse)]
+    pub register: bool,
+    /// Largest misregistration searched, in pixels.
+    #[arg(long, default_value_t = 4)]
+    pub max_shift: i32,
+}
+
+impl Default for PhotoArgs {
+    fn default() -> Self {
+        PhotoArgs {
+            response: Response::Srgb,
+            exposure: None,
+            grey_card: None,
+            exposure_from_lights: false,
+            band: 2,
+            edge_threshold: 0.12,
+            planar_outliers: false,
+            register: true,
+            max_shift: 4,
+        }
+    }
+}
+
+/// Parses GROUP=RHO or GROUP=R,G,B.
+pub fn parse_grey_card(s: &str) -> Result<(String, Rgb), String> {
+    let (g, v) = s
+        .split_once('=')
+        .ok_or_else(|| format!("'{s}': expected GROUP=RHO or GROUP=R,G,B"))?;
+    let nums: Result<Vec<f32>, _> = v.split(',').map(|t| t.trim().parse::<f32>()).collect();
+    let nums = nums.map_err(|_| format!("'{v}': the reflectance is not a number"))?;
+    let rho = match nums.as_slice() {
+        [x] => Rgb::splat(*x),
+        [r, g, b] => Rgb::new(*r, *g, *b),
+        _ => return Err(format!("'{v}': give one reflectance or three")),
+    };
+    if !(rho.min_element() > 0.0 && rho.max_element() <= 1.0) {
+        return Err(format!("'{v}': a reflectance must be in (0, 1]"));
+    }
+    Ok((g.trim().to_string(), rho))
+}
+
+impl PhotoArgs {
+    pub fn photo_options(&self) -> PhotoOptions {
+        PhotoOptions {
+            response: self.response.clone(),
+            exposure: self.exposure,
+        }
+    }
+
+    pub fn mask_options(&self, scene: &Scene) -> mask::MaskOptions {
+        mask::MaskOptions {
+            band: self.band,
+            edge_threshold: self.edge_threshold,
+            planar_groups: if self.planar_outliers {
+                mask::planar_groups(scene)
+            } else {
+                Vec::new()
+            },
+            ..Default::default()
+        }
+    }
+
+    pub fn exposure_source(&self) -> ExposureSource {
+        match (&self.grey_card, self.exposure_from_lights) {
+            (Some((group, rho)), _) => ExposureSource::GreyCard {
+                group: group.clone(),
+                rho: *rho,
+            },
+            (None, true) => ExposureSource::Lights,
+            (None, false) => ExposureSource::Given(self.exposure.unwrap_or(1.0)),
+        }
+    }
+}
+
+/// A photo ready for fitting.
+#[derive(Clone, Debug)]
+pub struct PreparedPhoto {
+    /// Linear radiance: the exposure (given or calibrated) is divided out.
+    pub photo: Photo,
+    /// The scene's camera corrected by `registration`: render the synthetic images with it,
+    /// so that they line up with the photo pixel for pixel.
+    pub camera: Camera,
+    /// The translation found between model and photo (None when registration is off).
+    pub registration: Option<Registration>,
+    /// The index buffers through `camera`.
+    pub index: IndexBuffers,
+    pub mask: UsableMask,
+    /// Set when the exposure was calibrated rather than given.
+    pub calibration: Option<ExposureCalibration>,
+}
+
+/// Loads the photo for `scene`'s camera, renders the index buffers, selects the usable pixels
+/// and calibrates the exposure if asked. The mask does not depend on the exposure (the edge
+/// detector and the planar test work on ln-intensity), so it is computed once, before.
+pub fn prepare(scene: &Scene, path: &Path, args: &PhotoArgs) -> Result<PreparedPhoto, String> {
+    let mut camera = scene.camera.clone();
+    let mut photo = load_photo(path, camera.width, camera.height, &args.photo_options())?;
+    let mut index = index_buffers(scene, &camera);
+    let mut registration = None;
+    if args.register {
+        let r = estimate_shift(&index, &photo, args.max_shift);
+        // Sub-pixel refinement has a bias of ~0.2 px (measured on figure6): correct only a
+        // misregistration of half a pixel or more.
+        if r.dx.abs().max(r.dy.abs()) >= 0.5 {
+            camera = camera.shifted(r.dx, r.dy);
+            index = index_buffers(scene, &camera);
+            tracing::info!(
+                "{}: the model is off the photo by ({:.2}, {:.2}) px; camera corrected",
+                path.display(),
+                r.dx,
+                r.dy
+            );
+        }
+        registration = Some(r);
+    }
+    let scene_reg;
+    let scene = if camera != scene.camera {
+        scene_reg = Scene {
+            camera: camera.clone(),
+            ..scene.clone()
+        };
+        &scene_reg
+    } else {
+        scene
+    };
+    let mask = mask::usable_pixels(
+        &index,
+        &photo,
+        scene.groups.len(),
+        &args.mask_options(scene),
+    );
+    let calibration = match args.exposure_source() {
+        ExposureSource::Given(_) => None,
+        ExposureSource::GreyCard { group, rho } => Some(
+            exposure::from_grey_card(scene, &photo, &mask, &group, rho, 64, 4096)
+                .map_err(|e| format!("{}: {e}", path.display()))?,
+        ),
+        ExposureSource::Lights => Some(
+            exposure::from_lights(scene, &photo, &index, &mask)
+                .map_err(|e| format!("{}: {e}", path.display()))?,
+        ),
+    };
+    if let Some(c) = &calibration {
+        photo.apply_exposure(c.factor);
+    }
+    Ok(PreparedPhoto {
+        photo,
+        camera,
+        registration,
+        index,
+        mask,
+        calibration,
+    })
+}
