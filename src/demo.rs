@@ -16,7 +16,10 @@ pub fn figure6_path() -> PathBuf {
     if local.exists() {
         local
     } else {
-        PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/figure6/scene.toml"))
+        PathBuf::from(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/scenes/figure6/scene.toml"
+        ))
     }
 }
 
@@ -30,14 +33,27 @@ pub struct DemoOptions {
 /// Renders (or reuses) the photo of `scene` at `spp` into `path`; a stamp beside it records
 /// what it was rendered from so that a changed scene or sample count renders it anew.
 pub fn photo_of(scene: &Scene, spp: u32, path: &Path) -> Result<(Photo, bool), String> {
-    let text = std::fs::read_to_string(&scene.path).map_err(|e| format!("{}: {e}", scene.path.display()))?;
-    let stamp = format!("{:016x} spp {spp}", crate::math::sampler::hash_seed(&text.bytes().map(u64::from).collect::<Vec<_>>()));
+    let text = std::fs::read_to_string(&scene.path)
+        .map_err(|e| format!("{}: {e}", scene.path.display()))?;
+    let stamp = format!(
+        "{:016x} spp {spp}",
+        crate::math::sampler::hash_seed(&text.bytes().map(u64::from).collect::<Vec<_>>())
+    );
     let stamp_path = path.with_extension("stamp");
-    if path.exists() && std::fs::read_to_string(&stamp_path).ok().as_deref() == Some(stamp.as_str()) {
+    if path.exists() && std::fs::read_to_string(&stamp_path).ok().as_deref() == Some(stamp.as_str())
+    {
         let img = read_linear(path)?;
         return Ok((Photo::from_linear(img), true));
     }
-    let img = render(scene, &scene.camera, &RenderOptions { spp, seed: scene.render.seed, progress: true });
+    let img = render(
+        scene,
+        &scene.camera,
+        &RenderOptions {
+            spp,
+            seed: scene.render.seed,
+            progress: true,
+        },
+    );
     img.write(path)?;
     crate::io::atomic::write_atomic(&stamp_path, stamp.as_bytes()).map_err(|e| e.to_string())?;
     Ok((Photo::from_linear(img), false))
@@ -51,22 +67,67 @@ fn fmt_rgb(c: crate::math::Rgb) -> String {
 fn truth(scene: &Scene, g: usize) -> (Level, GroupParams) {
     let m = &scene.objects[scene.groups[g].objects[0]].material;
     match m {
-        Material::Ward { rho_d, rho_s, alpha_x, alpha_y, theta } => (
-            if alpha_x == alpha_y { Level::Isotropic } else { Level::Anisotropic },
-            GroupParams { rho_d: *rho_d, rho_s: *rho_s, alpha_x: *alpha_x, alpha_y: *alpha_y, theta: *theta },
+        Material::Ward {
+            rho_d,
+            rho_s,
+            alpha_x,
+            alpha_y,
+            theta,
+        } => (
+            if alpha_x == alpha_y {
+                Level::Isotropic
+            } else {
+                Level::Anisotropic
+            },
+            GroupParams {
+                rho_d: *rho_d,
+                rho_s: *rho_s,
+                alpha_x: *alpha_x,
+                alpha_y: *alpha_y,
+                theta: *theta,
+            },
         ),
-        Material::Mirror { rho_s } => (Level::Specular, GroupParams { rho_d: Default::default(), rho_s: *rho_s, ..Default::default() }),
-        Material::DiffuseMirror { rho_d, rho_s } => (Level::DiffuseSpecular, GroupParams { rho_d: *rho_d, rho_s: *rho_s, ..Default::default() }),
-        other => (Level::Diffuse, GroupParams { rho_d: other.rho_d(), rho_s: Default::default(), ..Default::default() }),
+        Material::Mirror { rho_s } => (
+            Level::Specular,
+            GroupParams {
+                rho_d: Default::default(),
+                rho_s: *rho_s,
+                ..Default::default()
+            },
+        ),
+        Material::DiffuseMirror { rho_d, rho_s } => (
+            Level::DiffuseSpecular,
+            GroupParams {
+                rho_d: *rho_d,
+                rho_s: *rho_s,
+                ..Default::default()
+            },
+        ),
+        other => (
+            Level::Diffuse,
+            GroupParams {
+                rho_d: other.rho_d(),
+                rho_s: Default::default(),
+                ..Default::default()
+            },
+        ),
     }
 }
 
 /// Prints the table comparing true and recovered values; returns the worst absolute ρ error
 /// over the fitted groups.
-pub fn print_table(scene: &Scene, rec: &crate::fit::Recovery, out: &mut impl Write) -> std::io::Result<f32> {
+pub fn print_table(
+    scene: &Scene,
+    rec: &crate::fit::Recovery,
+    out: &mut impl Write,
+) -> std::io::Result<f32> {
     use crate::fit::hierarchy::Status;
     let mut worst = 0.0f32;
-    writeln!(out, "{:<12} {:<9} {:<28} {:<28} {}", "surface", "parameter", "true value", "recovered value", "level / status")?;
+    writeln!(
+        out,
+        "{:<12} {:<9} {:<28} {:<28} level / status",
+        "surface", "parameter", "true value", "recovered value"
+    )?;
     for (g, st) in rec.groups.iter().enumerate() {
         if st.status == Status::Light {
             continue;
@@ -74,17 +135,55 @@ pub fn print_table(scene: &Scene, rec: &crate::fit::Recovery, out: &mut impl Wri
         let (_, t) = truth(scene, g);
         let p = st.params;
         let status = format!("{} / {:?}", st.level.name(), st.status).to_lowercase();
-        writeln!(out, "{:<12} {:<9} {:<28} {:<28} {}", st.name, "rho_d", fmt_rgb(t.rho_d), fmt_rgb(p.rho_d), status)?;
-        writeln!(out, "{:<12} {:<9} {:<28} {:<28}", "", "rho_s", fmt_rgb(t.rho_s), fmt_rgb(p.rho_s))?;
+        writeln!(
+            out,
+            "{:<12} {:<9} {:<28} {:<28} {}",
+            st.name,
+            "rho_d",
+            fmt_rgb(t.rho_d),
+            fmt_rgb(p.rho_d),
+            status
+        )?;
+        writeln!(
+            out,
+            "{:<12} {:<9} {:<28} {:<28}",
+            "",
+            "rho_s",
+            fmt_rgb(t.rho_s),
+            fmt_rgb(p.rho_s)
+        )?;
         if st.level.is_ward() {
-            writeln!(out, "{:<12} {:<9} {:<28} {:<28}", "", "alpha_x", format!("{:.4}", t.alpha_x), format!("{:.4}", p.alpha_x))?;
+            writeln!(
+                out,
+                "{:<12} {:<9} {:<28} {:<28}",
+                "",
+                "alpha_x",
+                format!("{:.4}", t.alpha_x),
+                format!("{:.4}", p.alpha_x)
+            )?;
             if st.level == Level::Anisotropic {
-                writeln!(out, "{:<12} {:<9} {:<28} {:<28}", "", "alpha_y", format!("{:.4}", t.alpha_y), format!("{:.4}", p.alpha_y))?;
-                writeln!(out, "{:<12} {:<9} {:<28} {:<28}", "", "theta", format!("{:.2}°", t.theta.to_degrees()), format!("{:.2}°", p.theta.to_degrees()))?;
+                writeln!(
+                    out,
+                    "{:<12} {:<9} {:<28} {:<28}",
+                    "",
+                    "alpha_y",
+                    format!("{:.4}", t.alpha_y),
+                    format!("{:.4}", p.alpha_y)
+                )?;
+                writeln!(
+                    out,
+                    "{:<12} {:<9} {:<28} {:<28}",
+                    "",
+                    "theta",
+                    format!("{:.2}°", t.theta.to_degrees()),
+                    format!("{:.2}°", p.theta.to_degrees())
+                )?;
             }
         }
         if st.is_fitted() {
-            worst = worst.max((p.rho_d - t.rho_d).abs().max_element()).max((p.rho_s - t.rho_s).abs().max_element());
+            worst = worst
+                .max((p.rho_d - t.rho_d).abs().max_element())
+                .max((p.rho_s - t.rho_s).abs().max_element());
         }
     }
     Ok(worst)
@@ -94,17 +193,29 @@ pub fn print_table(scene: &Scene, rec: &crate::fit::Recovery, out: &mut impl Wri
 pub fn run(opts: &DemoOptions) -> Result<f32, String> {
     let t0 = Instant::now();
     let scene = load_scene(&figure6_path()).map_err(|e| e.to_string())?;
-    std::fs::create_dir_all(&opts.out).map_err(|e| format!("cannot create {}: {e}", opts.out.display()))?;
+    std::fs::create_dir_all(&opts.out)
+        .map_err(|e| format!("cannot create {}: {e}", opts.out.display()))?;
     let tp = Instant::now();
     let (photo, reused) = photo_of(&scene, opts.photo_spp, &opts.out.join("photo.exr"))?;
     println!(
         "photo: {} ({})",
         opts.out.join("photo.exr").display(),
-        if reused { "reused".to_string() } else { format!("rendered at {} spp in {:.1} s", opts.photo_spp, tp.elapsed().as_secs_f64()) }
+        if reused {
+            "reused".to_string()
+        } else {
+            format!(
+                "rendered at {} spp in {:.1} s",
+                opts.photo_spp,
+                tp.elapsed().as_secs_f64()
+            )
+        }
     );
     let rec_dir = opts.out.join("recovery");
-    std::fs::create_dir_all(&rec_dir).map_err(|e| format!("cannot create {}: {e}", rec_dir.display()))?;
-    let rec = crate::cli_recover::run_recover(&scene, &photo, &opts.recover, &rec_dir)?;
+    std::fs::create_dir_all(&rec_dir)
+        .map_err(|e| format!("cannot create {}: {e}", rec_dir.display()))?;
+    let index = crate::render::aov::index_buffers(&scene, &scene.camera);
+    let mask = crate::photo::usable_pixels(&index, &photo, scene.groups.len(), &Default::default());
+    let rec = crate::cli_recover::run_recover(&scene, &photo, &mask, &opts.recover, &rec_dir)?;
     let mut stdout = std::io::stdout();
     println!();
     let worst = print_table(&scene, &rec, &mut stdout).map_err(|e| e.to_string())?;
@@ -118,6 +229,10 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
         rec.final_render_s,
         rec.total_s / rec.final_render_s.max(1e-9)
     );
-    println!("demo total {:.1} s; outputs in {}", t0.elapsed().as_secs_f64(), rec_dir.display());
+    println!(
+        "demo total {:.1} s; outputs in {}",
+        t0.elapsed().as_secs_f64(),
+        rec_dir.display()
+    );
     Ok(worst)
 }

@@ -50,9 +50,8 @@ enum Command {
         output: PathBuf,
         #[command(flatten)]
         fit: FitArgs,
-        /// Linear radiance = photo value / exposure (default 1).
-        #[arg(long)]
-        exposure: Option<f32>,
+        #[command(flatten)]
+        photo_args: matfit::photo::PhotoArgs,
     },
     /// Render the figure6 photo, recover its materials blind, print the Figure 6 table.
     Demo {
@@ -106,9 +105,6 @@ struct FitArgs {
     /// Samples per pixel of the final render.
     #[arg(long, default_value_t = 64)]
     final_spp: u32,
-    /// Width in pixels of the band removed around every object boundary.
-    #[arg(long, default_value_t = 2)]
-    band: usize,
 }
 
 impl FitArgs {
@@ -120,7 +116,6 @@ impl FitArgs {
         o.cache.indirect_samples = self.indirect_samples.max(2);
         o.cache.max_pixels = self.max_pixels.max(16);
         o.final_spp = self.final_spp.max(2);
-        o.mask.band = self.band;
         o
     }
 }
@@ -207,12 +202,28 @@ fn run(cmd: Command) -> Result<()> {
             img.write(&output).map_err(anyhow::Error::msg)?;
             Ok(())
         }
-        Command::Recover { scene, photo, output, fit, exposure } => {
-            let sc = load_scene(&scene)?;
-            let opts = matfit::photo::PhotoOptions { exposure, ..Default::default() };
-            let ph = matfit::photo::load_photo(&photo, sc.camera.width, sc.camera.height, &opts).map_err(anyhow::Error::msg)?;
-            std::fs::create_dir_all(&output).with_context(|| format!("cannot create the output folder {}", output.display()))?;
-            let rec = matfit::cli_recover::run_recover(&sc, &ph, &fit.options(), &output).map_err(anyhow::Error::msg)?;
+        Command::Recover {
+            scene,
+            photo,
+            output,
+            fit,
+            photo_args,
+        } => {
+            let mut sc = load_scene(&scene)?;
+            let prepared =
+                matfit::photo::prepare(&sc, &photo, &photo_args).map_err(anyhow::Error::msg)?;
+            // Render through the camera registered to the photo.
+            sc.camera = prepared.camera.clone();
+            std::fs::create_dir_all(&output)
+                .with_context(|| format!("cannot create the output folder {}", output.display()))?;
+            let rec = matfit::cli_recover::run_recover(
+                &sc,
+                &prepared.photo,
+                &prepared.mask,
+                &fit.options(),
+                &output,
+            )
+            .map_err(anyhow::Error::msg)?;
             for g in &rec.groups {
                 println!(
                     "{:<14} {:<17} {:<10} fit ε {:.4} (noise {:.4})",
@@ -226,8 +237,16 @@ fn run(cmd: Command) -> Result<()> {
             println!("outputs in {} ({:.1} s)", output.display(), rec.total_s);
             Ok(())
         }
-        Command::Demo { output, photo_spp, fit } => {
-            let opts = matfit::demo::DemoOptions { out: output, photo_spp, recover: fit.options() };
+        Command::Demo {
+            output,
+            photo_spp,
+            fit,
+        } => {
+            let opts = matfit::demo::DemoOptions {
+                out: output,
+                photo_spp,
+                recover: fit.options(),
+            };
             matfit::demo::run(&opts).map_err(anyhow::Error::msg)?;
             Ok(())
         }

@@ -111,10 +111,18 @@ impl CacheNeeds {
 /// The subsample of `pixels` (row-major image indices of one group) that the cache uses, and
 /// each chosen pixel's tile. Keeps every `stride`-th row and column, stride chosen so that at
 /// most `max_pixels` remain.
-pub fn choose_pixels(pixels: &[usize], width: usize, opts: &CacheOptions) -> (Vec<usize>, Vec<u32>, usize) {
+pub fn choose_pixels(
+    pixels: &[usize],
+    width: usize,
+    opts: &CacheOptions,
+) -> (Vec<usize>, Vec<u32>, usize) {
     let stride = stride_of(pixels.len(), opts);
     // Tiles of `cell` image pixels a side: about `tiles_per_group` of them over the group.
-    let cell = (((pixels.len() as f64) / opts.tiles_per_group.max(1) as f64).sqrt().ceil() as usize).max(stride).max(2);
+    let cell = (((pixels.len() as f64) / opts.tiles_per_group.max(1) as f64)
+        .sqrt()
+        .ceil() as usize)
+        .max(stride)
+        .max(2);
     let mut tile_ids = std::collections::BTreeMap::new();
     let mut chosen = Vec::new();
     let mut tiles = Vec::new();
@@ -161,13 +169,17 @@ pub fn build(
         .par_iter()
         .zip(tiles)
         .map(|(&p, &tile)| {
-            let mut sampler = Sampler::new(seed, p as u64);
             let (x, y) = ((p % w) as f32, (p / w) as f32);
             let mut samples: [Vec<Sample>; 2] = [Vec::new(), Vec::new()];
             let mut d_half = [Rgb::ZERO; 2];
             let mut stray = 0usize;
-            // Light samples then indirect samples; sample index k alternates the halves.
-            for k in 0..nl + ni {
+            // Each half is its own stratified sample set with its own scramble: Sobol points of
+            // even and odd index fall into complementary halves of every dimension, so halves
+            // split by index parity would not be independent estimates of the same integral.
+            let (hl, hi) = (nl.div_ceil(2), ni.div_ceil(2));
+            let (nl, ni) = (2 * hl, 2 * hi);
+            for (half, k) in (0..2usize).flat_map(|h| (0..hl + hi).map(move |k| (h, k))) {
+                let mut sampler = Sampler::new(seed ^ (0x9E37_79B9 * (half as u64 + 1)), p as u64);
                 sampler.start_sample(k);
                 let film = Vec2::new(x, y) + sampler.next_2d();
                 let ray = cam.ray(film);
@@ -182,22 +194,28 @@ pub fn build(
                 let wo_world = -ray.d;
                 let (frame, ng) = facing(hit.frame, hit.ng, wo_world);
                 let wo = frame.to_local(wo_world);
-                let half = (k % 2) as usize;
-                let (wi_world, c) = if k < nl {
+                let (wi_world, c) = if k < hl {
                     // Next-event estimation, MIS-weighted against the mixture.
-                    let Some(ls) = pt.lights.sample(scene, hit.p, &mut sampler) else { continue };
+                    let Some(ls) = pt.lights.sample(scene, hit.p, &mut sampler) else {
+                        continue;
+                    };
                     let wi = frame.to_local(ls.wi);
                     if wi.z <= 0.0 || ng.dot(ls.wi) <= 0.0 {
                         continue;
                     }
-                    if !pt.lights.visible(scene, offset_origin(hit.p, ng, ls.wi), &ls) {
+                    if !pt
+                        .lights
+                        .visible(scene, offset_origin(hit.p, ng, ls.wi), &ls)
+                    {
                         continue;
                     }
                     let pm = super::mixture::pdf(wo, wi, cw);
                     let w_l = nl as f32 * ls.pdf / (nl as f32 * ls.pdf + ni as f32 * pm);
                     (ls.wi, ls.radiance * (wi.z * w_l / (ls.pdf * nl as f32)))
                 } else {
-                    let Some(wi) = super::mixture::sample(wo, &mut sampler, cw) else { continue };
+                    let Some(wi) = super::mixture::sample(wo, &mut sampler, cw) else {
+                        continue;
+                    };
                     let wi_world = frame.to_world(wi);
                     if ng.dot(wi_world) <= 0.0 {
                         continue;
@@ -231,16 +249,17 @@ pub fn build(
             }
             let mut mirror_half = [Rgb::ZERO; 2];
             if needs.mirror {
-                let m = opts.mirror_samples.max(2);
-                let mut sm = Sampler::new(seed ^ 0x6D69_7272, p as u64);
+                let m = opts.mirror_samples.max(2).div_ceil(2);
                 let mut n_half = [0u32; 2];
-                for k in 0..m {
+                for (half, k) in (0..2usize).flat_map(|h| (0..m).map(move |k| (h, k))) {
+                    let mut sm = Sampler::new(seed ^ (0x6D69_7272 * (half as u64 + 1)), p as u64);
                     sm.start_sample(k);
                     let film = Vec2::new(x, y) + sm.next_2d();
                     let ray = cam.ray(film);
-                    let half = (k % 2) as usize;
                     n_half[half] += 1;
-                    let Some(hit) = scene.intersect(&ray, f32::INFINITY) else { continue };
+                    let Some(hit) = scene.intersect(&ray, f32::INFINITY) else {
+                        continue;
+                    };
                     let (frame, ng) = facing(hit.frame, hit.ng, -ray.d);
                     let r = crate::math::reflect(-ray.d, frame.n);
                     if r.dot(ng) <= 0.0 {

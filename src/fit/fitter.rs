@@ -50,7 +50,16 @@ fn linearise<const N: usize>(
     chain: impl Fn(&[Rgb; 3]) -> [Rgb; N],
 ) -> Linearisation<N> {
     let (ax, ay, th) = shape(x);
-    let specs = pixel_specs(cache, Spec::Lobe { alpha_x: ax, alpha_y: ay, theta: th }, variant, true);
+    let specs = pixel_specs(
+        cache,
+        Spec::Lobe {
+            alpha_x: ax,
+            alpha_y: ay,
+            theta: th,
+        },
+        variant,
+        true,
+    );
     let (rd, rs, cost) = project_rho(cache, &specs, Free::Both);
     let mut lin = Linearisation {
         cost,
@@ -81,19 +90,40 @@ fn linearise<const N: usize>(
     lin
 }
 
-fn finish(cache: &GroupCache, level: Level, spec: Spec, free: Free, base: GroupParams, variant: WardVariant, evals: u32) -> LevelFit {
+fn finish(
+    cache: &GroupCache,
+    level: Level,
+    spec: Spec,
+    free: Free,
+    base: GroupParams,
+    variant: WardVariant,
+    evals: u32,
+) -> LevelFit {
     let specs = pixel_specs(cache, spec, variant, false);
     let (rd, rs, _) = match level {
         Level::PerfectSpecular => (Rgb::ZERO, Rgb::ONE, 0.0),
         _ => project_rho(cache, &specs, free),
     };
-    let mut params = GroupParams { rho_d: rd, rho_s: rs, ..base };
-    if let Spec::Lobe { alpha_x, alpha_y, theta } = spec {
+    let mut params = GroupParams {
+        rho_d: rd,
+        rho_s: rs,
+        ..base
+    };
+    if let Spec::Lobe {
+        alpha_x,
+        alpha_y,
+        theta,
+    } = spec
+    {
         params.alpha_x = alpha_x;
         params.alpha_y = alpha_y;
         params.theta = theta;
     }
-    let params = if level == Level::Anisotropic { params.clamped().canonical() } else { params.clamped() };
+    let params = if level == Level::Anisotropic {
+        params.clamped().canonical()
+    } else {
+        params.clamped()
+    };
     let st = error(cache, &specs, params.rho_d, params.rho_s);
     LevelFit {
         level,
@@ -106,21 +136,55 @@ fn finish(cache: &GroupCache, level: Level, spec: Spec, free: Free, base: GroupP
 }
 
 /// Fits `level` to the cache, starting from `start` where the level has a nonlinear part.
-pub fn fit_level(cache: &GroupCache, level: Level, start: &GroupParams, variant: WardVariant) -> LevelFit {
+pub fn fit_level(
+    cache: &GroupCache,
+    level: Level,
+    start: &GroupParams,
+    variant: WardVariant,
+) -> LevelFit {
     let ln_lo = (ALPHA_MIN as f64).ln();
     let ln_hi = (ALPHA_MAX as f64).ln();
     match level {
-        Level::Diffuse | Level::Textured => finish(cache, level, Spec::None, Free::Diffuse, *start, variant, 0),
-        Level::PerfectSpecular => finish(cache, level, Spec::Mirror, Free::Specular, *start, variant, 0),
-        Level::Specular => finish(cache, level, Spec::Mirror, Free::Specular, *start, variant, 0),
-        Level::DiffuseSpecular => finish(cache, level, Spec::Mirror, Free::Both, *start, variant, 0),
+        Level::Diffuse | Level::Textured => {
+            finish(cache, level, Spec::None, Free::Diffuse, *start, variant, 0)
+        }
+        Level::PerfectSpecular => finish(
+            cache,
+            level,
+            Spec::Mirror,
+            Free::Specular,
+            *start,
+            variant,
+            0,
+        ),
+        Level::Specular => finish(
+            cache,
+            level,
+            Spec::Mirror,
+            Free::Specular,
+            *start,
+            variant,
+            0,
+        ),
+        Level::DiffuseSpecular => {
+            finish(cache, level, Spec::Mirror, Free::Both, *start, variant, 0)
+        }
         Level::Isotropic => {
             // Coarse scan of α (plus the warm start), then LM in ln α.
             let mut evals = 0;
             let mut best = (f64::INFINITY, start.alpha_x.clamp(ALPHA_MIN, ALPHA_MAX));
             for a in [start.alpha_x, 0.01, 0.02, 0.04, 0.07, 0.12, 0.2, 0.35, 0.6] {
                 let a = a.clamp(ALPHA_MIN, ALPHA_MAX);
-                let specs = pixel_specs(cache, Spec::Lobe { alpha_x: a, alpha_y: a, theta: 0.0 }, variant, false);
+                let specs = pixel_specs(
+                    cache,
+                    Spec::Lobe {
+                        alpha_x: a,
+                        alpha_y: a,
+                        theta: 0.0,
+                    },
+                    variant,
+                    false,
+                );
                 let cost = project_rho(cache, &specs, Free::Both).2;
                 evals += 1;
                 if cost < best.0 {
@@ -130,21 +194,48 @@ pub fn fit_level(cache: &GroupCache, level: Level, start: &GroupParams, variant:
             let (x, _, n) = levenberg_marquardt(
                 [(best.1 as f64).ln()],
                 |x| {
-                    linearise(cache, variant, x, |x| { let a = x[0].exp() as f32; (a, a, 0.0) }, |d| [d[0] + d[1]])
+                    linearise(
+                        cache,
+                        variant,
+                        x,
+                        |x| {
+                            let a = x[0].exp() as f32;
+                            (a, a, 0.0)
+                        },
+                        |d| [d[0] + d[1]],
+                    )
                 },
                 |x| [x[0].clamp(ln_lo, ln_hi)],
                 40,
             );
             let a = x[0].exp() as f32;
-            finish(cache, level, Spec::Lobe { alpha_x: a, alpha_y: a, theta: 0.0 }, Free::Both, *start, variant, evals + n)
+            finish(
+                cache,
+                level,
+                Spec::Lobe {
+                    alpha_x: a,
+                    alpha_y: a,
+                    theta: 0.0,
+                },
+                Free::Both,
+                *start,
+                variant,
+                evals + n,
+            )
         }
         Level::Anisotropic => {
             // Several starts around the isotropic answer (the lobe is symmetric under
             // (αx, αy, θ) → (αy, αx, θ + 90°), so two orientations and two orderings cover the
             // quarter turns), plus the warm start; keep the best.
-            let a = (start.alpha_x * start.alpha_y).sqrt().clamp(ALPHA_MIN, ALPHA_MAX) as f64;
+            let a = (start.alpha_x * start.alpha_y)
+                .sqrt()
+                .clamp(ALPHA_MIN, ALPHA_MAX) as f64;
             let r = 1.3f64;
-            let mut starts = vec![[(start.alpha_x as f64).ln(), (start.alpha_y as f64).ln(), start.theta as f64]];
+            let mut starts = vec![[
+                (start.alpha_x as f64).ln(),
+                (start.alpha_y as f64).ln(),
+                start.theta as f64,
+            ]];
             for th in [0.0f64, std::f64::consts::FRAC_PI_4] {
                 starts.push([(a * r).ln(), (a / r).ln(), th]);
                 starts.push([(a / r).ln(), (a * r).ln(), th]);

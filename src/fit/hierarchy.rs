@@ -77,6 +77,11 @@ pub struct GroupState {
     /// The last change of ρd and ρs made by a refit at the same level (for damping).
     #[serde(default)]
     pub last_step: Option<(crate::math::Rgb, crate::math::Rgb)>,
+    /// Sum and count of the fits since the group was confirmed at its level. Each global
+    /// iteration draws a fresh cache, so these are independent estimates; their mean is the
+    /// group's parameters (Monte Carlo noise shrinks as 1/√count).
+    #[serde(default)]
+    pub average: Option<(GroupParams, u32)>,
 }
 
 /// What happened to a group in one global iteration.
@@ -84,16 +89,39 @@ pub struct GroupState {
 #[serde(tag = "event", rename_all = "snake_case")]
 pub enum Event {
     /// The current level was fitted.
-    Fit { level: Level, error: f32, noise_floor: f32, evals: u32 },
+    Fit {
+        level: Level,
+        error: f32,
+        noise_floor: f32,
+        evals: u32,
+    },
     /// A higher level was tried on the same cache.
-    Tried { level: Level, error_before: f32, error_after: f32, noise_floor: f32, gain_noise: f32, kept: bool },
+    Tried {
+        level: Level,
+        error_before: f32,
+        error_after: f32,
+        noise_floor: f32,
+        gain_noise: f32,
+        kept: bool,
+    },
     /// The group moved to a new level.
     Moved { from: Level, to: Level },
+    /// A higher level earned its place, but another group moves first this iteration.
+    Deferred { to: Level },
     /// The group's level is decided.
-    Confirmed { level: Level, error: f32, below_threshold: bool },
+    Confirmed {
+        level: Level,
+        error: f32,
+        below_threshold: bool,
+    },
     /// A simpler level explains the photo as well as the current one on today's cache: the
     /// group goes back to it (the current level no longer earns its place).
-    Demoted { from: Level, to: Level, error_before: f32, error_after: f32 },
+    Demoted {
+        from: Level,
+        to: Level,
+        error_before: f32,
+        error_after: f32,
+    },
 }
 
 impl GroupState {
@@ -108,7 +136,39 @@ impl GroupState {
             iterations_at_level: 0,
             note: None,
             last_step: None,
+            average: None,
         }
+    }
+
+    /// Adds a confirmed fit to the running mean and sets the parameters to the mean.
+    fn accumulate(&mut self) {
+        let p = self.params;
+        let (sum, n) = self.average.get_or_insert((
+            GroupParams {
+                rho_d: crate::math::Rgb::ZERO,
+                rho_s: crate::math::Rgb::ZERO,
+                alpha_x: 0.0,
+                alpha_y: 0.0,
+                theta: 0.0,
+            },
+            0,
+        ));
+        sum.rho_d += p.rho_d;
+        sum.rho_s += p.rho_s;
+        sum.alpha_x += p.alpha_x.ln();
+        sum.alpha_y += p.alpha_y.ln();
+        sum.theta += p.theta;
+        *n += 1;
+        let k = *n as f32;
+        // Roughness is averaged in the log domain (it is fitted in ln α).
+        self.params = GroupParams {
+            rho_d: sum.rho_d / k,
+            rho_s: sum.rho_s / k,
+            alpha_x: (sum.alpha_x / k).exp(),
+            alpha_y: (sum.alpha_y / k).exp(),
+            theta: sum.theta / k,
+        }
+        .clamped();
     }
 
     /// Whether the group is fitted at all.
@@ -164,20 +224,36 @@ impl GroupState {
         let g0 = base.halves[0] - better.halves[0];
         let g1 = base.halves[1] - better.halves[1];
         let gain_noise = 0.5 * (g0 - g1).abs();
-        (gain > opts.margin * base.error && gain > opts.noise_factor * gain_noise && g0 > 0.0 && g1 > 0.0, gain_noise)
+        (
+            gain > opts.margin * base.error
+                && gain > opts.noise_factor * gain_noise
+                && g0 > 0.0
+                && g1 > 0.0,
+            gain_noise,
+        )
     }
 
     /// Whether this group wants to climb this iteration if allowed: analysing, fitted at its
     /// level before, and above the level's threshold. Its priority is ε / threshold.
     pub fn climb_priority(&self, opts: &HierarchyOptions) -> Option<f32> {
         let thr = opts.thresholds.of(self.level);
-        (self.status == Status::Analysing && self.iterations_at_level >= 1 && self.error >= thr).then(|| self.error / thr)
+        (self.status == Status::Analysing && self.iterations_at_level >= 1 && self.error >= thr)
+            .then(|| self.error / thr)
     }
 
     /// One global iteration for this group, given its freshly built cache. `may_climb`: whether
-    /// the driver lets this group climb now (see `recover.rs`: one group at a time, once the
-    /// rest of the scene has settled).
-    pub fn step(&mut self, cache: &GroupCache, variant: WardVariant, opts: &HierarchyOptions, may_climb: bool) -> Vec<Event> {
+    /// the group may try the higher levels now (the rest of the scene has settled); `may_move`:
+    /// whether it may also move to one (one group at a time, the worst first; see `recover.rs`).
+    /// A try that finds no better level confirms the group; one that finds a better level
+    /// without leave to move changes nothing and is tried again later.
+    pub fn step(
+        &mut self,
+        cache: &GroupCache,
+        variant: WardVariant,
+        opts: &HierarchyOptions,
+        may_climb: bool,
+        may_move: bool,
+    ) -> Vec<Event> {
         let mut events = Vec::new();
         let fit = fit_level(cache, self.level, &self.params, variant);
         events.push(Event::Fit {
@@ -188,7 +264,9 @@ impl GroupState {
         });
         let old = self.params;
         self.take(&fit);
-        if self.iterations_at_level > 0 {
+        if self.status == Status::Confirmed {
+            self.accumulate();
+        } else if self.iterations_at_level > 0 {
             self.damp(&old);
         } else {
             self.last_step = None;
@@ -198,7 +276,8 @@ impl GroupState {
             // Demotion check: does a simpler level (available in this cache) do as well?
             let needs = self.cache_needs_for(self.level, false);
             for lower in Level::FITTED.iter().copied().filter(|&l| l < self.level) {
-                if (lower.is_ward() && !needs.lobe_samples) || (lower.is_mirror() && !needs.mirror) {
+                if (lower.is_ward() && !needs.lobe_samples) || (lower.is_mirror() && !needs.mirror)
+                {
                     continue;
                 }
                 let f = fit_level(cache, lower, &self.params, variant);
@@ -221,6 +300,7 @@ impl GroupState {
                     self.take(&f);
                     self.iterations_at_level = 0;
                     self.last_step = None;
+                    self.average = None;
                     self.status = Status::Analysing;
                     break;
                 }
@@ -273,7 +353,9 @@ impl GroupState {
             }
             last = f;
         }
-        if best.level != self.level {
+        if best.level != self.level && !may_move {
+            events.push(Event::Deferred { to: best.level });
+        } else if best.level != self.level {
             events.push(Event::Moved {
                 from: self.level,
                 to: best.level,

@@ -56,7 +56,10 @@ impl Level {
 
     /// Whether the level's specular part is an ideal mirror (as opposed to a Ward lobe).
     pub fn is_mirror(self) -> bool {
-        matches!(self, Level::PerfectSpecular | Level::Specular | Level::DiffuseSpecular)
+        matches!(
+            self,
+            Level::PerfectSpecular | Level::Specular | Level::DiffuseSpecular
+        )
     }
 
     pub fn is_ward(self) -> bool {

@@ -63,6 +63,9 @@ mod tests {
             }
         }
         let solid_angle = sum / n as f64;
-        assert!((solid_angle - 2.0 * std::f64::consts::PI).abs() < 0.03 * 2.0 * std::f64::consts::PI, "{solid_angle}");
+        assert!(
+            (solid_angle - 2.0 * std::f64::consts::PI).abs() < 0.03 * 2.0 * std::f64::consts::PI,
+            "{solid_angle}"
+        );
     }
 }

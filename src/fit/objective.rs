@@ -22,7 +22,11 @@ pub enum Spec {
     /// Ideal mirror: the cached mirror radiance.
     Mirror,
     /// Ward lobe (θ in radians).
-    Lobe { alpha_x: f32, alpha_y: f32, theta: f32 },
+    Lobe {
+        alpha_x: f32,
+        alpha_y: f32,
+        theta: f32,
+    },
 }
 
 /// Per-pixel specular term S (per unit ρs), its halves, and the halves of
@@ -40,7 +44,15 @@ pub struct PixelSpec {
 ///   ∂g/∂ln αx = g (2 (hx/αx)²/hz² − 1),   ∂g/∂ln αy = g (2 (hy/αy)²/hz² − 1),
 ///   ∂g/∂θ = −g · 2 hx hy (1/αx² − 1/αy²) / hz².
 #[inline]
-pub fn ward_with_derivatives(wo: Vec3, wi: Vec3, ax: f32, ay: f32, cos_t: f32, sin_t: f32, variant: WardVariant) -> (f32, [f32; 3]) {
+pub fn ward_with_derivatives(
+    wo: Vec3,
+    wi: Vec3,
+    ax: f32,
+    ay: f32,
+    cos_t: f32,
+    sin_t: f32,
+    variant: WardVariant,
+) -> (f32, [f32; 3]) {
     if wo.z <= 0.0 || wi.z <= 0.0 {
         return (0.0, [0.0; 3]);
     }
@@ -60,7 +72,12 @@ pub fn ward_with_derivatives(wo: Vec3, wi: Vec3, ax: f32, ay: f32, cos_t: f32, s
 }
 
 /// The specular term of every cached pixel (derivatives only if asked and the term is a lobe).
-pub fn pixel_specs(cache: &GroupCache, spec: Spec, variant: WardVariant, derivatives: bool) -> Vec<PixelSpec> {
+pub fn pixel_specs(
+    cache: &GroupCache,
+    spec: Spec,
+    variant: WardVariant,
+    derivatives: bool,
+) -> Vec<PixelSpec> {
     match spec {
         Spec::None => vec![PixelSpec::default(); cache.pixels.len()],
         Spec::Mirror => cache
@@ -72,7 +89,11 @@ pub fn pixel_specs(cache: &GroupCache, spec: Spec, variant: WardVariant, derivat
                 ds_half: [[Rgb::ZERO; 3]; 2],
             })
             .collect(),
-        Spec::Lobe { alpha_x, alpha_y, theta } => {
+        Spec::Lobe {
+            alpha_x,
+            alpha_y,
+            theta,
+        } => {
             let (sin_t, cos_t) = theta.sin_cos();
             cache
                 .pixels
@@ -81,7 +102,9 @@ pub fn pixel_specs(cache: &GroupCache, spec: Spec, variant: WardVariant, derivat
                     let mut out = PixelSpec::default();
                     for (half, range) in [(0, p.start..p.mid), (1, p.mid..p.end)] {
                         for smp in &cache.samples[range.start as usize..range.end as usize] {
-                            let (g, dg) = ward_with_derivatives(smp.wo, smp.wi, alpha_x, alpha_y, cos_t, sin_t, variant);
+                            let (g, dg) = ward_with_derivatives(
+                                smp.wo, smp.wi, alpha_x, alpha_y, cos_t, sin_t, variant,
+                            );
                             out.s_half[half] += smp.c * g;
                             if derivatives {
                                 for k in 0..3 {
@@ -104,7 +127,11 @@ pub fn moments(cache: &GroupCache, specs: &[PixelSpec]) -> [super::solve::Moment
     let mut m = [super::solve::Moments::default(); 3];
     for (p, s) in cache.pixels.iter().zip(specs) {
         for c in 0..3 {
-            m[c].add([p.d_half[0][c], p.d_half[1][c]], [s.s_half[0][c], s.s_half[1][c]], p.photo[c]);
+            m[c].add(
+                [p.d_half[0][c], p.d_half[1][c]],
+                [s.s_half[0][c], s.s_half[1][c]],
+                p.photo[c],
+            );
         }
     }
     m
@@ -137,11 +164,20 @@ pub fn error(cache: &GroupCache, specs: &[PixelSpec], rho_d: Rgb, rho_s: Rgb) ->
     if !(total > 0.0) {
         return ErrorStats::default();
     }
-    let l1 = |a: &[Rgb], b: &[Rgb]| a.iter().zip(b).map(|(x, y)| (*x - *y).abs()).map(|d| d.x + d.y + d.z).sum::<f32>();
+    let l1 = |a: &[Rgb], b: &[Rgb]| {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (*x - *y).abs())
+            .map(|d| d.x + d.y + d.z)
+            .sum::<f32>()
+    };
     ErrorStats {
         error: l1(&syn, &photo) / total,
         noise_floor: 0.5 * l1(&halves[0], &halves[1]) / total,
-        halves: [l1(&halves[0], &photo) / total, l1(&halves[1], &photo) / total],
+        halves: [
+            l1(&halves[0], &photo) / total,
+            l1(&halves[1], &photo) / total,
+        ],
     }
 }
 
@@ -158,10 +194,22 @@ mod tests {
             let (ax, ay, th) = (0.09f32, 0.16f32, 0.4f32);
             let (g, dg) = ward_with_derivatives(wo, wi, ax, ay, th.cos(), th.sin(), variant);
             // The renderer's lobe in a frame rotated by θ: rotate the directions by −θ.
-            let rot = |v: Vec3| Vec3::new(v.x * th.cos() + v.y * th.sin(), -v.x * th.sin() + v.y * th.cos(), v.z);
-            let lobe = WardLobe { alpha_x: ax, alpha_y: ay, variant };
+            let rot = |v: Vec3| {
+                Vec3::new(
+                    v.x * th.cos() + v.y * th.sin(),
+                    -v.x * th.sin() + v.y * th.cos(),
+                    v.z,
+                )
+            };
+            let lobe = WardLobe {
+                alpha_x: ax,
+                alpha_y: ay,
+                variant,
+            };
             assert!((g - lobe.eval(rot(wo), rot(wi))).abs() < 1e-4 * g);
-            let f = |ax: f32, ay: f32, th: f32| ward_with_derivatives(wo, wi, ax, ay, th.cos(), th.sin(), variant).0 as f64;
+            let f = |ax: f32, ay: f32, th: f32| {
+                ward_with_derivatives(wo, wi, ax, ay, th.cos(), th.sin(), variant).0 as f64
+            };
             let h = 1e-3f32;
             let num = [
                 (f(ax * h.exp(), ay, th) - f(ax / h.exp(), ay, th)) / (2.0 * h as f64),
@@ -169,7 +217,12 @@ mod tests {
                 (f(ax, ay, th + h) - f(ax, ay, th - h)) / (2.0 * h as f64),
             ];
             for k in 0..3 {
-                assert!((dg[k] as f64 - num[k]).abs() < 2e-3 * g as f64, "{variant:?} d{k}: {} vs {}", dg[k], num[k]);
+                assert!(
+                    (dg[k] as f64 - num[k]).abs() < 2e-3 * g as f64,
+                    "{variant:?} d{k}: {} vs {}",
+                    dg[k],
+                    num[k]
+                );
             }
         }
     }

@@ -25,13 +25,23 @@ pub const REGISTRY: [ParamInfo; 5] = [
         name: "rho_d",
         min: 0.0,
         max: 1.0,
-        levels: &[Level::Diffuse, Level::DiffuseSpecular, Level::Isotropic, Level::Anisotropic],
+        levels: &[
+            Level::Diffuse,
+            Level::DiffuseSpecular,
+            Level::Isotropic,
+            Level::Anisotropic,
+        ],
     },
     ParamInfo {
         name: "rho_s",
         min: 0.0,
         max: 1.0,
-        levels: &[Level::Specular, Level::DiffuseSpecular, Level::Isotropic, Level::Anisotropic],
+        levels: &[
+            Level::Specular,
+            Level::DiffuseSpecular,
+            Level::Isotropic,
+            Level::Anisotropic,
+        ],
     },
     ParamInfo {
         name: "alpha_x",
@@ -133,7 +143,13 @@ impl GroupParams {
     /// Brings the parameters inside their physical bounds: 0 ≤ ρd, ρs; ρd + ρs ≤ 1 per channel;
     /// α in [ALPHA_MIN, ALPHA_MAX]; θ in (−90°, 90°]. NaNs become the bounds' safe values.
     pub fn clamped(mut self) -> GroupParams {
-        let fix = |v: f32| if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
+        let fix = |v: f32| {
+            if v.is_finite() {
+                v.clamp(0.0, 1.0)
+            } else {
+                0.0
+            }
+        };
         self.rho_d = Rgb::new(fix(self.rho_d.x), fix(self.rho_d.y), fix(self.rho_d.z));
         self.rho_s = Rgb::new(fix(self.rho_s.x), fix(self.rho_s.y), fix(self.rho_s.z));
         for c in 0..3 {
@@ -143,7 +159,13 @@ impl GroupParams {
                 self.rho_s[c] /= sum;
             }
         }
-        let fa = |a: f32| if a.is_finite() { a.clamp(ALPHA_MIN, ALPHA_MAX) } else { 0.1 };
+        let fa = |a: f32| {
+            if a.is_finite() {
+                a.clamp(ALPHA_MIN, ALPHA_MAX)
+            } else {
+                0.1
+            }
+        };
         self.alpha_x = fa(self.alpha_x);
         self.alpha_y = fa(self.alpha_y);
         if !self.theta.is_finite() {
@@ -184,11 +206,23 @@ mod tests {
         }
         .clamped();
         for c in 0..3 {
-            assert!(p.rho_d[c] >= 0.0 && p.rho_s[c] >= 0.0 && p.rho_d[c] + p.rho_s[c] <= 1.0 + 1e-6);
+            assert!(
+                p.rho_d[c] >= 0.0 && p.rho_s[c] >= 0.0 && p.rho_d[c] + p.rho_s[c] <= 1.0 + 1e-6
+            );
         }
         assert!(p.alpha_x >= ALPHA_MIN && p.alpha_y <= ALPHA_MAX && p.theta == 0.0);
-        let q = GroupParams { alpha_x: 0.11, alpha_y: 0.07, theta: 91f32.to_radians(), ..p }.canonical();
+        let q = GroupParams {
+            alpha_x: 0.11,
+            alpha_y: 0.07,
+            theta: 91f32.to_radians(),
+            ..p
+        }
+        .canonical();
         assert!((q.alpha_x - 0.07).abs() < 1e-6 && (q.alpha_y - 0.11).abs() < 1e-6);
-        assert!((q.theta.to_degrees() - 1.0).abs() < 1e-3, "{}", q.theta.to_degrees());
+        assert!(
+            (q.theta.to_degrees() - 1.0).abs() < 1e-3,
+            "{}",
+            q.theta.to_degrees()
+        );
     }
 }

@@ -9,8 +9,7 @@ use super::params::GroupParams;
 use crate::io::image::Image;
 use crate::math::sampler::hash_seed;
 use crate::math::Rgb;
-use crate::photo::{usable_pixels, GroupPixelStats, MaskOptions, Photo, UsableMask};
-use crate::render::aov::index_buffers;
+use crate::photo::{GroupPixelStats, Photo, UsableMask};
 use crate::render::film::{progress_bar, render, RenderOptions};
 use crate::render::PathTracer;
 use crate::scene::{Material, Scene};
@@ -21,7 +20,6 @@ use std::time::Instant;
 pub struct RecoverOptions {
     pub cache: CacheOptions,
     pub hierarchy: HierarchyOptions,
-    pub mask: MaskOptionsSer,
     /// At most this many global iterations.
     pub max_iterations: u32,
     /// Stop once every group is confirmed and no ρ moved by more than this (α: relative).
@@ -37,18 +35,11 @@ pub struct RecoverOptions {
     pub progress: bool,
 }
 
-/// The serialisable part of the mask options.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-pub struct MaskOptionsSer {
-    pub band: usize,
-}
-
 impl Default for RecoverOptions {
     fn default() -> Self {
         RecoverOptions {
             cache: CacheOptions::default(),
             hierarchy: HierarchyOptions::default(),
-            mask: MaskOptionsSer { band: MaskOptions::default().band },
             max_iterations: 16,
             tolerance: 5e-3,
             settle: 0.03,
@@ -92,7 +83,10 @@ pub struct Recovery {
 fn apply(scene: &mut Scene, states: &[GroupState]) {
     for obj in scene.objects.iter_mut() {
         let st = &states[obj.group];
-        if matches!(st.status, Status::Analysing | Status::Confirmed | Status::Default) {
+        if matches!(
+            st.status,
+            Status::Analysing | Status::Confirmed | Status::Default
+        ) {
             obj.material = st.params.material(st.level);
         }
     }
@@ -105,7 +99,13 @@ fn params_of(m: &Material) -> GroupParams {
         rho_s: m.rho_s(),
         ..Default::default()
     };
-    if let Material::Ward { alpha_x, alpha_y, theta, .. } = m {
+    if let Material::Ward {
+        alpha_x,
+        alpha_y,
+        theta,
+        ..
+    } = m
+    {
         p.alpha_x = *alpha_x;
         p.alpha_y = *alpha_y;
         p.theta = *theta;
@@ -113,13 +113,19 @@ fn params_of(m: &Material) -> GroupParams {
     p
 }
 
-/// Recovers the materials of `scene`'s non-fixed groups from `photo`. `log` receives every
-/// event as it happens.
-pub fn recover(scene: &Scene, photo: &Photo, opts: &RecoverOptions, mut log: impl FnMut(&LogLine)) -> Recovery {
+/// Recovers the materials of `scene`'s non-fixed groups from `photo`, using the usable pixels
+/// of `mask` (see `photo::prepare`; `scene.camera` must be the camera the mask was made with).
+/// `log` receives every event as it happens.
+pub fn recover(
+    scene: &Scene,
+    photo: &Photo,
+    mask: &UsableMask,
+    opts: &RecoverOptions,
+    mut log: impl FnMut(&LogLine),
+) -> Recovery {
     let t0 = Instant::now();
     let variant = scene.render.ward_variant;
-    let ib = index_buffers(scene, &scene.camera);
-    let mask = usable_pixels(&ib, photo, scene.groups.len(), &MaskOptions { band: opts.mask.band });
+    let mask = mask.clone();
 
     let mut states: Vec<GroupState> = scene
         .groups
@@ -169,8 +175,9 @@ pub fn recover(scene: &Scene, photo: &Photo, opts: &RecoverOptions, mut log: imp
         iterations = it + 1;
         let before: Vec<GroupParams> = states.iter().map(|s| s.params).collect();
         let pt = PathTracer::new(&current);
-        // At most one group climbs per iteration: the one furthest above its threshold, and
-        // only once the previous iteration changed no level and moved no parameter much.
+        // Groups try higher levels only once the previous iteration changed no level and moved
+        // no parameter much; at most one moves per iteration: the one furthest above its
+        // threshold.
         let climber = if settled {
             (0..states.len())
                 .filter_map(|g| states[g].climb_priority(&opts.hierarchy).map(|p| (g, p)))
@@ -193,12 +200,18 @@ pub fn recover(scene: &Scene, photo: &Photo, opts: &RecoverOptions, mut log: imp
                 tiles,
                 *n_tiles,
                 photo_px,
-                states[g].cache_needs(climber == Some(g)),
+                states[g].cache_needs(settled),
                 &opts.cache,
                 hash_seed(&[opts.seed, it as u64, g as u64]),
             );
             cache_builds += 1;
-            let events = states[g].step(&cache, variant, &opts.hierarchy, climber == Some(g));
+            let events = states[g].step(
+                &cache,
+                variant,
+                &opts.hierarchy,
+                settled,
+                climber == Some(g),
+            );
             let secs = tg.elapsed().as_secs_f64();
             for e in events {
                 if let Event::Fit { evals: n, .. } = e {
@@ -207,7 +220,11 @@ pub fn recover(scene: &Scene, photo: &Photo, opts: &RecoverOptions, mut log: imp
                 log(&LogLine {
                     iteration: it,
                     group: states[g].name.clone(),
-                    params: states[g].params.named(states[g].level).into_iter().collect(),
+                    params: states[g]
+                        .params
+                        .named(states[g].level)
+                        .into_iter()
+                        .collect(),
                     event: e,
                     seconds: secs,
                 });
@@ -220,12 +237,24 @@ pub fn recover(scene: &Scene, photo: &Photo, opts: &RecoverOptions, mut log: imp
             .zip(&before)
             .filter(|(s, _)| s.is_fitted())
             .map(|(s, b)| {
-                let dr = (s.params.rho_d - b.rho_d).abs().max_element().max((s.params.rho_s - b.rho_s).abs().max_element());
-                let da = ((s.params.alpha_x - b.alpha_x) / b.alpha_x).abs().max(((s.params.alpha_y - b.alpha_y) / b.alpha_y).abs());
-                if s.level.is_ward() { dr.max(da) } else { dr }
+                let dr = (s.params.rho_d - b.rho_d)
+                    .abs()
+                    .max_element()
+                    .max((s.params.rho_s - b.rho_s).abs().max_element());
+                let da = ((s.params.alpha_x - b.alpha_x) / b.alpha_x)
+                    .abs()
+                    .max(((s.params.alpha_y - b.alpha_y) / b.alpha_y).abs());
+                if s.level.is_ward() {
+                    dr.max(da)
+                } else {
+                    dr
+                }
             })
             .fold(0.0f32, f32::max);
-        let level_changed = states.iter().zip(&levels_before).any(|(s, l)| s.level != *l);
+        let level_changed = states
+            .iter()
+            .zip(&levels_before)
+            .any(|(s, l)| s.level != *l);
         settled = !level_changed && moved < opts.settle;
         let all_confirmed = states.iter().all(|s| s.status != Status::Analysing);
         if all_confirmed && moved < opts.tolerance {
@@ -238,8 +267,24 @@ pub fn recover(scene: &Scene, photo: &Photo, opts: &RecoverOptions, mut log: imp
     // synthetic image, their difference the noise floor.
     let tf = Instant::now();
     let half = (opts.final_spp / 2).max(1);
-    let a = render(&current, &current.camera, &RenderOptions { spp: half, seed: hash_seed(&[opts.seed, 101]), progress: opts.progress });
-    let b = render(&current, &current.camera, &RenderOptions { spp: half, seed: hash_seed(&[opts.seed, 202]), progress: opts.progress });
+    let a = render(
+        &current,
+        &current.camera,
+        &RenderOptions {
+            spp: half,
+            seed: hash_seed(&[opts.seed, 101]),
+            progress: opts.progress,
+        },
+    );
+    let b = render(
+        &current,
+        &current.camera,
+        &RenderOptions {
+            spp: half,
+            seed: hash_seed(&[opts.seed, 202]),
+            progress: opts.progress,
+        },
+    );
     let final_render_s = tf.elapsed().as_secs_f64();
     let mut synthetic = a.clone();
     for (s, bb) in synthetic.data.iter_mut().zip(&b.data) {
@@ -265,7 +310,14 @@ pub fn recover(scene: &Scene, photo: &Photo, opts: &RecoverOptions, mut log: imp
 
 /// ε of group `g` between a rendered image and the photo over its usable pixels, aggregated
 /// over 4×4-pixel tiles (as on the cache), and the noise floor from the two half renders.
-pub fn image_error(mask: &UsableMask, g: usize, syn: &Image, a: &Image, b: &Image, photo: &Image) -> Option<(f32, f32)> {
+pub fn image_error(
+    mask: &UsableMask,
+    g: usize,
+    syn: &Image,
+    a: &Image,
+    b: &Image,
+    photo: &Image,
+) -> Option<(f32, f32)> {
     use std::collections::BTreeMap;
     let mut tiles: BTreeMap<(usize, usize), [Rgb; 4]> = BTreeMap::new();
     for (i, &grp) in mask.group.iter().enumerate() {

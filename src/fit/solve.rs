@@ -43,7 +43,10 @@ impl Moments {
 
     /// Σ (ρd d + ρs s − p)², noise-free estimate.
     pub fn cost(&self, rd: f64, rs: f64) -> f64 {
-        self.pp - 2.0 * (rd * self.dp + rs * self.sp) + rd * rd * self.dd + 2.0 * rd * rs * self.ds + rs * rs * self.ss
+        self.pp - 2.0 * (rd * self.dp + rs * self.sp)
+            + rd * rd * self.dd
+            + 2.0 * rd * rs * self.ds
+            + rs * rs * self.ss
     }
 }
 
@@ -62,8 +65,20 @@ pub enum Free {
 /// a convex quadratic in two variables: the optimum is the unconstrained one if feasible, else
 /// the best of the optima on the three edges of the feasible triangle.
 pub fn solve_rho(m: &Moments, free: Free) -> (f64, f64) {
-    let edge_d = || if m.dd > 0.0 { (m.dp / m.dd).clamp(0.0, 1.0) } else { 0.0 };
-    let edge_s = || if m.ss > 0.0 { (m.sp / m.ss).clamp(0.0, 1.0) } else { 0.0 };
+    let edge_d = || {
+        if m.dd > 0.0 {
+            (m.dp / m.dd).clamp(0.0, 1.0)
+        } else {
+            0.0
+        }
+    };
+    let edge_s = || {
+        if m.ss > 0.0 {
+            (m.sp / m.ss).clamp(0.0, 1.0)
+        } else {
+            0.0
+        }
+    };
     match free {
         Free::Diffuse => (edge_d(), 0.0),
         Free::Specular => (0.0, edge_s()),
@@ -189,7 +204,10 @@ mod tests {
             m.add_exact(d, s, 0.3 * d + 0.6 * s);
         }
         let (rd, rs) = solve_rho(&m, Free::Both);
-        assert!((rd - 0.3).abs() < 1e-6 && (rs - 0.6).abs() < 1e-6, "{rd} {rs}");
+        assert!(
+            (rd - 0.3).abs() < 1e-6 && (rs - 0.6).abs() < 1e-6,
+            "{rd} {rs}"
+        );
         // Truth outside the triangle: the answer lies on ρd + ρs = 1.
         let mut m = Moments::default();
         for i in 0..100 {
@@ -198,7 +216,10 @@ mod tests {
             m.add_exact(d, s, 0.9 * d + 0.9 * s);
         }
         let (rd, rs) = solve_rho(&m, Free::Both);
-        assert!(rd >= 0.0 && rs >= 0.0 && (rd + rs - 1.0).abs() < 1e-9, "{rd} {rs}");
+        assert!(
+            rd >= 0.0 && rs >= 0.0 && (rd + rs - 1.0).abs() < 1e-9,
+            "{rd} {rs}"
+        );
     }
 
     #[test]
@@ -230,7 +251,11 @@ mod tests {
         // y = exp(−k x) with k = 1.7, fitted in k from k = 0.2.
         let xs: Vec<f64> = (0..50).map(|i| i as f64 * 0.05).collect();
         let eval = |p: &[f64; 1]| {
-            let mut l = Linearisation { cost: 0.0, jtj: [[0.0]], jtr: [0.0] };
+            let mut l = Linearisation {
+                cost: 0.0,
+                jtj: [[0.0]],
+                jtr: [0.0],
+            };
             for &x in &xs {
                 let r = (-p[0] * x).exp() - (-1.7 * x).exp();
                 let j = -x * (-p[0] * x).exp();

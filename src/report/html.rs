@@ -4,7 +4,9 @@ use super::Results;
 use crate::fit::params::Value;
 
 fn esc(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
 }
 
 fn value(v: &Value) -> String {
@@ -17,7 +19,11 @@ fn value(v: &Value) -> String {
 pub fn report(res: &Results) -> String {
     let mut rows = String::new();
     for g in &res.groups {
-        let params: Vec<String> = g.params.iter().map(|(k, v)| format!("{k} = {}", value(v))).collect();
+        let params: Vec<String> = g
+            .params
+            .iter()
+            .map(|(k, v)| format!("{k} = {}", value(v)))
+            .collect();
         let pct = |x: Option<f32>| x.map_or("–".to_string(), |e| format!("{:.2}%", 100.0 * e));
         rows += &format!(
             "<tr><td>{}</td><td>{} ({})</td><td>{:?}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
@@ -46,6 +52,11 @@ table{{border-collapse:collapse}} td,th{{border:1px solid #ccc;padding:4px 8px;f
 <p>The log of every decision is <a href="log.jsonl">log.jsonl</a>; the recovered scene is <a href="recovered.toml">recovered.toml</a>.</p>
 </body></html>
 "#,
-        res.iterations, res.cache_builds, res.objective_evals, res.timing.total_s, res.timing.final_render_s, res.ward_variant
+        res.iterations,
+        res.cache_builds,
+        res.objective_evals,
+        res.timing.total_s,
+        res.timing.final_render_s,
+        res.ward_variant
     )
 }

@@ -100,7 +100,11 @@ pub fn false_colour(t: f32) -> Rgb {
         Rgb::new(0.9, 0.05, 0.0),
         Rgb::new(1.0, 1.0, 1.0),
     ];
-    let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 1.0 } * (stops.len() - 1) as f32;
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        1.0
+    } * (stops.len() - 1) as f32;
     let i = (t as usize).min(stops.len() - 2);
     let f = t - i as f32;
     stops[i] * (1.0 - f) + stops[i + 1] * f
