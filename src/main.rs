@@ -109,14 +109,19 @@ struct FitArgs {
 
 impl FitArgs {
     fn options(&self) -> matfit::fit::RecoverOptions {
-        let mut o = matfit::fit::RecoverOptions::default();
-        o.seed = self.seed;
-        o.max_iterations = self.max_iterations.max(1);
-        o.cache.light_samples = self.light_samples.max(2);
-        o.cache.indirect_samples = self.indirect_samples.max(2);
-        o.cache.max_pixels = self.max_pixels.max(16);
-        o.final_spp = self.final_spp.max(2);
-        o
+        let d = matfit::fit::RecoverOptions::default();
+        matfit::fit::RecoverOptions {
+            seed: self.seed,
+            max_iterations: self.max_iterations.max(1),
+            final_spp: self.final_spp.max(2),
+            cache: matfit::fit::cache::CacheOptions {
+                light_samples: self.light_samples.max(2),
+                indirect_samples: self.indirect_samples.max(2),
+                max_pixels: self.max_pixels.max(16),
+                ..d.cache.clone()
+            },
+            ..d
+        }
     }
 }
 
