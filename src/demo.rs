@@ -25,6 +25,8 @@ pub fn figure6_path() -> PathBuf {
 
 /// Options of the demo.
 pub struct DemoOptions {
+    /// The scene whose materials are the truth (default: figure6).
+    pub scene: Option<PathBuf>,
     pub out: PathBuf,
     pub photo_spp: u32,
     pub recover: RecoverOptions,
@@ -192,7 +194,8 @@ pub fn print_table(
 /// Runs the demo; returns the recovery's worst ρ error.
 pub fn run(opts: &DemoOptions) -> Result<f32, String> {
     let t0 = Instant::now();
-    let scene = load_scene(&figure6_path()).map_err(|e| e.to_string())?;
+    let path = opts.scene.clone().unwrap_or_else(figure6_path);
+    let scene = load_scene(&path).map_err(|e| e.to_string())?;
     std::fs::create_dir_all(&opts.out)
         .map_err(|e| format!("cannot create {}: {e}", opts.out.display()))?;
     let tp = Instant::now();

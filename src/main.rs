@@ -55,6 +55,9 @@ enum Command {
     },
     /// Render the figure6 photo, recover its materials blind, print the Figure 6 table.
     Demo {
+        /// Another scene to use instead of figure6 (its materials are the truth).
+        #[arg(long)]
+        scene: Option<PathBuf>,
         /// Output folder; the photo is kept there for the next run.
         #[arg(short, long, default_value = "out/demo")]
         output: PathBuf,
@@ -243,11 +246,13 @@ fn run(cmd: Command) -> Result<()> {
             Ok(())
         }
         Command::Demo {
+            scene,
             output,
             photo_spp,
             fit,
         } => {
             let opts = matfit::demo::DemoOptions {
+                scene,
                 out: output,
                 photo_spp,
                 recover: fit.options(),

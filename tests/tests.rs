@@ -2,6 +2,7 @@
 
 mod common;
 mod geometry;
+mod recover;
 mod photo;
 mod render_physics;
 mod scene_errors;

@@ -27,6 +27,8 @@ pub struct RecoverOptions {
     /// Groups may climb the hierarchy only after an iteration in which no level changed and no
     /// parameter moved by more than this.
     pub settle: f32,
+    /// Do not stop before every confirmed group has averaged this many independent fits.
+    pub min_average: u32,
     /// Diffuse reflectance given to groups with no usable pixels (the notes: white).
     pub default_rho_d: f32,
     /// Samples per pixel of the final render.
@@ -43,6 +45,7 @@ impl Default for RecoverOptions {
             max_iterations: 16,
             tolerance: 5e-3,
             settle: 0.03,
+            min_average: 4,
             default_rho_d: 1.0,
             final_spp: 64,
             seed: 0,
@@ -256,7 +259,9 @@ pub fn recover(
             .zip(&levels_before)
             .any(|(s, l)| s.level != *l);
         settled = !level_changed && moved < opts.settle;
-        let all_confirmed = states.iter().all(|s| s.status != Status::Analysing);
+        let all_confirmed = states.iter().all(|s| {
+            s.status != Status::Analysing && (s.status != Status::Confirmed || s.average.is_some_and(|a| a.1 >= opts.min_average))
+        });
         if all_confirmed && moved < opts.tolerance {
             break;
         }
