@@ -370,7 +370,10 @@ python bench/crosscheck.py {' '.join(sys.argv[1:])}
   brightest is compared in units of the brightest); each renderer's two seeds are averaged;
   σ = standard error of rel. diff from both renderers' seed-to-seed pixel differences (max over
   channels); seeds = |rel. diff| between two matfit seeds
-  ({seeds[0]}, {seeds[1]}), max over channels. A group fails if a channel has {rule}.
+  ({seeds[0]}, {seeds[1]}), max over channels. A group passes if every channel has {rule};
+  "noisy" marks a group whose 3σ exceeds {args.tol:.0%}: the check cannot resolve {args.tol:.0%}
+  there (the mirror case's blocks, lit by caustics that both renderers find only by BSDF
+  sampling); raise --mirror-spp to resolve it.
 
 Calibrated camera with an off-centre principal point (principal_point_offset_x/y): Mitsuba's
 ray directions differ from the OpenCV model by at most {cam_err:.1e}.
