@@ -13,6 +13,7 @@
 pub mod bench;
 pub mod cli_recover;
 pub mod demo;
+pub mod export;
 pub mod fit;
 pub mod geometry;
 pub mod io;

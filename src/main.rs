@@ -80,6 +80,15 @@ enum Command {
         #[command(flatten)]
         photo_args: matfit::photo::PhotoArgs,
     },
+    /// Export a scene to another renderer: `matfit export mitsuba SCENE -o DIR` writes
+    /// DIR/scene.xml (Mitsuba 3) and DIR/meshes/*.ply; approximations are printed as warnings.
+    Export {
+        format: matfit::export::Format,
+        scene: PathBuf,
+        /// Output folder (created if needed).
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Benchmarks (figures for the issue notes, not tests).
     Bench {
         #[command(subcommand)]
@@ -311,6 +320,27 @@ fn run(cmd: Command) -> Result<()> {
             let report = matfit::photo::inspect::inspect(&sc, &photo, &photo_args, &output)
                 .map_err(anyhow::Error::msg)?;
             print!("{report}");
+            Ok(())
+        }
+        Command::Export {
+            format,
+            scene,
+            output,
+        } => {
+            let sc = load_scene(&scene)?;
+            let report = match format {
+                matfit::export::Format::Mitsuba => {
+                    matfit::export::mitsuba::export(&sc, &output).map_err(anyhow::Error::msg)?
+                }
+            };
+            for w in &report.warnings {
+                eprintln!("warning: {w}");
+            }
+            println!(
+                "wrote {} ({} files)",
+                report.files[0].display(),
+                report.files.len()
+            );
             Ok(())
         }
         Command::Bench { which } => match which {

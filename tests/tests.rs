@@ -1,6 +1,7 @@
 //! End-to-end tests, in one binary (quicker to build on two cores than one binary per file).
 
 mod common;
+mod export;
 mod geometry;
 mod recover;
 mod photo;
