@@ -19,19 +19,45 @@ fn scaled(path: &str, scale: f32) -> Scene {
     let sc = parse_scene(&text, &p).unwrap();
     let (w, h) = (sc.camera.width, sc.camera.height);
     let text = text
-        .replace(&format!("width = {w}\n"), &format!("width = {}\n", (w as f32 * scale) as u32))
-        .replace(&format!("height = {h}\n"), &format!("height = {}\n", (h as f32 * scale) as u32));
+        .replace(
+            &format!("width = {w}\n"),
+            &format!("width = {}\n", (w as f32 * scale) as u32),
+        )
+        .replace(
+            &format!("height = {h}\n"),
+            &format!("height = {}\n", (h as f32 * scale) as u32),
+        );
     parse_scene(&text, &p).unwrap()
 }
 
 /// Renders the photo with the true materials, recovers, returns the recovery and the log.
 fn run(scene: &Scene, photo_spp: u32) -> (Recovery, Vec<(String, Event)>) {
-    let img = render(scene, &scene.camera, &RenderOptions { spp: photo_spp, seed: 77, progress: false });
+    let img = render(
+        scene,
+        &scene.camera,
+        &RenderOptions {
+            spp: photo_spp,
+            seed: 77,
+            progress: false,
+        },
+    );
     let photo = Photo::from_linear(img);
-    let mask = usable_pixels(&index_buffers(scene, &scene.camera), &photo, scene.groups.len(), &Default::default());
-    let opts = RecoverOptions { progress: false, seed: 5, final_spp: 16, ..Default::default() };
+    let mask = usable_pixels(
+        &index_buffers(scene, &scene.camera),
+        &photo,
+        scene.groups.len(),
+        &Default::default(),
+    );
+    let opts = RecoverOptions {
+        progress: false,
+        seed: 5,
+        final_spp: 16,
+        ..Default::default()
+    };
     let mut log = Vec::new();
-    let rec = recover(scene, &photo, &mask, &opts, |l| log.push((l.group.clone(), l.event.clone())));
+    let rec = recover(scene, &photo, &mask, &opts, |l| {
+        log.push((l.group.clone(), l.event.clone()))
+    });
     (rec, log)
 }
 
@@ -76,32 +102,78 @@ fn figure6_is_recovered_blind() {
     let scene = scaled("scenes/figure6/scene.toml", 0.5);
     let (rec, log) = run(&scene, 256);
     eprintln!("{}", table(&scene, &rec));
-    for name in ["left_wall", "right_wall", "back_wall", "big_block", "small_block", "floor"] {
+    for name in [
+        "left_wall",
+        "right_wall",
+        "back_wall",
+        "big_block",
+        "small_block",
+        "floor",
+    ] {
         let st = state(&rec, name);
         let t = truth(&scene, name);
         let dr = (st.params.rho_d - t.rho_d()).abs().max_element();
         let ds = (st.params.rho_s - t.rho_s()).abs().max_element();
-        assert!(dr < 0.015 && ds < 0.015, "{name}: ρd {} vs {}, ρs {} vs {}", st.params.rho_d, t.rho_d(), st.params.rho_s, t.rho_s());
+        assert!(
+            dr < 0.015 && ds < 0.015,
+            "{name}: ρd {} vs {}, ρs {} vs {}",
+            st.params.rho_d,
+            t.rho_d(),
+            st.params.rho_s,
+            t.rho_s()
+        );
         assert_eq!(st.status, Status::Confirmed, "{name}");
-        let want = if name == "floor" { Level::Anisotropic } else { Level::Diffuse };
+        let want = if name == "floor" {
+            Level::Anisotropic
+        } else {
+            Level::Diffuse
+        };
         assert_eq!(st.level, want, "{name}");
     }
     let floor = state(&rec, "floor").params;
-    assert!((floor.alpha_x / 0.07 - 1.0).abs() < 0.04, "αx {}", floor.alpha_x);
-    assert!((floor.alpha_y / 0.11 - 1.0).abs() < 0.04, "αy {}", floor.alpha_y);
-    assert!(floor.theta.to_degrees().abs() < 1.5, "θ {}°", floor.theta.to_degrees());
-    assert_eq!(state(&rec, "ceiling").status, Status::Default, "the ceiling is out of view");
+    assert!(
+        (floor.alpha_x / 0.07 - 1.0).abs() < 0.04,
+        "αx {}",
+        floor.alpha_x
+    );
+    assert!(
+        (floor.alpha_y / 0.11 - 1.0).abs() < 0.04,
+        "αy {}",
+        floor.alpha_y
+    );
+    assert!(
+        floor.theta.to_degrees().abs() < 1.5,
+        "θ {}°",
+        floor.theta.to_degrees()
+    );
+    assert_eq!(
+        state(&rec, "ceiling").status,
+        Status::Default,
+        "the ceiling is out of view"
+    );
     assert_eq!(state(&rec, "light").status, Status::Light);
     // The floor climbed the levels in order, each tried once, before settling.
     let tried: Vec<Level> = log
         .iter()
         .filter(|(g, _)| g == "floor")
-        .filter_map(|(_, e)| if let Event::Tried { level, .. } = e { Some(*level) } else { None })
+        .filter_map(|(_, e)| {
+            if let Event::Tried { level, .. } = e {
+                Some(*level)
+            } else {
+                None
+            }
+        })
         .collect();
     let first: Vec<Level> = tried.iter().copied().take(5).collect();
     assert_eq!(
         first,
-        vec![Level::PerfectSpecular, Level::Specular, Level::DiffuseSpecular, Level::Isotropic, Level::Anisotropic],
+        vec![
+            Level::PerfectSpecular,
+            Level::Specular,
+            Level::DiffuseSpecular,
+            Level::Isotropic,
+            Level::Anisotropic
+        ],
         "climb order {tried:?}"
     );
 }
@@ -127,7 +199,14 @@ fn glossy_scene_groups_are_confirmed_at_their_own_levels() {
         let t = truth(&scene, name);
         let dr = (st.params.rho_d - t.rho_d()).abs().max_element();
         let ds = (st.params.rho_s - t.rho_s()).abs().max_element();
-        assert!(dr < 0.03 && ds < 0.03, "{name}: ρd {} vs {}, ρs {} vs {}", st.params.rho_d, t.rho_d(), st.params.rho_s, t.rho_s());
+        assert!(
+            dr < 0.03 && ds < 0.03,
+            "{name}: ρd {} vs {}, ρs {} vs {}",
+            st.params.rho_d,
+            t.rho_d(),
+            st.params.rho_s,
+            t.rho_s()
+        );
     }
     let a = state(&rec, "glossy_sphere").params.alpha_x;
     assert!((a / 0.15 - 1.0).abs() < 0.05, "α {a}");

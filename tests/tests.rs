@@ -3,7 +3,7 @@
 mod common;
 mod export;
 mod geometry;
-mod recover;
 mod photo;
+mod recover;
 mod render_physics;
 mod scene_errors;

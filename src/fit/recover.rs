@@ -260,7 +260,9 @@ pub fn recover(
             .any(|(s, l)| s.level != *l);
         settled = !level_changed && moved < opts.settle;
         let all_confirmed = states.iter().all(|s| {
-            s.status != Status::Analysing && (s.status != Status::Confirmed || s.average.is_some_and(|a| a.1 >= opts.min_average))
+            s.status != Status::Analysing
+                && (s.status != Status::Confirmed
+                    || s.average.is_some_and(|a| a.1 >= opts.min_average))
         });
         if all_confirmed && moved < opts.tolerance {
             break;

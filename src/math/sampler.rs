@@ -62,7 +62,11 @@ impl Sampler {
                 // sobol_burley's sequences hold 2^16 samples: each further block of 2^16 is
                 // another independently scrambled sequence.
                 let block = (self.index >> 16) as u64;
-                let seed = if block == 0 { self.seed } else { mix64(self.seed ^ block) };
+                let seed = if block == 0 {
+                    self.seed
+                } else {
+                    mix64(self.seed ^ block)
+                };
                 let scramble = (seed ^ (seed >> 32)) as u32;
                 self.buffer = sobol_burley::sample_4d(self.index & 0xFFFF, d / 4, scramble);
             }
