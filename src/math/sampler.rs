@@ -58,7 +58,7 @@ impl Sampler {
         let d = self.dim;
         self.dim += 1;
         if d < SOBOL_DIMS {
-            if d % 4 == 0 {
+            if d.is_multiple_of(4) {
                 // sobol_burley's sequences hold 2^16 samples: each further block of 2^16 is
                 // another independently scrambled sequence.
                 let block = (self.index >> 16) as u64;
