@@ -1,33 +1,101 @@
-//! The `recover` command's work: run the engine with a JSON-lines log, then write the outputs.
+//! The `recover` command's work: run the engine with a JSON-lines log and a checkpoint after
+//! every global iteration, then write the outputs. `resume` continues a run that was killed
+//! (even by `kill -9`) from its last checkpoint, to exactly the result of an uninterrupted run.
 
-use crate::fit::{recover, RecoverOptions, Recovery};
+use crate::fit::recover::{fingerprint, CHECKPOINT_VERSION};
+use crate::fit::{recover_resumable, Checkpoint, RecoverOptions, Recovery};
+use crate::io::atomic::write_atomic;
 use crate::photo::{Photo, UsableMask};
 use crate::scene::Scene;
-use std::io::Write;
+use std::io::{Seek, Write};
 use std::path::Path;
 
-/// Recovers `scene`'s materials from `photo`, writing log.jsonl as it goes and every other
-/// output at the end into `out` (which must exist).
+/// Recovers `scene`'s materials from `photo`, writing log.jsonl as it goes, checkpoint.json
+/// after every global iteration, and every other output at the end into `out` (which must
+/// exist). With `resume`, continues from `out/checkpoint.json`.
 pub fn run_recover(
     scene: &Scene,
     photo: &Photo,
     mask: &UsableMask,
     opts: &RecoverOptions,
     out: &Path,
+    resume: bool,
 ) -> Result<Recovery, String> {
     let log_path = out.join("log.jsonl");
-    let f = std::fs::File::create(&log_path)
-        .map_err(|e| format!("cannot write {}: {e}", log_path.display()))?;
-    let mut log = std::io::BufWriter::new(f);
-    let mut log_err = None;
-    let rec = recover(scene, photo, mask, opts, |line| {
-        let s = serde_json::to_string(line).expect("log line serialises");
-        if let Err(e) = writeln!(log, "{s}").and_then(|_| log.flush()) {
-            log_err.get_or_insert(e);
+    let ck_path = out.join("checkpoint.json");
+    let scene_text = std::fs::read_to_string(&scene.path).unwrap_or_default();
+    let print = fingerprint(&scene_text, photo, mask, opts);
+    let resume_from: Option<Checkpoint> = if resume {
+        let text = std::fs::read_to_string(&ck_path)
+            .map_err(|e| format!("cannot resume: {}: {e}", ck_path.display()))?;
+        let c: Checkpoint = serde_json::from_str(&text).map_err(|e| {
+            format!(
+                "cannot resume: {} is not a matfit checkpoint ({e})",
+                ck_path.display()
+            )
+        })?;
+        if c.version != CHECKPOINT_VERSION || c.fingerprint != print {
+            return Err(format!(
+                "cannot resume: {} was written for another scene, photo or set of options",
+                ck_path.display()
+            ));
         }
-    });
-    if let Some(e) = log_err {
-        return Err(format!("cannot write {}: {e}", log_path.display()));
+        Some(c)
+    } else {
+        None
+    };
+    let io = |e: std::io::Error| format!("cannot write {}: {e}", log_path.display());
+    let mut f = std::fs::OpenOptions::new()
+        .create(true)
+        .write(true)
+        .truncate(resume_from.is_none())
+        .open(&log_path)
+        .map_err(io)?;
+    if let Some(c) = &resume_from {
+        // Lines written after the checkpoint belong to the interrupted iteration: drop them.
+        f.set_len(c.log_bytes).map_err(io)?;
+        f.seek(std::io::SeekFrom::End(0)).map_err(io)?;
+    }
+    // Both callbacks write to the log (lines; its length at checkpoints) and record errors.
+    let log = std::cell::RefCell::new(std::io::BufWriter::new(f));
+    let err: std::cell::RefCell<Option<String>> = std::cell::RefCell::new(None);
+    let rec = recover_resumable(
+        scene,
+        photo,
+        mask,
+        opts,
+        resume_from.as_ref(),
+        |line| {
+            let s = serde_json::to_string(line).expect("log line serialises");
+            if let Err(e) = writeln!(log.borrow_mut(), "{s}") {
+                err.borrow_mut().get_or_insert(io(e));
+            }
+        },
+        |c| {
+            let mut c = c.clone();
+            c.fingerprint = print;
+            let mut log = log.borrow_mut();
+            let len = log
+                .flush()
+                .and_then(|_| log.get_ref().sync_data())
+                .and_then(|_| log.get_ref().metadata());
+            match len {
+                Ok(m) => c.log_bytes = m.len(),
+                Err(e) => {
+                    err.borrow_mut().get_or_insert(io(e));
+                    return;
+                }
+            }
+            let json = serde_json::to_string(&c).expect("checkpoint serialises");
+            if let Err(e) = write_atomic(&ck_path, json.as_bytes()) {
+                err.borrow_mut()
+                    .get_or_insert(format!("cannot write {}: {e}", ck_path.display()));
+            }
+        },
+    );
+    log.into_inner().flush().map_err(io)?;
+    if let Some(e) = err.into_inner() {
+        return Err(e);
     }
     crate::report::write_outputs(out, &rec, photo)?;
     Ok(rec)

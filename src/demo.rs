@@ -218,7 +218,8 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
         .map_err(|e| format!("cannot create {}: {e}", rec_dir.display()))?;
     let index = crate::render::aov::index_buffers(&scene, &scene.camera);
     let mask = crate::photo::usable_pixels(&index, &photo, scene.groups.len(), &Default::default());
-    let rec = crate::cli_recover::run_recover(&scene, &photo, &mask, &opts.recover, &rec_dir)?;
+    let rec =
+        crate::cli_recover::run_recover(&scene, &photo, &mask, &opts.recover, &rec_dir, false)?;
     let mut stdout = std::io::stdout();
     println!();
     let worst = print_table(&scene, &rec, &mut stdout).map_err(|e| e.to_string())?;

@@ -52,6 +52,9 @@ enum Command {
         fit: FitArgs,
         #[command(flatten)]
         photo_args: matfit::photo::PhotoArgs,
+        /// Continue a run in OUT that was interrupted, from its last checkpoint.
+        #[arg(long)]
+        resume: bool,
     },
     /// Render the figure6 photo, recover its materials blind, print the Figure 6 table.
     Demo {
@@ -225,6 +228,7 @@ fn run(cmd: Command) -> Result<()> {
             output,
             fit,
             photo_args,
+            resume,
         } => {
             let mut sc = load_scene(&scene)?;
             let prepared =
@@ -239,6 +243,7 @@ fn run(cmd: Command) -> Result<()> {
                 &prepared.mask,
                 &fit.options(),
                 &output,
+                resume,
             )
             .map_err(anyhow::Error::msg)?;
             for g in &rec.groups {

@@ -6,4 +6,5 @@ mod geometry;
 mod photo;
 mod recover;
 mod render_physics;
+mod resume;
 mod scene_errors;

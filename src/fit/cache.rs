@@ -43,7 +43,7 @@ impl Default for CacheOptions {
         CacheOptions {
             light_samples: 32,
             indirect_samples: 32,
-            mirror_samples: 8,
+            mirror_samples: 16,
             max_pixels: 12_000,
             tiles_per_group: 48,
         }

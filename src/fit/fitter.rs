@@ -20,6 +20,10 @@ pub struct LevelFit {
     pub noise_floor: f32,
     /// ε of each half of the cache's samples alone.
     pub halves: [f32; 2],
+    /// The least-squares cost from cross-half moments (`solve::Moments`): an estimate of the
+    /// noise-free squared error (up to a constant shared by all models on the same cache), so
+    /// that a model is never preferred for being evaluated with less noise.
+    pub cost: f64,
     /// Evaluations of the objective (passes over the cache).
     pub evals: u32,
 }
@@ -104,6 +108,7 @@ fn finish(
         Level::PerfectSpecular => (Rgb::ZERO, Rgb::ONE, 0.0),
         _ => project_rho(cache, &specs, free),
     };
+    let m = moments(cache, &specs);
     let mut params = GroupParams {
         rho_d: rd,
         rho_s: rs,
@@ -125,12 +130,16 @@ fn finish(
         params.clamped()
     };
     let st = error(cache, &specs, params.rho_d, params.rho_s);
+    let cost = (0..3)
+        .map(|c| m[c].cost(params.rho_d[c] as f64, params.rho_s[c] as f64))
+        .sum();
     LevelFit {
         level,
         params,
         error: st.error,
         noise_floor: st.noise_floor,
         halves: st.halves,
+        cost,
         evals: evals + 1,
     }
 }

@@ -13,8 +13,10 @@
 //!   A level is kept only if it lowers ε by a clear margin: by the fraction `margin` of the
 //!   current ε, and by more than `noise_factor` times the noise of that gain. Both models are
 //!   evaluated on the same samples, so the gain's noise is measured by evaluating it on each
-//!   half of the samples alone: |gain₀ − gain₁| / 2. Climbing stops at the first kept level
-//!   below its threshold.
+//!   half of the samples alone: |gain₀ − gain₁| / 2; and it must lower the cross-half
+//!   least-squares cost too, which Monte Carlo noise does not inflate (so a near-mirror Ward
+//!   lobe cannot beat the mirror model merely by being evaluated with less noise). Climbing
+//!   stops at the first kept level below its threshold.
 //!        kept a higher level ──► move to it (Analysing; confirmed when its refit passes)
 //!        none earned its place ──► Confirmed at ℓ, the simplest level with the lowest error
 //! ```
@@ -287,6 +289,7 @@ impl GroupState {
                     error: self.error,
                     noise_floor: self.noise_floor,
                     halves: fit.halves,
+                    cost: fit.cost,
                     evals: 0,
                 };
                 if !Self::earns(&f, &current, opts).0 {

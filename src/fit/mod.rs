@@ -13,4 +13,4 @@ pub mod solve;
 
 pub use level::Level;
 pub use params::GroupParams;
-pub use recover::{recover, RecoverOptions, Recovery};
+pub use recover::{recover, recover_resumable, Checkpoint, RecoverOptions, Recovery};

@@ -65,6 +65,53 @@ pub struct LogLine {
     pub seconds: f64,
 }
 
+/// The state of a recovery after a global iteration: enough to continue it exactly (the caches'
+/// seeds derive from the iteration number, so a resumed run draws the same samples).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Checkpoint {
+    pub version: u32,
+    /// A hash of the scene file, the photo and the options: a checkpoint only resumes the run
+    /// that wrote it.
+    pub fingerprint: u64,
+    pub next_iteration: u32,
+    pub states: Vec<GroupState>,
+    pub settled: bool,
+    pub cache_builds: u32,
+    pub objective_evals: u64,
+    /// Length of log.jsonl when the checkpoint was taken (the caller truncates to it).
+    pub log_bytes: u64,
+}
+
+pub const CHECKPOINT_VERSION: u32 = 1;
+
+/// A hash identifying a run: scene text, photo pixels, mask and options.
+pub fn fingerprint(
+    scene_text: &str,
+    photo: &Photo,
+    mask: &UsableMask,
+    opts: &RecoverOptions,
+) -> u64 {
+    use crate::math::sampler::mix64;
+    let mut h = hash_seed(&[CHECKPOINT_VERSION as u64]);
+    for b in scene_text.bytes() {
+        h = mix64(h ^ b as u64);
+    }
+    for c in &photo.image.data {
+        h = mix64(
+            h ^ ((c.x.to_bits() as u64) << 32 | c.y.to_bits() as u64)
+                ^ (c.z.to_bits() as u64).rotate_left(17),
+        );
+    }
+    for &g in &mask.group {
+        h = mix64(h ^ g as u64);
+    }
+    let o = serde_json::to_string(opts).expect("options serialise");
+    for b in o.bytes() {
+        h = mix64(h ^ b as u64);
+    }
+    h
+}
+
 /// Everything a recovery produced.
 pub struct Recovery {
     pub groups: Vec<GroupState>,
@@ -124,7 +171,21 @@ pub fn recover(
     photo: &Photo,
     mask: &UsableMask,
     opts: &RecoverOptions,
+    log: impl FnMut(&LogLine),
+) -> Recovery {
+    recover_resumable(scene, photo, mask, opts, None, log, |_| {})
+}
+
+/// [`recover`], starting from `resume` if given, and handing a [`Checkpoint`] to `checkpoint`
+/// after every global iteration (its `fingerprint` and `log_bytes` are the caller's to fill).
+pub fn recover_resumable(
+    scene: &Scene,
+    photo: &Photo,
+    mask: &UsableMask,
+    opts: &RecoverOptions,
+    resume: Option<&Checkpoint>,
     mut log: impl FnMut(&LogLine),
+    mut checkpoint: impl FnMut(&Checkpoint),
 ) -> Recovery {
     let t0 = Instant::now();
     let variant = scene.render.ward_variant;
@@ -161,6 +222,18 @@ pub fn recover(
         })
         .collect();
 
+    let (mut iterations, mut cache_builds, mut evals) = (0u32, 0u32, 0u64);
+    // Whether the previous iteration left the scene nearly unchanged (see `GroupState::step`).
+    let mut settled = false;
+    let mut start = 0;
+    if let Some(c) = resume {
+        states = c.states.clone();
+        settled = c.settled;
+        cache_builds = c.cache_builds;
+        evals = c.objective_evals;
+        start = c.next_iteration;
+        iterations = c.next_iteration;
+    }
     let mut current = scene.clone();
     apply(&mut current, &states);
     let photo_px = &photo.image.data;
@@ -170,10 +243,12 @@ pub fn recover(
         .collect();
 
     let pb = progress_bar(opts.max_iterations as u64, "recover", opts.progress);
-    let (mut iterations, mut cache_builds, mut evals) = (0u32, 0u32, 0u64);
-    // Whether the previous iteration left the scene nearly unchanged (see `GroupState::step`).
-    let mut settled = false;
-    for it in 0..opts.max_iterations {
+    pb.inc(start as u64);
+    let mut finished = resume.is_some_and(|c| c.next_iteration >= opts.max_iterations);
+    for it in start..opts.max_iterations {
+        if finished {
+            break;
+        }
         let levels_before: Vec<_> = states.iter().map(|s| s.level).collect();
         iterations = it + 1;
         let before: Vec<GroupParams> = states.iter().map(|s| s.params).collect();
@@ -258,15 +333,35 @@ pub fn recover(
             .iter()
             .zip(&levels_before)
             .any(|(s, l)| s.level != *l);
+        if level_changed {
+            // Fits made before a group changed its model saw a different scene: start every
+            // group's average afresh.
+            for s in states.iter_mut() {
+                s.average = None;
+            }
+        }
         settled = !level_changed && moved < opts.settle;
         let all_confirmed = states.iter().all(|s| {
             s.status != Status::Analysing
                 && (s.status != Status::Confirmed
                     || s.average.is_some_and(|a| a.1 >= opts.min_average))
         });
-        if all_confirmed && moved < opts.tolerance {
-            break;
-        }
+        finished = all_confirmed && moved < opts.tolerance;
+        checkpoint(&Checkpoint {
+            version: CHECKPOINT_VERSION,
+            fingerprint: 0,
+            // A finished run resumes straight to its final render.
+            next_iteration: if finished {
+                opts.max_iterations
+            } else {
+                it + 1
+            },
+            states: states.clone(),
+            settled,
+            cache_builds,
+            objective_evals: evals,
+            log_bytes: 0,
+        });
     }
     pb.finish_and_clear();
 

@@ -229,4 +229,32 @@ mod tests {
             .unwrap_err()
             .contains("not found"));
     }
+
+    #[test]
+    fn loads_gltf_with_node_transforms() {
+        // One triangle (0,0,0), (1,0,0), (0,1,0) in an embedded buffer, under a node that
+        // scales by 2 and moves by (0, 0, 3).
+        let gltf = r#"{
+  "asset": {"version": "2.0"},
+  "scene": 0,
+  "scenes": [{"nodes": [0]}],
+  "nodes": [{"mesh": 0, "scale": [2, 2, 2], "translation": [0, 0, 3]}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+  "buffers": [{"byteLength": 44, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA="}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 6}],
+  "accessors": [
+    {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+    {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}
+  ]
+}"#;
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("tri.gltf");
+        std::fs::write(&p, gltf).unwrap();
+        let m = load_mesh(&p).unwrap();
+        assert_eq!(m.indices.len(), 1);
+        assert!((m.area() - 2.0).abs() < 1e-6, "area {}", m.area());
+        assert!((m.positions[1] - Vec3::new(2.0, 0.0, 3.0)).length() < 1e-6);
+        std::fs::write(&p, "{ not json").unwrap();
+        assert!(load_mesh(&p).unwrap_err().contains("tri.gltf"));
+    }
 }
