@@ -5,7 +5,7 @@ use crate::fit::{GroupParams, Level, RecoverOptions};
 use crate::io::image::read_linear;
 use crate::photo::Photo;
 use crate::render::film::{render, RenderOptions};
-use crate::scene::{load_scene, Material, Scene};
+use crate::scene::{load_scene, Scene};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -66,54 +66,8 @@ fn fmt_rgb(c: crate::math::Rgb) -> String {
 }
 
 /// The true parameters of a group, as the scene gives them.
-fn truth(scene: &Scene, g: usize) -> (Level, GroupParams) {
-    let m = &scene.objects[scene.groups[g].objects[0]].material;
-    match m {
-        Material::Ward {
-            rho_d,
-            rho_s,
-            alpha_x,
-            alpha_y,
-            theta,
-        } => (
-            if alpha_x == alpha_y {
-                Level::Isotropic
-            } else {
-                Level::Anisotropic
-            },
-            GroupParams {
-                rho_d: *rho_d,
-                rho_s: *rho_s,
-                alpha_x: *alpha_x,
-                alpha_y: *alpha_y,
-                theta: *theta,
-            },
-        ),
-        Material::Mirror { rho_s } => (
-            Level::Specular,
-            GroupParams {
-                rho_d: Default::default(),
-                rho_s: *rho_s,
-                ..Default::default()
-            },
-        ),
-        Material::DiffuseMirror { rho_d, rho_s } => (
-            Level::DiffuseSpecular,
-            GroupParams {
-                rho_d: *rho_d,
-                rho_s: *rho_s,
-                ..Default::default()
-            },
-        ),
-        other => (
-            Level::Diffuse,
-            GroupParams {
-                rho_d: other.rho_d(),
-                rho_s: Default::default(),
-                ..Default::default()
-            },
-        ),
-    }
+fn truth(scene: &Scene, g: usize) -> GroupParams {
+    GroupParams::from_material(&scene.objects[scene.groups[g].objects[0]].material)
 }
 
 /// Prints the table comparing true and recovered values; returns the worst absolute ρ error
@@ -134,7 +88,7 @@ pub fn print_table(
         if st.status == Status::Light {
             continue;
         }
-        let (_, t) = truth(scene, g);
+        let t = truth(scene, g);
         let p = st.params;
         let status = format!("{} / {:?}", st.level.name(), st.status).to_lowercase();
         writeln!(

@@ -113,6 +113,28 @@ impl GroupParams {
             .collect()
     }
 
+    /// The parameters equivalent to a scene material (θ in radians; α left at the default where
+    /// the material has no lobe).
+    pub fn from_material(m: &Material) -> GroupParams {
+        let mut p = GroupParams {
+            rho_d: m.rho_d(),
+            rho_s: m.rho_s(),
+            ..Default::default()
+        };
+        if let Material::Ward {
+            alpha_x,
+            alpha_y,
+            theta,
+            ..
+        } = m
+        {
+            p.alpha_x = *alpha_x;
+            p.alpha_y = *alpha_y;
+            p.theta = *theta;
+        }
+        p
+    }
+
     /// The material a group at `level` with these parameters has.
     pub fn material(&self, level: Level) -> Material {
         match level {

@@ -12,7 +12,7 @@ use crate::math::Rgb;
 use crate::photo::{GroupPixelStats, Photo, UsableMask};
 use crate::render::film::{progress_bar, render, RenderOptions};
 use crate::render::PathTracer;
-use crate::scene::{Material, Scene};
+use crate::scene::Scene;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -142,27 +142,6 @@ fn apply(scene: &mut Scene, states: &[GroupState]) {
     }
 }
 
-/// Parameters equivalent to a scene material (for fixed groups, in the report).
-fn params_of(m: &Material) -> GroupParams {
-    let mut p = GroupParams {
-        rho_d: m.rho_d(),
-        rho_s: m.rho_s(),
-        ..Default::default()
-    };
-    if let Material::Ward {
-        alpha_x,
-        alpha_y,
-        theta,
-        ..
-    } = m
-    {
-        p.alpha_x = *alpha_x;
-        p.alpha_y = *alpha_y;
-        p.theta = *theta;
-    }
-    p
-}
-
 /// Recovers the materials of `scene`'s non-fixed groups from `photo`, using the usable pixels
 /// of `mask` (see `photo::prepare`; `scene.camera` must be the camera the mask was made with).
 /// `log` receives every event as it happens.
@@ -198,9 +177,17 @@ pub fn recover_resumable(
         .map(|(g, grp)| {
             let objs: Vec<_> = grp.objects.iter().map(|&o| &scene.objects[o]).collect();
             if objs.iter().all(|o| o.is_emitter()) {
-                GroupState::new(&grp.name, Status::Light, params_of(&objs[0].material))
+                GroupState::new(
+                    &grp.name,
+                    Status::Light,
+                    GroupParams::from_material(&objs[0].material),
+                )
             } else if grp.fixed {
-                GroupState::new(&grp.name, Status::Fixed, params_of(&objs[0].material))
+                GroupState::new(
+                    &grp.name,
+                    Status::Fixed,
+                    GroupParams::from_material(&objs[0].material),
+                )
             } else if mask.stats[g].usable == 0 {
                 let mut s = GroupState::new(
                     &grp.name,
