@@ -91,50 +91,34 @@ pub fn print_table(
         let t = truth(scene, g);
         let p = st.params;
         let status = format!("{} / {:?}", st.level.name(), st.status).to_lowercase();
-        writeln!(
-            out,
-            "{:<12} {:<9} {:<28} {:<28} {}",
-            st.name,
-            "rho_d",
-            fmt_rgb(t.rho_d),
-            fmt_rgb(p.rho_d),
-            status
-        )?;
-        writeln!(
-            out,
-            "{:<12} {:<9} {:<28} {:<28}",
-            "",
-            "rho_s",
-            fmt_rgb(t.rho_s),
-            fmt_rgb(p.rho_s)
-        )?;
+        // (parameter, true, recovered) rows; the first names the surface and its level.
+        let mut rows = vec![
+            ("rho_d", fmt_rgb(t.rho_d), fmt_rgb(p.rho_d)),
+            ("rho_s", fmt_rgb(t.rho_s), fmt_rgb(p.rho_s)),
+        ];
         if st.level.is_ward() {
-            writeln!(
-                out,
-                "{:<12} {:<9} {:<28} {:<28}",
-                "",
+            rows.push((
                 "alpha_x",
                 format!("{:.4}", t.alpha_x),
-                format!("{:.4}", p.alpha_x)
-            )?;
-            if st.level == Level::Anisotropic {
-                writeln!(
-                    out,
-                    "{:<12} {:<9} {:<28} {:<28}",
-                    "",
-                    "alpha_y",
-                    format!("{:.4}", t.alpha_y),
-                    format!("{:.4}", p.alpha_y)
-                )?;
-                writeln!(
-                    out,
-                    "{:<12} {:<9} {:<28} {:<28}",
-                    "",
-                    "theta",
-                    format!("{:.2}°", t.theta.to_degrees()),
-                    format!("{:.2}°", p.theta.to_degrees())
-                )?;
+                format!("{:.4}", p.alpha_x),
+            ));
+        }
+        if st.level == Level::Anisotropic {
+            rows.push((
+                "alpha_y",
+                format!("{:.4}", t.alpha_y),
+                format!("{:.4}", p.alpha_y),
+            ));
+            let deg = |th: f32| format!("{:.2}°", th.to_degrees());
+            rows.push(("theta", deg(t.theta), deg(p.theta)));
+        }
+        for (i, (param, truth, got)) in rows.iter().enumerate() {
+            let surface = if i == 0 { st.name.as_str() } else { "" };
+            write!(out, "{surface:<12} {param:<9} {truth:<28} {got:<28}")?;
+            if i == 0 {
+                write!(out, " {status}")?;
             }
+            writeln!(out)?;
         }
         if st.is_fitted() {
             worst = worst

@@ -5,13 +5,18 @@ use crate::common::{matfit, root, run};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-/// figure6 at 1/8 of its resolution.
-fn small_scene(dir: &Path) {
+/// figure6 at 1/8 of its resolution, and its photo (16 spp) rendered by matfit.
+fn small_scene_and_photo(dir: &Path) {
     let text = std::fs::read_to_string(root().join("scenes/figure6/scene.toml")).unwrap();
     let text = text
         .replace("width = 512\n", "width = 64\n")
         .replace("height = 384\n", "height = 48\n");
     std::fs::write(dir.join("scene.toml"), text).unwrap();
+    let (code, _, err) = run(
+        &["render", "scene.toml", "-o", "photo.exr", "--spp", "16"],
+        dir,
+    );
+    assert_eq!(code, 0, "{err}");
 }
 
 const FIT: [&str; 10] = [
@@ -52,12 +57,7 @@ fn outputs(dir: &Path) -> (serde_json::Value, Vec<serde_json::Value>, String) {
 fn kill_9_then_resume_gives_the_uninterrupted_result() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    small_scene(d);
-    let (code, _, err) = run(
-        &["render", "scene.toml", "-o", "photo.exr", "--spp", "16"],
-        d,
-    );
-    assert_eq!(code, 0, "{err}");
+    small_scene_and_photo(d);
     let mut args = vec!["recover", "scene.toml", "photo.exr", "-o", "whole"];
     args.extend(FIT);
     let (code, _, err) = run(&args, d);
@@ -117,12 +117,7 @@ fn kill_9_then_resume_gives_the_uninterrupted_result() {
 fn recover_results_are_identical_on_one_and_two_threads() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    small_scene(d);
-    let (code, _, err) = run(
-        &["render", "scene.toml", "-o", "photo.exr", "--spp", "16"],
-        d,
-    );
-    assert_eq!(code, 0, "{err}");
+    small_scene_and_photo(d);
     for (threads, out) in [("1", "t1"), ("2", "t2")] {
         let mut args = vec![
             "--threads",

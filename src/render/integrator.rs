@@ -110,14 +110,23 @@ impl<'a> PathTracer<'a> {
     /// `count_emission`: whether emission seen at the first hit counts fully (a camera ray, or a
     /// ray after a delta reflection); otherwise it is left out entirely (the caller did next-event
     /// estimation for it without MIS).
-    pub fn trace(
+    pub fn trace(&self, ray: Ray, sampler: &mut Sampler, depth: u32, count_emission: bool) -> Rgb {
+        let first_hit = self.scene.intersect(&ray, f32::INFINITY);
+        self.trace_from(ray, first_hit, sampler, depth, count_emission)
+    }
+
+    /// [`PathTracer::trace`] for a caller that has already intersected `ray`: `first_hit` is
+    /// `scene.intersect(&ray, ∞)`.
+    pub fn trace_from(
         &self,
         mut ray: Ray,
+        first_hit: Option<SurfaceHit>,
         sampler: &mut Sampler,
         depth: u32,
         count_emission: bool,
     ) -> Rgb {
         let scene = self.scene;
+        let mut first_hit = Some(first_hit);
         let variant = scene.render.ward_variant;
         let mut l = Rgb::ZERO;
         let mut beta = Rgb::ONE;
@@ -127,7 +136,11 @@ impl<'a> PathTracer<'a> {
         let mut first = true;
         loop {
             segments += 1;
-            let Some(hit) = scene.intersect(&ray, f32::INFINITY) else {
+            let hit = match first_hit.take() {
+                Some(h) => h,
+                None => scene.intersect(&ray, f32::INFINITY),
+            };
+            let Some(hit) = hit else {
                 break;
             };
             let obj = &scene.objects[hit.object as usize];
