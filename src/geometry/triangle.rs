@@ -48,7 +48,7 @@ impl RayShear {
 
 /// Intersects the ray (o, sheared by `sh`) with triangle (p0, p1, p2) for 0 < t < t_max.
 /// Returns (t, b1, b2) with the hit point = (1-b1-b2) p0 + b1 p1 + b2 p2.
-#[inline]
+#[inline(always)]
 pub fn intersect(
     o: Vec3,
     sh: &RayShear,
@@ -57,9 +57,10 @@ pub fn intersect(
     p2: Vec3,
     t_max: f32,
 ) -> Option<(f32, f32, f32)> {
-    let a = p0 - o;
-    let b = p1 - o;
-    let c = p2 - o;
+    // Arrays rather than Vec3: indexing an array by the ray's axes is a plain load.
+    let a = (p0 - o).to_array();
+    let b = (p1 - o).to_array();
+    let c = (p2 - o).to_array();
     let ax = a[sh.kx] - sh.sx * a[sh.kz];
     let ay = a[sh.ky] - sh.sy * a[sh.kz];
     let bx = b[sh.kx] - sh.sx * b[sh.kz];

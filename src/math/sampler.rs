@@ -1,14 +1,20 @@
 //! Deterministic per-pixel sampler: Owen-scrambled Sobol points (Burley 2020, "Practical
 //! hash-based Owen scrambling", through the `sobol_burley` crate), seeded by a hash of the
 //! render seed and the pixel so that every pixel's sample stream is independent of the thread
-//! that renders it. Past Sobol's 256 dimensions it continues with a hashed stream; past 2^16
-//! samples, with a freshly scrambled sequence per block of 2^16.
+//! that renders it. Past 2^16 samples it continues with a freshly scrambled sequence per block
+//! of 2^16.
+//!
+//! Only the first `SOBOL_DIMS` dimensions of a sample (the pixel position and the first two
+//! bounces, where stratification lowers the error) are Sobol points; the rest of the path draws
+//! from a per-sample SplitMix64 stream (Steele et al. 2014), as pbrt's padded samplers do: a deep
+//! bounce gains nothing measurable from stratification, and Owen scrambling costs ~10× a hash.
 
 use super::Vec2;
 
 /// Dimensions served from Sobol points, four at a time (`sample_4d` computes four dimensions
-/// with SIMD, several times faster than four scalar calls).
-const SOBOL_DIMS: u32 = 4 * sobol_burley::NUM_DIMENSION_SETS_4D;
+/// with SIMD, several times faster than four scalar calls). 2 film + 2 × 7 per bounce.
+const SOBOL_DIMS: u32 = 16;
+const _: () = assert!(SOBOL_DIMS <= 4 * sobol_burley::NUM_DIMENSION_SETS_4D);
 
 /// Mixes 64 bits into 64 well-distributed bits (SplitMix64 finaliser).
 #[inline]
@@ -33,6 +39,8 @@ pub struct Sampler {
     dim: u32,
     /// The current set of four dimensions (dimensions 4k..4k+3 for k = dim / 4).
     buffer: [f32; 4],
+    /// SplitMix64 state of the current sample's dimensions past `SOBOL_DIMS`.
+    tail: u64,
 }
 
 impl Sampler {
@@ -43,6 +51,7 @@ impl Sampler {
             index: 0,
             dim: 0,
             buffer: [0.0; 4],
+            tail: 0,
         }
     }
 
@@ -50,6 +59,7 @@ impl Sampler {
     pub fn start_sample(&mut self, index: u32) {
         self.index = index;
         self.dim = 0;
+        self.tail = mix64(self.seed ^ index as u64);
     }
 
     /// The next 1-D sample in [0, 1).
@@ -72,7 +82,9 @@ impl Sampler {
             }
             self.buffer[(d % 4) as usize]
         } else {
-            let h = mix64(self.seed ^ mix64(((self.index as u64) << 32) | d as u64));
+            // SplitMix64: `mix64` steps the state by the golden ratio and finalises it.
+            self.tail = self.tail.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let h = mix64(self.tail);
             ((h >> 40) as f32) * (1.0 / (1u64 << 24) as f32)
         }
     }

@@ -515,6 +515,7 @@ fn build_geometry(objects: &mut [Object], meshes: Vec<TriangleMesh>) -> Geometry
         normals: Vec::new(),
         uvs: Vec::new(),
         tris: Vec::new(),
+        faces: Vec::new(),
         bvh: Bvh::build(&[]),
     };
     for (oi, (obj, mut m)) in objects.iter_mut().zip(meshes).enumerate() {
@@ -558,6 +559,8 @@ fn build_geometry(objects: &mut [Object], meshes: Vec<TriangleMesh>) -> Geometry
         .map(|t| t.v.map(|i| g.positions[i as usize]))
         .collect();
     g.bvh = Bvh::build(&tri_pos);
+    let tangents: Vec<Option<Vec3>> = objects.iter().map(|o| o.tangent).collect();
+    g.compute_faces(&tangents);
     g
 }
 

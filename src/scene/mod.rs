@@ -88,7 +88,72 @@ pub struct Geometry {
     pub normals: Vec<Vec3>,
     pub uvs: Vec<Vec2>,
     pub tris: Vec<Tri>,
+    /// Per triangle, what a hit needs that does not depend on where the triangle is hit.
+    pub faces: Vec<Face>,
     pub bvh: Bvh,
+}
+
+/// Precomputed per-triangle shading data (`Geometry::faces`).
+#[derive(Clone, Copy, Debug)]
+pub struct Face {
+    /// Unit geometric normal, as wound.
+    pub ng: Vec3,
+    /// dp/du of the triangle's UV parametrisation (zero if degenerate): the default tangent.
+    pub dpdu: Vec3,
+    /// The shading frame, when it is the same all over the triangle (its three vertex normals
+    /// are equal): every flat-shaded triangle.
+    pub frame: Option<Frame>,
+}
+
+impl Geometry {
+    /// Fills `faces` from the triangles (`tangents[object]` is the object's tangent, if any).
+    pub fn compute_faces(&mut self, tangents: &[Option<Vec3>]) {
+        let faces = self
+            .tris
+            .iter()
+            .map(|tri| {
+                let [i0, i1, i2] = tri.v.map(|i| i as usize);
+                let (p0, p1, p2) = (self.positions[i0], self.positions[i1], self.positions[i2]);
+                let ng = (p1 - p0).cross(p2 - p0).normalize();
+                let (uv0, uv1, uv2) = (self.uvs[i0], self.uvs[i1], self.uvs[i2]);
+                let (duv1, duv2) = (uv1 - uv0, uv2 - uv0);
+                let det = duv1.x * duv2.y - duv1.y * duv2.x;
+                let dpdu = if det.abs() > 1e-12 {
+                    ((p1 - p0) * duv2.y - (p2 - p0) * duv1.y) / det
+                } else {
+                    Vec3::ZERO
+                };
+                let n = self.normals[i0];
+                let flat = n == self.normals[i1] && n == self.normals[i2];
+                let frame = flat.then(|| {
+                    shading_frame(shading_normal(n, ng), tangents[tri.object as usize], dpdu)
+                });
+                Face { ng, dpdu, frame }
+            })
+            .collect();
+        self.faces = faces;
+    }
+}
+
+/// The interpolated normal, or the geometric one where interpolation degenerates.
+#[inline]
+fn shading_normal(n: Vec3, ng: Vec3) -> Vec3 {
+    let ns = n.normalize_or_zero();
+    if ns == Vec3::ZERO || !ns.is_finite() {
+        ng
+    } else {
+        ns
+    }
+}
+
+/// The shading frame around `ns`: its tangent is the object's tangent if given, else dp/du.
+#[inline]
+fn shading_frame(ns: Vec3, tangent: Option<Vec3>, dpdu: Vec3) -> Frame {
+    match tangent {
+        Some(t) => Frame::from_normal_tangent(ns, t),
+        None if dpdu != Vec3::ZERO => Frame::from_normal_tangent(ns, dpdu),
+        None => Frame::from_normal(ns),
+    }
 }
 
 /// A loaded scene. Cloning is cheap: the geometry is shared; materials are per clone, which is
@@ -138,37 +203,20 @@ impl Scene {
     pub fn surface_hit(&self, _ray: &Ray, hit: &Hit) -> SurfaceHit {
         let g = &*self.geometry;
         let tri = g.tris[hit.prim as usize];
+        let face = &g.faces[hit.prim as usize];
         let [i0, i1, i2] = tri.v.map(|i| i as usize);
-        let (p0, p1, p2) = (g.positions[i0], g.positions[i1], g.positions[i2]);
         let b0 = 1.0 - hit.b1 - hit.b2;
-        let p = p0 * b0 + p1 * hit.b1 + p2 * hit.b2;
-        let ng = (p1 - p0).cross(p2 - p0).normalize();
-        let mut ns = (g.normals[i0] * b0 + g.normals[i1] * hit.b1 + g.normals[i2] * hit.b2)
-            .normalize_or_zero();
-        if ns == Vec3::ZERO || !ns.is_finite() {
-            ns = ng;
-        }
-        let (uv0, uv1, uv2) = (g.uvs[i0], g.uvs[i1], g.uvs[i2]);
-        let uv = uv0 * b0 + uv1 * hit.b1 + uv2 * hit.b2;
-        let obj = &self.objects[tri.object as usize];
-        let frame = match obj.tangent {
-            Some(t) => Frame::from_normal_tangent(ns, t),
-            None => {
-                // dp/du from the triangle's UV parametrisation, if it is not degenerate.
-                let (duv1, duv2) = (uv1 - uv0, uv2 - uv0);
-                let det = duv1.x * duv2.y - duv1.y * duv2.x;
-                if det.abs() > 1e-12 {
-                    let dpdu = ((p1 - p0) * duv2.y - (p2 - p0) * duv1.y) / det;
-                    Frame::from_normal_tangent(ns, dpdu)
-                } else {
-                    Frame::from_normal(ns)
-                }
-            }
-        };
+        let p = g.positions[i0] * b0 + g.positions[i1] * hit.b1 + g.positions[i2] * hit.b2;
+        let uv = g.uvs[i0] * b0 + g.uvs[i1] * hit.b1 + g.uvs[i2] * hit.b2;
+        let frame = face.frame.unwrap_or_else(|| {
+            let n = g.normals[i0] * b0 + g.normals[i1] * hit.b1 + g.normals[i2] * hit.b2;
+            let tangent = self.objects[tri.object as usize].tangent;
+            shading_frame(shading_normal(n, face.ng), tangent, face.dpdu)
+        });
         SurfaceHit {
             p,
             t: hit.t,
-            ng,
+            ng: face.ng,
             frame,
             uv,
             object: tri.object,
