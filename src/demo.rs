@@ -29,7 +29,31 @@ pub struct DemoOptions {
     pub scene: Option<PathBuf>,
     pub out: PathBuf,
     pub photo_spp: u32,
+    /// Gaussian noise added to the photo, relative: each channel of each pixel is multiplied by
+    /// 1 + σ·n with n ~ N(0, 1) (0: none).
+    pub noise: f32,
+    /// Misregisters the model: the camera given to the recovery is shifted by this many pixels
+    /// (x right, y down) from the one that took the photo.
+    pub shift: (f32, f32),
     pub recover: RecoverOptions,
+}
+
+/// `img` with relative Gaussian noise of standard deviation `sigma` (Box–Muller on a hashed,
+/// seeded stream: the same seed gives the same noise).
+pub fn add_noise(img: &crate::io::image::Image, sigma: f32, seed: u64) -> crate::io::image::Image {
+    use crate::math::sampler::{hash_seed, mix64};
+    let uniform =
+        |k: u64| ((mix64(hash_seed(&[seed, k])) >> 40) as f64 + 0.5) / (1u64 << 24) as f64;
+    let mut out = img.clone();
+    for (i, px) in out.data.iter_mut().enumerate() {
+        for c in 0..3 {
+            let k = 2 * (3 * i as u64 + c as u64);
+            let n =
+                (-2.0 * uniform(k).ln()).sqrt() * (std::f64::consts::TAU * uniform(k + 1)).cos();
+            px[c] *= 1.0 + sigma * n as f32;
+        }
+    }
+    out
 }
 
 /// Renders (or reuses) the photo of `scene` at `spp` into `path`; a stamp beside it records
@@ -132,6 +156,9 @@ pub fn print_table(
 /// Runs the demo; returns the recovery's worst ρ error.
 pub fn run(opts: &DemoOptions) -> Result<f32, String> {
     let t0 = Instant::now();
+    if !(opts.noise >= 0.0 && opts.noise.is_finite()) {
+        return Err(format!("--noise must be ≥ 0, got {}", opts.noise));
+    }
     let path = opts.scene.clone().unwrap_or_else(figure6_path);
     let scene = load_scene(&path).map_err(|e| e.to_string())?;
     std::fs::create_dir_all(&opts.out)
@@ -151,13 +178,49 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
             )
         }
     );
+    // What the recovery sees: the photo (with noise if asked) and the model (misregistered if
+    // asked), prepared exactly as `matfit recover` prepares them (validity, registration, masks).
+    let mut photo_path = opts.out.join("photo.exr");
+    if opts.noise > 0.0 {
+        photo_path = opts.out.join(format!("photo-noise{}.exr", opts.noise));
+        add_noise(&photo.image, opts.noise, scene.render.seed).write(&photo_path)?;
+        println!(
+            "photo with {}% relative Gaussian noise: {}",
+            100.0 * opts.noise,
+            photo_path.display()
+        );
+    }
+    let mut model = scene.clone();
+    if opts.shift != (0.0, 0.0) {
+        model.camera = scene.camera.shifted(opts.shift.0, opts.shift.1);
+        println!(
+            "model misregistered by ({}, {}) px",
+            opts.shift.0, opts.shift.1
+        );
+    }
+    let prepared = crate::photo::prepare(&model, &photo_path, &Default::default())?;
+    if let Some(r) = &prepared.registration {
+        let (dx, dy) = (
+            prepared.camera.cx - scene.camera.cx,
+            prepared.camera.cy - scene.camera.cy,
+        );
+        println!(
+            "registration: found a shift of ({:.2}, {:.2}) px; the model's camera is now ({:.2}, {:.2}) px off the photo's",
+            r.dx, r.dy, dx, dy
+        );
+    }
+    model.camera = prepared.camera.clone();
     let rec_dir = opts.out.join("recovery");
     std::fs::create_dir_all(&rec_dir)
         .map_err(|e| format!("cannot create {}: {e}", rec_dir.display()))?;
-    let index = crate::render::aov::index_buffers(&scene, &scene.camera);
-    let mask = crate::photo::usable_pixels(&index, &photo, scene.groups.len(), &Default::default());
-    let rec =
-        crate::cli_recover::run_recover(&scene, &photo, &mask, &opts.recover, &rec_dir, false)?;
+    let rec = crate::cli_recover::run_recover(
+        &model,
+        &prepared.photo,
+        &prepared.mask,
+        &opts.recover,
+        &rec_dir,
+        false,
+    )?;
     let mut stdout = std::io::stdout();
     println!();
     let worst = print_table(&scene, &rec, &mut stdout).map_err(|e| e.to_string())?;

@@ -67,6 +67,12 @@ enum Command {
         /// Samples per pixel of the photo.
         #[arg(long, default_value_t = 512)]
         photo_spp: u32,
+        /// Add relative Gaussian noise of this standard deviation to the photo (0.01 = 1%).
+        #[arg(long, default_value_t = 0.0)]
+        noise: f32,
+        /// Misregister the model: shift the camera given to the recovery by DX,DY pixels.
+        #[arg(long, value_parser = parse_shift, default_value = "0,0")]
+        shift: (f32, f32),
         #[command(flatten)]
         fit: FitArgs,
     },
@@ -263,12 +269,16 @@ fn run(cmd: Command) -> Result<()> {
             scene,
             output,
             photo_spp,
+            noise,
+            shift,
             fit,
         } => {
             let opts = matfit::demo::DemoOptions {
                 scene,
                 out: output,
                 photo_spp,
+                noise,
+                shift,
                 recover: fit.options(),
             };
             matfit::demo::run(&opts).map_err(anyhow::Error::msg)?;
@@ -360,4 +370,16 @@ fn run(cmd: Command) -> Result<()> {
             }
         },
     }
+}
+
+/// `DX,DY` in pixels.
+fn parse_shift(s: &str) -> Result<(f32, f32), String> {
+    let bad = || format!("expected DX,DY in pixels (e.g. 2,0), got {s:?}");
+    let (a, b) = s.split_once(',').ok_or_else(bad)?;
+    let dx: f32 = a.trim().parse().map_err(|_| bad())?;
+    let dy: f32 = b.trim().parse().map_err(|_| bad())?;
+    if !(dx.is_finite() && dy.is_finite()) {
+        return Err(bad());
+    }
+    Ok((dx, dy))
 }
