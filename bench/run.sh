@@ -17,5 +17,4 @@ bash "$HERE/setup_mitsuba.sh"
 # shellcheck disable=SC1091
 source "$HERE/mitsuba_env.sh"
 cd "$ROOT"
-exec python "$HERE/compare.py" --matfit "$TARGET/release/matfit" \
-    --command "bash bench/run.sh $*" "$@"
+exec python "$HERE/compare.py" --matfit "$TARGET/release/matfit" "$@"
