@@ -567,7 +567,7 @@ def markdown(meta, fw, inv, cross, cfg, svg_name):
     A(f"- date: {meta['date']}")
     A(f"- machine: {meta['machine']}; load average {meta['load_start']} at the start, "
       f"{meta['load_end']} at the end (`nproc` = {meta['nproc']})")
-    A(f"- matfit {meta['matfit_version']} (git {meta['git']}), `--threads {meta['threads']}`; "
+    A(f"- {meta['matfit_version']} (git {meta['git']}), `--threads {meta['threads']}`; "
       f"Mitsuba {meta['mitsuba']}, Dr.Jit {meta['drjit']} (`dr.set_thread_count("
       f"{meta['threads']})`), numpy {meta['numpy']}, Python {meta['python']}")
     A(f"- scene: scenes/figure6 with a diffuse floor ρd = ({f3(FLOOR_RHO)}), {w}×{h}, "
