@@ -32,7 +32,7 @@ const FIT: [&str; 10] = [
     "3",
 ];
 
-/// results.json without its timing, log.jsonl without the seconds, and recovered.toml.
+/// results.json without its timing, log.jsonl without the seconds and elapsed, and recovered.toml.
 fn outputs(dir: &Path) -> (serde_json::Value, Vec<serde_json::Value>, String) {
     let mut res: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("results.json")).unwrap()).unwrap();
@@ -43,6 +43,7 @@ fn outputs(dir: &Path) -> (serde_json::Value, Vec<serde_json::Value>, String) {
         .map(|l| {
             let mut v: serde_json::Value = serde_json::from_str(l).unwrap();
             v.as_object_mut().unwrap().remove("seconds");
+            v.as_object_mut().unwrap().remove("elapsed");
             v
         })
         .collect();

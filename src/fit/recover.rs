@@ -62,7 +62,12 @@ pub struct LogLine {
     #[serde(flatten)]
     pub event: Event,
     pub params: std::collections::BTreeMap<&'static str, super::params::Value>,
+    /// Time spent on this group in this iteration (cache build and fits).
     pub seconds: f64,
+    /// Seconds since the recovery started when the line was written (across a resume: the
+    /// interrupted run's time up to its checkpoint plus the resumed run's), so that the
+    /// parameters can be plotted against time (`bench/compare.py`).
+    pub elapsed: f64,
 }
 
 /// The state of a recovery after a global iteration: enough to continue it exactly (the caches'
@@ -80,6 +85,9 @@ pub struct Checkpoint {
     pub objective_evals: u64,
     /// Length of log.jsonl when the checkpoint was taken (the caller truncates to it).
     pub log_bytes: u64,
+    /// The log's `elapsed` when the checkpoint was taken.
+    #[serde(default)]
+    pub elapsed: f64,
 }
 
 pub const CHECKPOINT_VERSION: u32 = 1;
@@ -213,7 +221,10 @@ pub fn recover_resumable(
     // Whether the previous iteration left the scene nearly unchanged (see `GroupState::step`).
     let mut settled = false;
     let mut start = 0;
+    // Time before this call: that of the interrupted run, when resuming.
+    let mut elapsed_before = 0.0;
     if let Some(c) = resume {
+        elapsed_before = c.elapsed;
         states = c.states.clone();
         settled = c.settled;
         cache_builds = c.cache_builds;
@@ -292,6 +303,7 @@ pub fn recover_resumable(
                         .collect(),
                     event: e,
                     seconds: secs,
+                    elapsed: elapsed_before + t0.elapsed().as_secs_f64(),
                 });
             }
         }
@@ -348,6 +360,7 @@ pub fn recover_resumable(
             cache_builds,
             objective_evals: evals,
             log_bytes: 0,
+            elapsed: elapsed_before + t0.elapsed().as_secs_f64(),
         });
     }
     pb.finish_and_clear();
