@@ -123,6 +123,10 @@ struct FitArgs {
     /// At most this many cached pixels per group.
     #[arg(long, default_value_t = 12000)]
     max_pixels: usize,
+    /// Cached pixels per group in the first global iteration, doubling each iteration up to
+    /// --max-pixels (0: --max-pixels from the start).
+    #[arg(long, default_value_t = 1500)]
+    first_pixels: usize,
     /// Samples per pixel of the final render.
     #[arg(long, default_value_t = 64)]
     final_spp: u32,
@@ -135,6 +139,7 @@ impl FitArgs {
             seed: self.seed,
             max_iterations: self.max_iterations.max(1),
             final_spp: self.final_spp.max(2),
+            first_pixels: self.first_pixels,
             cache: matfit::fit::cache::CacheOptions {
                 light_samples: self.light_samples.max(2),
                 indirect_samples: self.indirect_samples.max(2),

@@ -31,6 +31,12 @@ pub struct RecoverOptions {
     pub min_average: u32,
     /// Diffuse reflectance given to groups with no usable pixels (the notes: white).
     pub default_rho_d: f32,
+    /// Cached pixels per group in the first global iteration; the number doubles every
+    /// iteration up to `cache.max_pixels`. The first iterations fit against a scene still far
+    /// from its fixed point (every group starts grey), so precision there is wasted time; the
+    /// run does not stop before the full number is reached. 0: `cache.max_pixels` throughout.
+    #[serde(default)]
+    pub first_pixels: usize,
     /// Samples per pixel of the final render.
     pub final_spp: u32,
     pub seed: u64,
@@ -47,11 +53,22 @@ impl Default for RecoverOptions {
             settle: 0.03,
             min_average: 4,
             default_rho_d: 1.0,
+            first_pixels: 1500,
             final_spp: 64,
             seed: 0,
             progress: true,
         }
     }
+}
+
+/// Cached pixels per group in global iteration `it` (see `RecoverOptions::first_pixels`).
+pub fn pixel_budget(opts: &RecoverOptions, it: u32) -> usize {
+    if opts.first_pixels == 0 {
+        return opts.cache.max_pixels;
+    }
+    opts.first_pixels
+        .saturating_mul(1usize << it.min(30))
+        .min(opts.cache.max_pixels)
 }
 
 /// One line of the log: a group's event in a global iteration.
@@ -90,7 +107,7 @@ pub struct Checkpoint {
     pub elapsed: f64,
 }
 
-pub const CHECKPOINT_VERSION: u32 = 1;
+pub const CHECKPOINT_VERSION: u32 = 2;
 
 /// A hash identifying a run: scene text, photo pixels, mask and options.
 pub fn fingerprint(
@@ -236,9 +253,18 @@ pub fn recover_resumable(
     apply(&mut current, &states);
     let photo_px = &photo.image.data;
     let w = scene.camera.width as usize;
-    let pixel_lists: Vec<_> = (0..scene.groups.len())
-        .map(|g| choose_pixels(&mask.pixels_of(g), w, &opts.cache))
-        .collect();
+    // The pixels of every group's cache at a given pixel budget.
+    let choose_all = |cap: usize| -> Vec<_> {
+        let cache_opts = CacheOptions {
+            max_pixels: cap,
+            ..opts.cache.clone()
+        };
+        (0..scene.groups.len())
+            .map(|g| choose_pixels(&mask.pixels_of(g), w, &cache_opts))
+            .collect()
+    };
+    let mut cap = pixel_budget(opts, start);
+    let mut pixel_lists = choose_all(cap);
 
     let pb = progress_bar(opts.max_iterations as u64, "recover", opts.progress);
     pb.inc(start as u64);
@@ -246,6 +272,10 @@ pub fn recover_resumable(
     for it in start..opts.max_iterations {
         if finished {
             break;
+        }
+        if pixel_budget(opts, it) != cap {
+            cap = pixel_budget(opts, it);
+            pixel_lists = choose_all(cap);
         }
         let levels_before: Vec<_> = states.iter().map(|s| s.level).collect();
         iterations = it + 1;
@@ -345,7 +375,7 @@ pub fn recover_resumable(
                 && (s.status != Status::Confirmed
                     || s.average.is_some_and(|a| a.1 >= opts.min_average))
         });
-        finished = all_confirmed && moved < opts.tolerance;
+        finished = all_confirmed && moved < opts.tolerance && cap >= opts.cache.max_pixels;
         checkpoint(&Checkpoint {
             version: CHECKPOINT_VERSION,
             fingerprint: 0,
