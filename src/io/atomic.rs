@@ -18,10 +18,13 @@ pub fn write_atomic_with(
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".matfit-")
-        .suffix(".tmp")
-        .tempfile_in(dir)?;
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".matfit-").suffix(".tmp");
+    // The permissions of a file created plainly (0o666 less the umask), not tempfile's 0o600:
+    // outputs are meant to be read, shared and served.
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+    let mut tmp = builder.tempfile_in(dir)?;
     {
         let mut w = std::io::BufWriter::new(tmp.as_file());
         fill(&mut w)?;
@@ -108,6 +111,18 @@ mod tests {
             1,
             "no temporary left behind"
         );
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn outputs_get_the_permissions_of_a_plainly_created_file() {
+        use std::os::unix::fs::PermissionsExt;
+        let d = tempfile::tempdir().unwrap();
+        let (a, b) = (d.path().join("atomic"), d.path().join("plain"));
+        super::write_atomic(&a, b"x").unwrap();
+        std::fs::write(&b, b"x").unwrap();
+        let mode = |p: &std::path::Path| std::fs::metadata(p).unwrap().permissions().mode();
+        assert_eq!(mode(&a), mode(&b));
     }
 
     #[test]
