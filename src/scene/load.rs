@@ -603,17 +603,21 @@ fn build_geometry(objects: &mut [Object], meshes: Vec<TriangleMesh>) -> Geometry
 
 fn check_camera_sees_geometry(scene: &Scene, cx: &Ctx) -> Result<(), SceneError> {
     let cam = &scene.camera;
-    let n = 24;
-    for j in 0..n {
-        for i in 0..n {
-            let film = Vec2::new(
-                (i as f32 + 0.5) / n as f32 * cam.width as f32,
-                (j as f32 + 0.5) / n as f32 * cam.height as f32,
-            );
-            if scene.intersect(&cam.ray(film), f32::INFINITY).is_some() {
-                return Ok(());
-            }
-        }
+    // A coarse grid first; if it misses, a fine one (up to a ray per pixel), so that a small
+    // object alone in the view is not taken for nothing.
+    let sees = |nx: u32, ny: u32| {
+        (0..ny).any(|j| {
+            (0..nx).any(|i| {
+                let film = Vec2::new(
+                    (i as f32 + 0.5) / nx as f32 * cam.width as f32,
+                    (j as f32 + 0.5) / ny as f32 * cam.height as f32,
+                );
+                scene.intersect(&cam.ray(film), f32::INFINITY).is_some()
+            })
+        })
+    };
+    if sees(24, 24) || sees(cam.width.min(256), cam.height.min(256)) {
+        return Ok(());
     }
     let v = |v: Vec3| format!("[{:.3}, {:.3}, {:.3}]", v.x, v.y, v.z);
     let b = scene.geometry.bvh.bounds();
@@ -629,6 +633,31 @@ fn check_camera_sees_geometry(scene: &Scene, cx: &Ctx) -> Result<(), SceneError>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A small object alone in the view falls between the coarse grid's rays: the scene loads.
+    #[test]
+    fn a_small_object_alone_in_view_is_seen() {
+        let text = r#"
+[camera]
+width = 512
+height = 384
+eye = [0.0, 0.0, 10.0]
+target = [0.0, 0.0, 0.0]
+fov_y_deg = 45.0
+
+[[object]]
+name = "chip"
+group = "chip"
+shape = "quad"
+corner = [-0.025, -0.025, 0.0]
+edge_u = [0.05, 0.0, 0.0]
+edge_v = [0.0, 0.05, 0.0]
+"#;
+        parse_scene(text, Path::new("chip.toml")).unwrap();
+        let away = text.replace("target = [0.0, 0.0, 0.0]", "target = [0.0, 0.0, 20.0]");
+        let e = parse_scene(&away, Path::new("chip.toml")).err().unwrap();
+        assert!(e.to_string().contains("sees no geometry"), "{e}");
+    }
 
     #[test]
     fn suggestion_picks_nearest_key() {
