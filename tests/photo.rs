@@ -439,6 +439,13 @@ fn bad_photos_get_clear_errors() {
             vec!["100000×80000", "limit of 64 megapixels", "downsample"],
         ),
         (
+            // The size is read from the header: a wrong-size photo is refused undecoded (this
+            // one has no pixel data at all).
+            "large.png",
+            Box::new(|p| std::fs::write(p, png_header(8000, 6000)).unwrap()),
+            vec!["8000×6000", "64×48", "same aspect ratio"],
+        ),
+        (
             "giant.pfm",
             Box::new(|p| std::fs::write(p, b"PF\n100000 80000\n-1.0\n\0\0\0\0").unwrap()),
             vec!["100000×80000", "limit of 64 megapixels"],

@@ -186,6 +186,17 @@ pub fn check_image_file(path: &Path) -> Result<(), String> {
 /// Decodes an image file's bytes without applying a response curve. `path` names the file in
 /// messages; its extension chooses PFM (the other formats are recognised by their content).
 pub fn decode_raw(bytes: &[u8], path: &Path) -> Result<RawImage, String> {
+    decode_raw_checked(bytes, path, |_, _| Ok(()))
+}
+
+/// [`decode_raw`], calling `check(width, height)` as soon as the header gives the size and
+/// before the pixels are decoded (its error is returned as it is): a photo of the wrong size is
+/// refused without decoding it.
+pub fn decode_raw_checked(
+    bytes: &[u8],
+    path: &Path,
+    check: impl Fn(usize, usize) -> Result<(), String>,
+) -> Result<RawImage, String> {
     let bad = |e: String| format!("{}: {e}", path.display());
     let too_big = |w: u64, h: u64| {
         bad(format!(
@@ -198,7 +209,9 @@ pub fn decode_raw(bytes: &[u8], path: &Path) -> Result<RawImage, String> {
         return Err(bad("the file is empty (0 bytes)".into()));
     }
     if extension(path) == "pfm" {
+        // (The PFM decoder allocates only once the file is known to hold every pixel.)
         let (width, height, data) = super::pfm::decode(bytes).map_err(bad)?;
+        check(width, height)?;
         return Ok(RawImage {
             image: Image {
                 width,
@@ -242,6 +255,7 @@ pub fn decode_raw(bytes: &[u8], path: &Path) -> Result<RawImage, String> {
     if w as u64 * h as u64 > MAX_PIXELS as u64 {
         return Err(too_big(w as u64, h as u64));
     }
+    check(w as usize, h as usize)?;
     let img = reader()?
         .decode()
         .map_err(|e| bad(format!("cannot decode (truncated or corrupt file?): {e}")))?;

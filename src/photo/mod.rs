@@ -18,7 +18,7 @@ pub use args::{prepare, PhotoArgs, PreparedPhoto};
 pub use mask::{usable_pixels, GroupPixelStats, MaskOptions, UsableMask};
 pub use response::{Response, ResponseTable};
 
-use crate::io::image::{decode_raw, Image, RawImage};
+use crate::io::image::{decode_raw_checked, Image, RawImage};
 use crate::math::Rgb;
 use std::path::Path;
 
@@ -168,7 +168,13 @@ pub fn photo_from_bytes(
             path.display()
         ));
     }
-    let raw = decode_raw(bytes, path)?;
+    // The size is checked from the header, before the pixels are decoded.
+    let raw = decode_raw_checked(bytes, path, |w, h| {
+        if (w, h) != (width as usize, height as usize) {
+            return Err(size_mismatch(path, w, h, width as usize, height as usize));
+        }
+        Ok(())
+    })?;
     photo_from_raw(raw, path, width, height, opts)
 }
 
