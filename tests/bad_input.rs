@@ -133,6 +133,29 @@ fn resume_without_a_usable_checkpoint() {
         &["cannot resume", "is not a matfit checkpoint"],
         10.0,
     );
+    // The run's own checkpoint, edited: a reflectance no fit can produce.
+    let (code, _, err) = run(
+        &args[..5].iter().chain(&QUICK).copied().collect::<Vec<_>>(),
+        dir,
+    );
+    assert_eq!(code, 0, "{err}");
+    let path = dir.join("out/checkpoint.json");
+    let mut ck: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    let floor = ck["states"]
+        .as_array_mut()
+        .unwrap()
+        .iter_mut()
+        .find(|s| s["name"] == "floor")
+        .unwrap();
+    floor["params"]["rho_d"] = serde_json::json!([1.5, 0.5, 0.5]);
+    std::fs::write(&path, ck.to_string()).unwrap();
+    fails(
+        dir,
+        &args,
+        &["cannot resume", "outside their physical bounds", "'floor'"],
+        10.0,
+    );
 }
 
 #[test]

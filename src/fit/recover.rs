@@ -221,6 +221,19 @@ pub fn recover_resumable(
     let mut settled = false;
     let mut start = 0;
     if let Some(c) = resume {
+        // A checkpoint is the run's own, but it was read from disk: refuse, rather than carry
+        // on with, parameters a fit could not have produced.
+        if let Some(s) = c
+            .states
+            .iter()
+            .find(|s| s.is_fitted() && (!s.params.in_bounds() || !s.error.is_finite()))
+        {
+            return Err(format!(
+                "cannot resume: the checkpoint holds parameters outside their physical bounds \
+                 for group '{}' ({:?})",
+                s.name, s.params
+            ));
+        }
         states = c.states.clone();
         settled = c.settled;
         cache_builds = c.cache_builds;
@@ -584,6 +597,7 @@ emission = 5.0
                     true,
                 );
                 let p = st.params;
+                assert!(p.in_bounds(), "{poison} {level:?}: {p:?}");
                 for c in 0..3 {
                     assert!(
                         p.rho_d[c] >= 0.0 && p.rho_s[c] >= 0.0,
