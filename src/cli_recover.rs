@@ -93,7 +93,9 @@ pub fn run_recover(
             }
         },
     );
+    // The log is kept whole even when the fit diverged: it shows how it got there.
     log.into_inner().flush().map_err(io)?;
+    let rec = rec?;
     if let Some(e) = err.into_inner() {
         return Err(e);
     }

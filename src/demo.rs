@@ -161,8 +161,10 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
     }
     let path = opts.scene.clone().unwrap_or_else(figure6_path);
     let scene = load_scene(&path).map_err(|e| e.to_string())?;
-    std::fs::create_dir_all(&opts.out)
-        .map_err(|e| format!("cannot create {}: {e}", opts.out.display()))?;
+    let rec_dir = opts.out.join("recovery");
+    // Both folders before the photo is rendered (minutes): they must be usable.
+    crate::io::atomic::prepare_output_dir(&opts.out)?;
+    crate::io::atomic::prepare_output_dir(&rec_dir)?;
     let tp = Instant::now();
     let (photo, reused) = photo_of(&scene, opts.photo_spp, &opts.out.join("photo.exr"))?;
     println!(
@@ -210,9 +212,6 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
         );
     }
     model.camera = prepared.camera.clone();
-    let rec_dir = opts.out.join("recovery");
-    std::fs::create_dir_all(&rec_dir)
-        .map_err(|e| format!("cannot create {}: {e}", rec_dir.display()))?;
     let rec = crate::cli_recover::run_recover(
         &model,
         &prepared.photo,

@@ -15,6 +15,8 @@ pub mod cli_recover;
 pub mod demo;
 pub mod export;
 pub mod fit;
+#[doc(hidden)]
+pub mod fuzzing;
 pub mod geometry;
 pub mod io;
 pub mod math;

@@ -2,6 +2,7 @@
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
+use matfit::io::atomic::{check_output_file, prepare_output_dir};
 use matfit::io::image::Image;
 use matfit::render::aov::{aov_image, Aov};
 use matfit::render::film::{render, RenderOptions};
@@ -175,6 +176,7 @@ fn main() -> ExitCode {
                 .unwrap_or_else(|_| "warn".into()),
         )
         .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .without_time()
         .init();
     if let Some(n) = cli.threads {
@@ -216,6 +218,8 @@ fn run(cmd: Command) -> Result<()> {
                     output.display()
                 );
             }
+            // Before minutes of rendering: the file must be writable.
+            check_output_file(&output).map_err(anyhow::Error::msg)?;
             let img: Image = match aov {
                 Aov::Beauty => {
                     let opts = RenderOptions {
@@ -242,12 +246,12 @@ fn run(cmd: Command) -> Result<()> {
             resume,
         } => {
             let mut sc = load_scene(&scene)?;
+            // Before any work: the output folder must be usable.
+            prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
             let prepared =
                 matfit::photo::prepare(&sc, &photo, &photo_args).map_err(anyhow::Error::msg)?;
             // Render through the camera registered to the photo.
             sc.camera = prepared.camera.clone();
-            std::fs::create_dir_all(&output)
-                .with_context(|| format!("cannot create the output folder {}", output.display()))?;
             let rec = matfit::cli_recover::run_recover(
                 &sc,
                 &prepared.photo,
@@ -337,6 +341,7 @@ fn run(cmd: Command) -> Result<()> {
             photo_args,
         } => {
             let sc = load_scene(&scene)?;
+            prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
             let report = matfit::photo::inspect::inspect(&sc, &photo, &photo_args, &output)
                 .map_err(anyhow::Error::msg)?;
             print!("{report}");
@@ -348,6 +353,7 @@ fn run(cmd: Command) -> Result<()> {
             output,
         } => {
             let sc = load_scene(&scene)?;
+            prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
             let report = match format {
                 matfit::export::Format::Mitsuba => {
                     matfit::export::mitsuba::export(&sc, &output).map_err(anyhow::Error::msg)?

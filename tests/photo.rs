@@ -291,6 +291,40 @@ fn filled(w: usize, h: usize, c: Rgb) -> Image {
     }
 }
 
+/// A PNG file claiming `w`×`h` RGB pixels whose image data is an empty zlib stream.
+fn png_header(w: u32, h: u32) -> Vec<u8> {
+    let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut chunk = |kind: &[u8], data: &[u8]| {
+        let mut body = kind.to_vec();
+        body.extend(data);
+        out.extend((data.len() as u32).to_be_bytes());
+        out.extend(&body);
+        out.extend(crc32(&body).to_be_bytes());
+    };
+    let mut ihdr = w.to_be_bytes().to_vec();
+    ihdr.extend(h.to_be_bytes());
+    ihdr.extend([8, 2, 0, 0, 0]);
+    chunk(b"IHDR", &ihdr);
+    chunk(b"IDAT", &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01]);
+    chunk(b"IEND", &[]);
+    out
+}
+
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = !0u32;
+    for &b in bytes {
+        c ^= b as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
 /// (file name, how to write it, what the error must say)
 type BadPhoto<'a> = (&'a str, Box<dyn Fn(&Path) + 'a>, Vec<&'a str>);
 
@@ -387,6 +421,58 @@ fn bad_photos_get_clear_errors() {
             "white.png",
             Box::new(|p| filled(64, 48, Rgb::splat(3.0)).write(p).unwrap()),
             vec!["saturated", "3072 of 3072"],
+        ),
+        // Issue 6: more bad photos.
+        (
+            "zero.pfm",
+            Box::new(|p| std::fs::write(p, b"PF\n0 0\n-1.0\n").unwrap()),
+            vec!["0×0"],
+        ),
+        (
+            "zero.png",
+            Box::new(|p| std::fs::write(p, png_header(0, 0)).unwrap()),
+            vec!["cannot decode"],
+        ),
+        (
+            "giant.png",
+            Box::new(|p| std::fs::write(p, png_header(100_000, 80_000)).unwrap()),
+            vec!["100000×80000", "limit of 64 megapixels", "downsample"],
+        ),
+        (
+            // The size is read from the header: a wrong-size photo is refused undecoded (this
+            // one has no pixel data at all).
+            "large.png",
+            Box::new(|p| std::fs::write(p, png_header(8000, 6000)).unwrap()),
+            vec!["8000×6000", "64×48", "same aspect ratio"],
+        ),
+        (
+            "giant.pfm",
+            Box::new(|p| std::fs::write(p, b"PF\n100000 80000\n-1.0\n\0\0\0\0").unwrap()),
+            vec!["100000×80000", "limit of 64 megapixels"],
+        ),
+        (
+            "text.png",
+            Box::new(|p| std::fs::write(p, b"this is not an image\n").unwrap()),
+            vec!["not an image file matfit can read"],
+        ),
+        (
+            "nan_scale.pfm",
+            Box::new(|p| {
+                let mut b = b"PF\n64 48\nnan\n".to_vec();
+                b.extend(std::iter::repeat_n(0u8, 64 * 48 * 12));
+                std::fs::write(p, b).unwrap()
+            }),
+            vec!["bad PFM scale"],
+        ),
+        (
+            "folder.exr",
+            Box::new(|p| std::fs::create_dir(p).unwrap()),
+            vec!["is a folder"],
+        ),
+        (
+            "absent.exr",
+            Box::new(|_| {}),
+            vec!["cannot read the photo"],
         ),
     ];
     for (name, f, needles) in &make {

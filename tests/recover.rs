@@ -57,7 +57,8 @@ fn run(scene: &Scene, photo_spp: u32) -> (Recovery, Vec<(String, Event)>) {
     let mut log = Vec::new();
     let rec = recover(scene, &photo, &mask, &opts, |l| {
         log.push((l.group.clone(), l.event.clone()))
-    });
+    })
+    .unwrap();
     (rec, log)
 }
 

@@ -159,6 +159,154 @@ fn cases() -> Vec<Case> {
             vec!["scene.toml:12", "object 'floor'", "edge_v"],
         ),
         ("no objects", s[..s.find("[[object]]").unwrap()].to_string(), vec![], vec!["scene.toml", "no objects"]),
+        // Issue 6: more bad inputs.
+        (
+            "NaN in the camera",
+            s.replace("eye = [0.0, 2.0, 2.0]", "eye = [nan, 2.0, 2.0]"),
+            vec![],
+            vec!["scene.toml", "[camera] has a NaN or infinite value"],
+        ),
+        (
+            "misspelt table with suggestion",
+            s.replace("[camera]", "[camra]"),
+            vec![],
+            vec!["scene.toml", "line 2", "camra", "did you mean `camera`?"],
+        ),
+        (
+            "camera beyond the pixel limit",
+            s.replace("width = 64", "width = 65536").replace("height = 48", "height = 65536"),
+            vec![],
+            vec!["scene.toml", "65536×65536", "megapixels"],
+        ),
+        (
+            "mesh in an unknown format",
+            floor_mesh("floor.stl"),
+            vec![("floor.stl", b"solid x\nendsolid x\n")],
+            vec!["scene.toml:13", "object 'floor'", "unknown format '.stl'"],
+        ),
+        (
+            "mesh face referring to a missing vertex",
+            floor_mesh("oob.ply"),
+            vec![(
+                "oob.ply",
+                b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+                  element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 0 1\n3 0 1 7\n",
+            )],
+            vec!["scene.toml:13", "object 'floor'", "triangle 0 refers to vertex 7"],
+        ),
+        (
+            "PLY header with an impossible element count",
+            floor_mesh("huge.ply"),
+            vec![(
+                "huge.ply",
+                b"ply\nformat ascii 1.0\nelement vertex 99999999999999999999999\nproperty float x\nend_header\n",
+            )],
+            vec!["scene.toml:13", "object 'floor'", "huge.ply", "number too large"],
+        ),
+        (
+            "corrupt glTF",
+            floor_mesh("bad.gltf"),
+            vec![("bad.gltf", b"{ \"asset\": ")],
+            vec!["scene.toml:13", "object 'floor'", "bad.gltf", "not a readable glTF file"],
+        ),
+        (
+            "mesh path is a folder",
+            floor_mesh("meshes.obj/"),
+            vec![("meshes.obj/", b"")],
+            vec!["scene.toml:13", "object 'floor'", "is a folder"],
+        ),
+        (
+            "transform with a NaN rotation",
+            s.replacen(
+                "edge_v = [0.0, 0.0, -2.0]",
+                "edge_v = [0.0, 0.0, -2.0]\ntransform = { rotate_deg = [nan, 0.0, 0.0] }",
+                1,
+            ),
+            vec![],
+            vec!["scene.toml:12", "object 'floor'", "NaN"],
+        ),
+        (
+            "transform scaling to nothing",
+            s.replacen(
+                "edge_v = [0.0, 0.0, -2.0]",
+                "edge_v = [0.0, 0.0, -2.0]\ntransform = { scale = 0.0 }",
+                1,
+            ),
+            vec![],
+            vec!["scene.toml:12", "object 'floor'", "degenerate"],
+        ),
+        (
+            "missing texture",
+            s.replace(
+                "{ type = \"diffuse\", rho_d = 0.5 }",
+                "{ type = \"textured\", texture = \"nowhere.png\" }",
+            ),
+            vec![],
+            vec!["scene.toml:16", "object 'floor'", "texture", "nowhere.png"],
+        ),
+        (
+            "corrupt texture",
+            s.replace(
+                "{ type = \"diffuse\", rho_d = 0.5 }",
+                "{ type = \"textured\", texture = \"t.png\" }",
+            ),
+            vec![("t.png", b"\x89PNG\r\n\x1a\n\x00\x00")],
+            vec!["scene.toml:16", "object 'floor'", "t.png", "truncated or corrupt"],
+        ),
+        (
+            "NaN emission",
+            s.replace("emission = 5.0", "emission = nan"),
+            vec![],
+            vec!["scene.toml:25", "object 'lamp'", "finite and non-negative"],
+        ),
+        (
+            "sphere with a negative radius",
+            format!("{s}\n[[object]]\nname = \"ball\"\ngroup = \"ball\"\nshape = \"sphere\"\ncenter = [0.0, 0.5, 0.0]\nradius = -0.3\n"),
+            vec![],
+            vec!["scene.toml:30", "object 'ball'", "radius must be positive"],
+        ),
+        (
+            "sphere with too many segments",
+            format!("{s}\n[[object]]\nname = \"ball\"\ngroup = \"ball\"\nshape = \"sphere\"\ncenter = [0.0, 0.5, 0.0]\nradius = 0.3\nsegments = 100000\n"),
+            vec![],
+            vec!["scene.toml:30", "object 'ball'", "between 8 and 1024"],
+        ),
+        (
+            "surface reflecting more than it receives",
+            s.replace(
+                "type = \"diffuse\", rho_d = 0.5",
+                "type = \"diffuse_mirror\", rho_d = 0.7, rho_s = [0.2, 0.5, 0.2]",
+            ),
+            vec![],
+            vec!["scene.toml:16", "object 'floor'", "at most 1", "green channel"],
+        ),
+        (
+            "ward with a negative roughness",
+            s.replace(
+                "type = \"diffuse\", rho_d = 0.5",
+                "type = \"ward\", rho_d = 0.5, rho_s = 0.2, alpha = -0.1",
+            ),
+            vec![],
+            vec!["scene.toml:16", "object 'floor'", "`alpha` must be positive"],
+        ),
+        (
+            "zero samples per pixel",
+            format!("[render]\nspp = 0\n{s}"),
+            vec![],
+            vec!["scene.toml", "spp must be at least 1"],
+        ),
+        (
+            "object with an empty name",
+            s.replace("name = \"lamp\"", "name = \"  \""),
+            vec![],
+            vec!["scene.toml:19", "empty name"],
+        ),
+        (
+            "declared group with no object",
+            format!("{s}\n[[group]]\nname = \"ghost\"\n"),
+            vec![],
+            vec!["scene.toml", "group 'ghost' is declared but no object is in it"],
+        ),
     ]
 }
 
@@ -169,7 +317,10 @@ fn every_bad_scene_gets_a_clear_error() {
         let dir = tempfile::tempdir().unwrap();
         write(dir.path(), "scene.toml", &text);
         for (f, bytes) in files {
-            std::fs::write(dir.path().join(f), bytes).unwrap();
+            match f.strip_suffix('/') {
+                Some(folder) => std::fs::create_dir(dir.path().join(folder)).unwrap(),
+                None => std::fs::write(dir.path().join(f), bytes).unwrap(),
+            }
         }
         let (code, _, err) = run(&["info", "scene.toml"], dir.path());
         let missing: Vec<_> = expect.iter().filter(|e| !err.contains(*e)).collect();
@@ -180,6 +331,19 @@ fn every_bad_scene_gets_a_clear_error() {
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n\n"));
+}
+
+#[test]
+fn scene_file_that_is_not_text_or_not_a_file() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("bin.toml"), b"[camera]\nwidth = \xff\xfe\n").unwrap();
+    let (code, _, err) = run(&["info", "bin.toml"], dir.path());
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("bin.toml") && err.contains("UTF-8"), "{err}");
+    std::fs::create_dir(dir.path().join("folder.toml")).unwrap();
+    let (code, _, err) = run(&["info", "folder.toml"], dir.path());
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("cannot read scene file folder.toml"), "{err}");
 }
 
 #[test]

@@ -1,7 +1,9 @@
 //! End-to-end tests, in one binary (quicker to build on two cores than one binary per file).
 
+mod bad_input;
 mod common;
 mod export;
+mod fuzz_replay;
 mod geometry;
 mod photo;
 mod recover;

@@ -178,6 +178,33 @@ impl GroupState {
         .clamped();
     }
 
+    /// What is not finite about the group's last fit (its error, noise floor or a parameter),
+    /// if anything: a diverged fit, which `recover` must not carry on with.
+    pub fn non_finite(&self) -> Option<String> {
+        let p = &self.params;
+        let checks = [
+            ("error ε", self.error.is_finite()),
+            ("noise floor", self.noise_floor.is_finite()),
+            ("rho_d", p.rho_d.is_finite()),
+            ("rho_s", p.rho_s.is_finite()),
+            ("alpha_x", p.alpha_x.is_finite()),
+            ("alpha_y", p.alpha_y.is_finite()),
+            ("theta", p.theta.is_finite()),
+        ];
+        let bad: Vec<&str> = checks.iter().filter(|c| !c.1).map(|c| c.0).collect();
+        (!bad.is_empty()).then(|| {
+            format!(
+                "{} not finite: ε {}, ρd {:?}, ρs {:?}, αx {}, αy {}",
+                bad.join(", "),
+                self.error,
+                p.rho_d.to_array(),
+                p.rho_s.to_array(),
+                p.alpha_x,
+                p.alpha_y
+            )
+        })
+    }
+
     /// Whether the group is fitted at all.
     pub fn is_fitted(&self) -> bool {
         matches!(self.status, Status::Analysing | Status::Confirmed)

@@ -161,6 +161,15 @@ pub fn error(cache: &GroupCache, specs: &[PixelSpec], rho_d: Rgb, rho_s: Rgb) ->
         }
     }
     let total: f32 = photo.iter().map(|c| c.x + c.y + c.z).sum();
+    if !total.is_finite() {
+        // A NaN or infinite photo value (or a sum that overflowed) must not pass for ε = 0:
+        // the error is NaN, which `recover` reports as a diverged fit.
+        return ErrorStats {
+            error: f32::NAN,
+            noise_floor: f32::NAN,
+            halves: [f32::NAN; 2],
+        };
+    }
     if !(total > 0.0) {
         return ErrorStats::default();
     }

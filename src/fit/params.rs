@@ -196,6 +196,19 @@ impl GroupParams {
         self
     }
 
+    /// Whether the parameters are inside the bounds [`GroupParams::clamped`] enforces (with a
+    /// rounding slack of 1e-5 on ρd + ρs ≤ 1), all finite.
+    pub fn in_bounds(&self) -> bool {
+        let unit = |v: f32| (0.0..=1.0).contains(&v);
+        (0..3).all(|c| {
+            unit(self.rho_d[c])
+                && unit(self.rho_s[c])
+                && self.rho_d[c] + self.rho_s[c] <= 1.0 + 1e-5
+        }) && (ALPHA_MIN..=ALPHA_MAX).contains(&self.alpha_x)
+            && (ALPHA_MIN..=ALPHA_MAX).contains(&self.alpha_y)
+            && self.theta.is_finite()
+    }
+
     /// The canonical form of an anisotropic lobe: (αx, αy, θ) and (αy, αx, θ + 90°) are the
     /// same BRDF, and θ is defined modulo 180°. The canonical θ lies in (−45°, 45°].
     pub fn canonical(mut self) -> GroupParams {
@@ -233,6 +246,18 @@ mod tests {
             );
         }
         assert!(p.alpha_x >= ALPHA_MIN && p.alpha_y <= ALPHA_MAX && p.theta == 0.0);
+        assert!(p.in_bounds() && GroupParams::default().in_bounds());
+        let over = GroupParams {
+            rho_d: Rgb::new(0.7, 0.1, 0.1),
+            rho_s: Rgb::new(0.4, 0.1, 0.1),
+            ..Default::default()
+        };
+        assert!(!over.in_bounds() && over.clamped().in_bounds());
+        assert!(!GroupParams {
+            alpha_x: 0.0,
+            ..Default::default()
+        }
+        .in_bounds());
         let q = GroupParams {
             alpha_x: 0.11,
             alpha_y: 0.07,

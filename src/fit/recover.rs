@@ -169,19 +169,26 @@ fn apply(scene: &mut Scene, states: &[GroupState]) {
 
 /// Recovers the materials of `scene`'s non-fixed groups from `photo`, using the usable pixels
 /// of `mask` (see `photo::prepare`; `scene.camera` must be the camera the mask was made with).
-/// `log` receives every event as it happens.
+/// `log` receives every event as it happens. Fails (naming the group) if a fit diverges: see
+/// [`recover_resumable`].
 pub fn recover(
     scene: &Scene,
     photo: &Photo,
     mask: &UsableMask,
     opts: &RecoverOptions,
     log: impl FnMut(&LogLine),
-) -> Recovery {
+) -> Result<Recovery, String> {
     recover_resumable(scene, photo, mask, opts, None, log, |_| {})
 }
 
 /// [`recover`], starting from `resume` if given, and handing a [`Checkpoint`] to `checkpoint`
 /// after every global iteration (its `fingerprint` and `log_bytes` are the caller's to fill).
+///
+/// A fit whose error or parameters are not finite (NaN or infinite values reached it, e.g. a
+/// photo whose values overflow when summed) stops the recovery at once with an error naming the
+/// group and the iteration: nothing is checkpointed for that iteration, so the last checkpoint
+/// stays the state before it. The parameters themselves are always clamped inside their
+/// physical bounds ([`GroupParams::clamped`]), so only the error can carry a NaN forward.
 pub fn recover_resumable(
     scene: &Scene,
     photo: &Photo,
@@ -190,7 +197,7 @@ pub fn recover_resumable(
     resume: Option<&Checkpoint>,
     mut log: impl FnMut(&LogLine),
     mut checkpoint: impl FnMut(&Checkpoint),
-) -> Recovery {
+) -> Result<Recovery, String> {
     let t0 = Instant::now();
     let variant = scene.render.ward_variant;
     let mask = mask.clone();
@@ -242,6 +249,19 @@ pub fn recover_resumable(
     let mut elapsed_before = 0.0;
     if let Some(c) = resume {
         elapsed_before = c.elapsed;
+        // A checkpoint is the run's own, but it was read from disk: refuse, rather than carry
+        // on with, parameters a fit could not have produced.
+        if let Some(s) = c
+            .states
+            .iter()
+            .find(|s| s.is_fitted() && (!s.params.in_bounds() || !s.error.is_finite()))
+        {
+            return Err(format!(
+                "cannot resume: the checkpoint holds parameters outside their physical bounds \
+                 for group '{}' ({:?})",
+                s.name, s.params
+            ));
+        }
         states = c.states.clone();
         settled = c.settled;
         cache_builds = c.cache_builds;
@@ -336,6 +356,19 @@ pub fn recover_resumable(
                     elapsed: elapsed_before + t0.elapsed().as_secs_f64(),
                 });
             }
+            if let Some(what) = states[g].non_finite() {
+                return Err(format!(
+                    "group '{}': the fit diverged in global iteration {it} ({what}); recovery \
+                     stopped{}. Check the photo for extreme values and the scene for \
+                     degenerate geometry near this group",
+                    states[g].name,
+                    if it > 0 {
+                        format!(", the checkpoint of iteration {} is intact", it - 1)
+                    } else {
+                        String::new()
+                    }
+                ));
+            }
         }
         apply(&mut current, &states);
         pb.inc(1);
@@ -425,7 +458,7 @@ pub fn recover_resumable(
     let final_error = (0..states.len())
         .map(|g| image_error(&mask, g, &synthetic, &a, &b, &photo.image))
         .collect();
-    Recovery {
+    Ok(Recovery {
         groups: states,
         pixel_stats: mask.stats.clone(),
         scene: current,
@@ -437,7 +470,7 @@ pub fn recover_resumable(
         objective_evals: evals,
         total_s: t0.elapsed().as_secs_f64(),
         final_render_s,
-    }
+    })
 }
 
 /// ε of group `g` between a rendered image and the photo over its usable pixels, aggregated
@@ -471,4 +504,165 @@ pub fn image_error(
     let e: f32 = tiles.values().map(|t| sum((t[0] - t[1]).abs())).sum();
     let n: f32 = tiles.values().map(|t| sum((t[2] - t[3]).abs())).sum();
     Some((e / total, 0.5 * n / total))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::cache::{CacheOptions, CachePixel, GroupCache};
+    use crate::fit::hierarchy::HierarchyOptions;
+    use crate::fit::level::Level;
+    use crate::photo::usable_pixels;
+    use crate::render::aov::index_buffers;
+    use crate::scene::WardVariant;
+
+    const SCENE: &str = r#"
+[camera]
+width = 32
+height = 24
+eye = [0.0, 2.0, 2.0]
+target = [0.0, 0.0, 0.0]
+fov_y_deg = 45.0
+
+[[object]]
+name = "floor"
+group = "floor"
+shape = "quad"
+corner = [-1.0, 0.0, 1.0]
+edge_u = [2.0, 0.0, 0.0]
+edge_v = [0.0, 0.0, -2.0]
+
+[[object]]
+name = "lamp"
+group = "lamp"
+shape = "quad"
+corner = [-0.2, 1.5, -0.2]
+edge_u = [0.4, 0.0, 0.0]
+edge_v = [0.0, 0.0, 0.4]
+emission = 5.0
+"#;
+
+    /// A photo whose values are finite (so valid) but overflow f32 once summed over a tile:
+    /// every fit's ε is NaN. The recovery must stop at once naming the group, write no
+    /// checkpoint for the iteration, and never hand out non-finite parameters.
+    #[test]
+    fn a_diverging_fit_stops_the_recovery_naming_the_group() {
+        let scene =
+            crate::scene::load::parse_scene(SCENE, std::path::Path::new("t/scene.toml")).unwrap();
+        let (w, h) = (32, 24);
+        let photo = Photo::from_linear(Image {
+            width: w,
+            height: h,
+            data: vec![Rgb::splat(f32::MAX); w * h],
+        });
+        let mask = usable_pixels(
+            &index_buffers(&scene, &scene.camera),
+            &photo,
+            scene.groups.len(),
+            &Default::default(),
+        );
+        assert!(mask.stats[0].usable > 0);
+        let opts = RecoverOptions {
+            progress: false,
+            max_iterations: 4,
+            final_spp: 2,
+            cache: CacheOptions {
+                light_samples: 4,
+                indirect_samples: 4,
+                max_pixels: 64,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let (mut checkpoints, mut logged) = (0, 0);
+        let e = recover_resumable(
+            &scene,
+            &photo,
+            &mask,
+            &opts,
+            None,
+            |_| logged += 1,
+            |_| checkpoints += 1,
+        )
+        .err()
+        .expect("the recovery must fail");
+        assert!(e.contains("group 'floor'") && e.contains("diverged"), "{e}");
+        assert!(e.contains("iteration 0") && e.contains("ε"), "{e}");
+        assert_eq!(checkpoints, 0, "no checkpoint of the diverged iteration");
+        assert!(logged > 0, "the diverged fit is logged");
+    }
+
+    /// Every level fitted to a cache holding NaN and infinite values keeps its parameters in
+    /// their physical bounds (0 ≤ ρd, ρs; ρd + ρs ≤ 1; α in [ALPHA_MIN, ALPHA_MAX]), and the
+    /// group reports the non-finite error rather than hiding it.
+    #[test]
+    fn fits_on_poisoned_caches_stay_in_bounds_and_report_non_finite_errors() {
+        use crate::fit::cache::Sample;
+        use crate::fit::params::{ALPHA_MAX, ALPHA_MIN};
+        use crate::math::Vec3;
+        let good = |i: u32, photo: Rgb| CachePixel {
+            pixel: i,
+            photo,
+            d: Rgb::splat(0.4),
+            d_half: [Rgb::splat(0.4); 2],
+            mirror: Rgb::splat(0.2),
+            mirror_half: [Rgb::splat(0.2); 2],
+            start: 2 * i,
+            mid: 2 * i + 1,
+            end: 2 * i + 2,
+            tile: i % 4,
+        };
+        let sample = Sample {
+            wo: Vec3::new(0.1, 0.2, 0.97).normalize(),
+            wi: Vec3::new(-0.1, -0.2, 0.97).normalize(),
+            c: Rgb::splat(0.5),
+        };
+        for poison in [f32::NAN, f32::INFINITY, f32::MAX] {
+            let mut pixels: Vec<CachePixel> = (0..16).map(|i| good(i, Rgb::splat(0.25))).collect();
+            pixels[3].photo = Rgb::new(poison, 0.2, 0.2);
+            pixels[5].d_half[1] = Rgb::splat(poison);
+            pixels[7].mirror = Rgb::splat(poison);
+            let cache = GroupCache {
+                pixels,
+                samples: vec![sample; 32],
+                tiles: 4,
+                stray: 0,
+            };
+            let mut any_bad = false;
+            for level in Level::FITTED {
+                let mut st = GroupState::new("g", Status::Analysing, GroupParams::default());
+                st.level = level;
+                st.step(
+                    &cache,
+                    WardVariant::Ward1992,
+                    &HierarchyOptions::default(),
+                    true,
+                    true,
+                );
+                let p = st.params;
+                assert!(p.in_bounds(), "{poison} {level:?}: {p:?}");
+                for c in 0..3 {
+                    assert!(
+                        p.rho_d[c] >= 0.0 && p.rho_s[c] >= 0.0,
+                        "{poison} {level:?}: {p:?}"
+                    );
+                    assert!(
+                        p.rho_d[c] + p.rho_s[c] <= 1.0 + 1e-6,
+                        "{poison} {level:?}: {p:?}"
+                    );
+                }
+                assert!(
+                    (ALPHA_MIN..=ALPHA_MAX).contains(&p.alpha_x)
+                        && (ALPHA_MIN..=ALPHA_MAX).contains(&p.alpha_y)
+                        && p.theta.is_finite(),
+                    "{poison} {level:?}: {p:?}"
+                );
+                any_bad |= st.non_finite().is_some();
+            }
+            assert!(
+                any_bad || poison.is_finite(),
+                "{poison}: a poisoned cache must show as a non-finite error"
+            );
+        }
+    }
 }

@@ -144,12 +144,74 @@ fn srgb_encode8(x: f32) -> u8 {
     (srgb_encode(x) * 255.0 + 0.5) as u8
 }
 
+/// Largest image matfit reads or renders, in pixels (2^26, e.g. 8192 × 8192): bigger photos are
+/// refused with a message (downsample them and scale the camera) rather than exhausting memory.
+pub const MAX_PIXELS: usize = 1 << 26;
+
 /// Reads an image file's values without applying a response curve.
 pub fn read_raw(path: &Path) -> Result<RawImage, String> {
+    check_image_file(path)?;
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    decode_raw(&bytes, path)
+}
+
+/// Largest image file read: room for [`MAX_PIXELS`] pixels as 32-bit float RGBA, and a margin.
+pub const MAX_FILE_BYTES: u64 = MAX_PIXELS as u64 * 16 + (1 << 20);
+
+/// Checks, before reading it, that `path` is a regular file no larger than [`MAX_FILE_BYTES`]
+/// (not a folder, a device or a pipe that would never end).
+pub fn check_image_file(path: &Path) -> Result<(), String> {
+    let m = std::fs::metadata(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    if m.is_dir() {
+        return Err(format!("{}: is a folder, not an image", path.display()));
+    }
+    if !m.is_file() {
+        return Err(format!("{}: is not a regular file", path.display()));
+    }
+    if m.len() == 0 {
+        return Err(format!("{}: the file is empty (0 bytes)", path.display()));
+    }
+    if m.len() > MAX_FILE_BYTES {
+        return Err(format!(
+            "{}: the file is {} MB, more than any image matfit reads ({} megapixels at most); \
+             downsample it",
+            path.display(),
+            m.len() >> 20,
+            MAX_PIXELS >> 20
+        ));
+    }
+    Ok(())
+}
+
+/// Decodes an image file's bytes without applying a response curve. `path` names the file in
+/// messages; its extension chooses PFM (the other formats are recognised by their content).
+pub fn decode_raw(bytes: &[u8], path: &Path) -> Result<RawImage, String> {
+    decode_raw_checked(bytes, path, |_, _| Ok(()))
+}
+
+/// [`decode_raw`], calling `check(width, height)` as soon as the header gives the size and
+/// before the pixels are decoded (its error is returned as it is): a photo of the wrong size is
+/// refused without decoding it.
+pub fn decode_raw_checked(
+    bytes: &[u8],
+    path: &Path,
+    check: impl Fn(usize, usize) -> Result<(), String>,
+) -> Result<RawImage, String> {
     let bad = |e: String| format!("{}: {e}", path.display());
-    let bytes = std::fs::read(path).map_err(|e| bad(format!("cannot read: {e}")))?;
+    let too_big = |w: u64, h: u64| {
+        bad(format!(
+            "the image is {w}×{h}, more than matfit's limit of {} megapixels; downsample it \
+             (and scale the camera: width, height and fx, fy, cx, cy)",
+            MAX_PIXELS >> 20
+        ))
+    };
+    if bytes.is_empty() {
+        return Err(bad("the file is empty (0 bytes)".into()));
+    }
     if extension(path) == "pfm" {
-        let (width, height, data) = super::pfm::decode(&bytes).map_err(bad)?;
+        // (The PFM decoder allocates only once the file is known to hold every pixel.)
+        let (width, height, data) = super::pfm::decode(bytes).map_err(bad)?;
+        check(width, height)?;
         return Ok(RawImage {
             image: Image {
                 width,
@@ -159,20 +221,50 @@ pub fn read_raw(path: &Path) -> Result<RawImage, String> {
             bits: None,
         });
     }
-    let reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
-        .with_guessed_format()
-        .map_err(|e| bad(e.to_string()))?;
-    if reader.format().is_none() {
-        return Err(bad(
-            "not an image file matfit can read (EXR, HDR, PFM, PNG, JPEG)".into(),
-        ));
+    // The EXR decoder allocates by the header's data window before it reads the header's end:
+    // check the windows first.
+    if let Some((w, h)) = exr_data_windows(bytes)
+        .into_iter()
+        .flatten()
+        .find(|&(w, h)| w.saturating_mul(h) > MAX_PIXELS as u64)
+    {
+        return Err(too_big(w, h));
     }
-    let img = reader
+    let reader = || -> Result<image::ImageReader<std::io::Cursor<&[u8]>>, String> {
+        let mut r = image::ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| bad(e.to_string()))?;
+        if r.format().is_none() {
+            return Err(bad(
+                "not an image file matfit can read (EXR, HDR, PFM, PNG, JPEG)".into(),
+            ));
+        }
+        // Room for the largest allowed image as 32-bit float RGBA, the widest layout decoded.
+        let mut limits = image::Limits::default();
+        limits.max_alloc = Some(MAX_PIXELS as u64 * 16 + (64 << 20));
+        r.limits(limits);
+        Ok(r)
+    };
+    // The header first: refuse giant images before the decoder allocates for them.
+    let (w, h) = reader()?
+        .into_dimensions()
+        .map_err(|e| bad(format!("cannot decode (truncated or corrupt file?): {e}")))?;
+    if w == 0 || h == 0 {
+        return Err(bad(format!("the image is {w}×{h}")));
+    }
+    if w as u64 * h as u64 > MAX_PIXELS as u64 {
+        return Err(too_big(w as u64, h as u64));
+    }
+    check(w as usize, h as usize)?;
+    let img = reader()?
         .decode()
         .map_err(|e| bad(format!("cannot decode (truncated or corrupt file?): {e}")))?;
     let (w, h) = (img.width() as usize, img.height() as usize);
     if w == 0 || h == 0 {
         return Err(bad(format!("the image is {w}×{h}")));
+    }
+    if w * h > MAX_PIXELS {
+        return Err(too_big(w as u64, h as u64));
     }
     use image::DynamicImage as D;
     let bits = match &img {
@@ -190,6 +282,53 @@ pub fn read_raw(path: &Path) -> Result<RawImage, String> {
         },
         bits,
     })
+}
+
+/// The data windows' sizes (width, height) of every header of an OpenExr file, None if `bytes`
+/// are not an EXR file or its headers do not parse (the decoder then says what is wrong).
+/// Layout: magic, version + flags, then per part a list of attributes (name NUL, type NUL, i32
+/// size, value) closed by a NUL; a multi-part file closes the list of headers with another NUL.
+fn exr_data_windows(bytes: &[u8]) -> Option<Vec<(u64, u64)>> {
+    if !bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01]) || bytes.len() < 8 {
+        return None;
+    }
+    let multipart = bytes[5] & 0x10 != 0;
+    let mut pos = 8;
+    let cstr = |pos: &mut usize| -> Option<&[u8]> {
+        let len = bytes.get(*pos..)?.iter().position(|&b| b == 0)?;
+        let s = &bytes[*pos..*pos + len];
+        *pos += len + 1;
+        Some(s)
+    };
+    let mut windows = Vec::new();
+    loop {
+        let mut attrs = 0;
+        loop {
+            let name = cstr(&mut pos)?;
+            if name.is_empty() {
+                break;
+            }
+            let kind = cstr(&mut pos)?;
+            let size = i32::from_le_bytes(bytes.get(pos..pos + 4)?.try_into().ok()?);
+            pos += 4;
+            let size = usize::try_from(size).ok()?;
+            let value = bytes.get(pos..pos.checked_add(size)?)?;
+            pos += size;
+            attrs += 1;
+            if name == b"dataWindow" && kind == b"box2i" && size == 16 {
+                let v = |i: usize| i32::from_le_bytes(value[4 * i..4 * i + 4].try_into().unwrap());
+                let (w, h) = (v(2) as i64 - v(0) as i64 + 1, v(3) as i64 - v(1) as i64 + 1);
+                if w > 0 && h > 0 {
+                    windows.push((w as u64, h as u64));
+                }
+            }
+        }
+        // A single-part file has one header; a multi-part one ends with an empty header.
+        if !multipart || attrs == 0 || bytes.get(pos) == Some(&0) {
+            break;
+        }
+    }
+    Some(windows)
 }
 
 /// Reads an image as linear RGB: float formats as they are, integer formats through sRGB.

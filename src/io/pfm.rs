@@ -47,15 +47,21 @@ pub fn decode(bytes: &[u8]) -> Result<(usize, usize, Vec<Rgb>), String> {
     if w == 0 || h == 0 {
         return Err(format!("PFM image is {w}×{h}"));
     }
-    let need = w
-        .checked_mul(h)
-        .and_then(|n| n.checked_mul(channels * 4))
-        .ok_or("PFM dimensions overflow")?;
-    if bytes.len() < pos + need {
+    if !scale.is_finite() || scale == 0.0 {
+        return Err(format!("bad PFM scale {scale} (must be a non-zero number)"));
+    }
+    let pixels = w.checked_mul(h).ok_or("PFM dimensions overflow")?;
+    if pixels > crate::io::image::MAX_PIXELS {
         return Err(format!(
-            "truncated PFM data: {} of {need} bytes",
-            bytes.len().saturating_sub(pos)
+            "the image is {w}×{h}, more than matfit's limit of {} megapixels; downsample it \
+             (and scale the camera: width, height and fx, fy, cx, cy)",
+            crate::io::image::MAX_PIXELS >> 20
         ));
+    }
+    let need = pixels * channels * 4;
+    let have = bytes.len().saturating_sub(pos);
+    if have < need {
+        return Err(format!("truncated PFM data: {have} of {need} bytes"));
     }
     let le = scale < 0.0;
     let f = |i: usize| {

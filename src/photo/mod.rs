@@ -18,7 +18,7 @@ pub use args::{prepare, PhotoArgs, PreparedPhoto};
 pub use mask::{usable_pixels, GroupPixelStats, MaskOptions, UsableMask};
 pub use response::{Response, ResponseTable};
 
-use crate::io::image::{read_raw, Image};
+use crate::io::image::{decode_raw_checked, Image, RawImage};
 use crate::math::Rgb;
 use std::path::Path;
 
@@ -145,10 +145,52 @@ pub fn load_photo(
             ))
         }
         Ok(m) if m.is_dir() => return Err(format!("{}: is a folder, not a photo", path.display())),
-        Ok(_) => {}
+        Ok(_) => crate::io::image::check_image_file(path)?,
         Err(e) => return Err(format!("{}: cannot read the photo: {e}", path.display())),
     }
-    let raw = read_raw(path)?;
+    let bytes = std::fs::read(path)
+        .map_err(|e| format!("{}: cannot read the photo: {e}", path.display()))?;
+    photo_from_bytes(&bytes, path, width, height, opts)
+}
+
+/// [`load_photo`] on a file's bytes already in memory (`path` names it in messages and its
+/// extension tells PFM apart).
+pub fn photo_from_bytes(
+    bytes: &[u8],
+    path: &Path,
+    width: u32,
+    height: u32,
+    opts: &PhotoOptions,
+) -> Result<Photo, String> {
+    if bytes.is_empty() {
+        return Err(format!(
+            "{}: the photo file is empty (0 bytes)",
+            path.display()
+        ));
+    }
+    // The size is checked from the header, before the pixels are decoded.
+    let raw = decode_raw_checked(bytes, path, |w, h| {
+        if (w, h) != (width as usize, height as usize) {
+            return Err(size_mismatch(path, w, h, width as usize, height as usize));
+        }
+        Ok(())
+    })?;
+    photo_from_raw(raw, path, width, height, opts)
+}
+
+/// The checks of [`load_photo`] on decoded pixel values: size, response curve, exposure and the
+/// validity rule of [`Photo`].
+pub fn photo_from_raw(
+    raw: RawImage,
+    path: &Path,
+    width: u32,
+    height: u32,
+    opts: &PhotoOptions,
+) -> Result<Photo, String> {
+    let exposure = opts.exposure.unwrap_or(1.0);
+    if !(exposure > 0.0 && exposure.is_finite()) {
+        return Err(format!("exposure must be positive, got {exposure}"));
+    }
     let (w, h) = (raw.image.width, raw.image.height);
     if (w, h) != (width as usize, height as usize) {
         return Err(size_mismatch(path, w, h, width as usize, height as usize));

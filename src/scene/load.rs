@@ -271,6 +271,15 @@ fn build_camera(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {
             c.width, c.height
         )));
     }
+    let max = crate::io::image::MAX_PIXELS;
+    if c.width as usize * c.height as usize > max {
+        return Err(cx.whole(format!(
+            "[camera] {}×{} is more than matfit's limit of {} megapixels",
+            c.width,
+            c.height,
+            max >> 20
+        )));
+    }
     let look_at = [c.eye.is_some(), c.target.is_some(), c.fov_y_deg.is_some()];
     let calib = [
         c.fx.is_some(),
@@ -397,7 +406,16 @@ fn build_shape(spec: &ObjectSpec, cx: &Ctx) -> Result<TriangleMesh, SceneError> 
                     format!("object '{name}': sphere radius must be positive, got {r}"),
                 ));
             }
-            shapes::sphere(c, r, spec.segments.unwrap_or(64).clamp(8, 4096))
+            let segments = spec.segments.unwrap_or(64);
+            if !(8..=1024).contains(&segments) {
+                return Err(cx.at(
+                    off,
+                    format!(
+                        "object '{name}': sphere `segments` must be between 8 and 1024, got {segments}"
+                    ),
+                ));
+            }
+            shapes::sphere(c, r, segments)
         }
         ShapeKind::Mesh => {
             let file = spec
@@ -439,6 +457,21 @@ fn color(c: &Color, key: &str) -> Result<Rgb, String> {
     Ok(v)
 }
 
+/// Checks that a surface reflects at most the light it receives: ρd + ρs ≤ 1 per channel (with a
+/// little slack for decimal values such as 0.1 + 0.9 in f32).
+fn energy(rho_d: Rgb, rho_s: Rgb, keys: &str) -> Result<(), String> {
+    let sum = rho_d + rho_s;
+    if let Some(c) = (0..3).find(|&c| sum[c] > 1.0 + 1e-6) {
+        return Err(format!(
+            "{keys} must be at most 1 in every channel, got {} in the {} channel: the surface \
+             would reflect more light than it receives",
+            sum[c],
+            ["red", "green", "blue"][c]
+        ));
+    }
+    Ok(())
+}
+
 /// Turns a material table into a material; the message says what is wrong.
 fn build_material(m: &MaterialSpec, cx_dir: &Ctx) -> Result<Material, String> {
     build_material_in(m, &cx_dir.dir)
@@ -454,16 +487,21 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
         }
     };
     Ok(match m {
-        MaterialSpec::Diffuse { rho_d } => Material::Diffuse {
-            rho_d: color(rho_d, "rho_d")?,
-        },
-        MaterialSpec::Mirror { rho_s } => Material::Mirror {
-            rho_s: color(rho_s, "rho_s")?,
-        },
-        MaterialSpec::DiffuseMirror { rho_d, rho_s } => Material::DiffuseMirror {
-            rho_d: color(rho_d, "rho_d")?,
-            rho_s: color(rho_s, "rho_s")?,
-        },
+        MaterialSpec::Diffuse { rho_d } => {
+            let rho_d = color(rho_d, "rho_d")?;
+            energy(rho_d, Rgb::ZERO, "`rho_d`")?;
+            Material::Diffuse { rho_d }
+        }
+        MaterialSpec::Mirror { rho_s } => {
+            let rho_s = color(rho_s, "rho_s")?;
+            energy(Rgb::ZERO, rho_s, "`rho_s`")?;
+            Material::Mirror { rho_s }
+        }
+        MaterialSpec::DiffuseMirror { rho_d, rho_s } => {
+            let (rho_d, rho_s) = (color(rho_d, "rho_d")?, color(rho_s, "rho_s")?);
+            energy(rho_d, rho_s, "`rho_d` + `rho_s`")?;
+            Material::DiffuseMirror { rho_d, rho_s }
+        }
         MaterialSpec::Ward {
             rho_d,
             rho_s,
@@ -481,9 +519,11 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
             if !theta.is_finite() {
                 return Err("`theta_deg` must be finite".into());
             }
+            let (rho_d, rho_s) = (color(rho_d, "rho_d")?, color(rho_s, "rho_s")?);
+            energy(rho_d, rho_s, "`rho_d` + `rho_s`")?;
             Material::Ward {
-                rho_d: color(rho_d, "rho_d")?,
-                rho_s: color(rho_s, "rho_s")?,
+                rho_d,
+                rho_s,
                 alpha_x: ax,
                 alpha_y: ay,
                 theta: theta.to_radians(),
@@ -566,29 +606,61 @@ fn build_geometry(objects: &mut [Object], meshes: Vec<TriangleMesh>) -> Geometry
 
 fn check_camera_sees_geometry(scene: &Scene, cx: &Ctx) -> Result<(), SceneError> {
     let cam = &scene.camera;
-    let n = 24;
-    for j in 0..n {
-        for i in 0..n {
-            let film = Vec2::new(
-                (i as f32 + 0.5) / n as f32 * cam.width as f32,
-                (j as f32 + 0.5) / n as f32 * cam.height as f32,
-            );
-            if scene.intersect(&cam.ray(film), f32::INFINITY).is_some() {
-                return Ok(());
-            }
-        }
+    // A coarse grid first; if it misses, a fine one (up to a ray per pixel), so that a small
+    // object alone in the view is not taken for nothing.
+    let sees = |nx: u32, ny: u32| {
+        (0..ny).any(|j| {
+            (0..nx).any(|i| {
+                let film = Vec2::new(
+                    (i as f32 + 0.5) / nx as f32 * cam.width as f32,
+                    (j as f32 + 0.5) / ny as f32 * cam.height as f32,
+                );
+                scene.intersect(&cam.ray(film), f32::INFINITY).is_some()
+            })
+        })
+    };
+    if sees(24, 24) || sees(cam.width.min(256), cam.height.min(256)) {
+        return Ok(());
     }
+    let v = |v: Vec3| format!("[{:.3}, {:.3}, {:.3}]", v.x, v.y, v.z);
+    let b = scene.geometry.bvh.bounds();
     Err(cx.whole(format!(
-        "the camera at {:?} sees no geometry (scene bounds {:?} to {:?})",
-        cam.eye(),
-        scene.geometry.bvh.bounds().min,
-        scene.geometry.bvh.bounds().max
+        "the camera at {} sees no geometry (scene bounds {} to {}): check [camera] (eye, target \
+         or rotation) and the objects' positions",
+        v(cam.eye()),
+        v(b.min),
+        v(b.max)
     )))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A small object alone in the view falls between the coarse grid's rays: the scene loads.
+    #[test]
+    fn a_small_object_alone_in_view_is_seen() {
+        let text = r#"
+[camera]
+width = 512
+height = 384
+eye = [0.0, 0.0, 10.0]
+target = [0.0, 0.0, 0.0]
+fov_y_deg = 45.0
+
+[[object]]
+name = "chip"
+group = "chip"
+shape = "quad"
+corner = [-0.025, -0.025, 0.0]
+edge_u = [0.05, 0.0, 0.0]
+edge_v = [0.0, 0.05, 0.0]
+"#;
+        parse_scene(text, Path::new("chip.toml")).unwrap();
+        let away = text.replace("target = [0.0, 0.0, 0.0]", "target = [0.0, 0.0, 20.0]");
+        let e = parse_scene(&away, Path::new("chip.toml")).err().unwrap();
+        assert!(e.to_string().contains("sees no geometry"), "{e}");
+    }
 
     #[test]
     fn suggestion_picks_nearest_key() {

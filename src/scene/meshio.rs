@@ -6,34 +6,125 @@ use crate::geometry::{shapes, TriangleMesh};
 use glam::{Mat4, Vec2, Vec3};
 use std::path::Path;
 
+/// Largest mesh file read (bytes): a bigger file is refused with a message rather than read.
+pub const MAX_MESH_BYTES: u64 = 4 << 30;
+
 /// Loads a mesh, choosing the format by the file's extension.
 pub fn load_mesh(path: &Path) -> Result<TriangleMesh, String> {
-    if !path.exists() {
-        return Err(format!("mesh file {} not found", path.display()));
+    let meta = match std::fs::metadata(path) {
+        Ok(m) => m,
+        Err(_) => return Err(format!("mesh file {} not found", path.display())),
+    };
+    if meta.is_dir() {
+        return Err(format!(
+            "mesh file {} is a folder, not a file",
+            path.display()
+        ));
     }
-    let ext = path
-        .extension()
+    if !meta.is_file() {
+        return Err(format!(
+            "mesh file {} is not a regular file",
+            path.display()
+        ));
+    }
+    if meta.len() > MAX_MESH_BYTES {
+        return Err(format!(
+            "mesh file {} is {} MB, more than matfit reads ({} MB)",
+            path.display(),
+            meta.len() >> 20,
+            MAX_MESH_BYTES >> 20
+        ));
+    }
+    let ext = extension(path);
+    if !["obj", "ply", "gltf", "glb"].contains(&ext.as_str()) {
+        return Err(unknown_format(path, &ext));
+    }
+    let bytes = std::fs::read(path)
+        .map_err(|e| format!("mesh file {}: cannot read: {e}", path.display()))?;
+    mesh_from_bytes(&bytes, path, path.parent())
+}
+
+fn extension(path: &Path) -> String {
+    path.extension()
         .and_then(|e| e.to_str())
         .map(|e| e.to_ascii_lowercase())
-        .unwrap_or_default();
-    match ext.as_str() {
-        "obj" => load_obj(path),
-        "ply" => load_ply(path),
-        "gltf" | "glb" => load_gltf(path),
-        _ => Err(format!(
-            "mesh file {}: unknown format '.{ext}' (expected .obj, .ply, .gltf or .glb)",
-            path.display()
-        )),
+        .unwrap_or_default()
+}
+
+fn unknown_format(path: &Path, ext: &str) -> String {
+    format!(
+        "mesh file {}: unknown format '.{ext}' (expected .obj, .ply, .gltf or .glb)",
+        path.display()
+    )
+}
+
+/// Decodes a mesh file's bytes; `path` names it in messages and its extension chooses the
+/// format; `base` is the folder glTF buffers with relative URIs are read from (None: only
+/// embedded buffers).
+pub fn mesh_from_bytes(
+    bytes: &[u8],
+    path: &Path,
+    base: Option<&Path>,
+) -> Result<TriangleMesh, String> {
+    match extension(path).as_str() {
+        "obj" => obj_from_bytes(bytes, path),
+        "ply" => ply_from_bytes(bytes, path),
+        "gltf" | "glb" => gltf_from_bytes(bytes, path, base),
+        ext => Err(unknown_format(path, ext)),
     }
 }
 
-fn load_obj(path: &Path) -> Result<TriangleMesh, String> {
+/// Checks an OBJ file's face indices before tobj sees them: tobj's arithmetic on an index that
+/// is huge, or negative beyond the elements defined so far, overflows (a panic in debug builds,
+/// a wrong index in release ones).
+fn check_obj_faces(bytes: &[u8]) -> Result<(), String> {
+    let mut counts = [0i64; 3]; // v, vt, vn lines so far
+    for (n, line) in bytes.split(|&b| b == b'\n').enumerate() {
+        let line = String::from_utf8_lossy(line);
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => counts[0] += 1,
+            Some("vt") => counts[1] += 1,
+            Some("vn") => counts[2] += 1,
+            Some("f") | Some("l") => {
+                for word in words {
+                    for (k, part) in word.split('/').enumerate().take(3) {
+                        let Ok(x) = part.parse::<i64>() else {
+                            continue; // empty, or not a number: tobj reports it
+                        };
+                        if x.abs() > i32::MAX as i64 || (x < 0 && counts[k] + x < 0) {
+                            return Err(format!(
+                                "line {}: face index {x} refers to a {} that does not exist",
+                                n + 1,
+                                ["vertex", "texture coordinate", "normal"][k]
+                            ));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+fn obj_from_bytes(bytes: &[u8], path: &Path) -> Result<TriangleMesh, String> {
+    check_obj_faces(bytes).map_err(|e| {
+        format!(
+            "mesh file {}: not a readable OBJ file ({e})",
+            path.display()
+        )
+    })?;
     let opts = tobj::LoadOptions {
         triangulate: true,
         single_index: true,
         ..Default::default()
     };
-    let (models, _) = tobj::load_obj(path, &opts).map_err(|e| {
+    // Materials are not read from OBJ files (the scene file gives them).
+    let (models, _) = tobj::load_obj_buf(&mut std::io::Cursor::new(bytes), &opts, |_| {
+        Err(tobj::LoadError::OpenFileFailed)
+    })
+    .map_err(|e| {
         format!(
             "mesh file {}: not a readable OBJ file ({e})",
             path.display()
@@ -74,13 +165,64 @@ fn load_obj(path: &Path) -> Result<TriangleMesh, String> {
     Ok(shapes::merge(&parts))
 }
 
-fn load_ply(path: &Path) -> Result<TriangleMesh, String> {
+/// Checks a PLY header before the parser sees it: ply-rs panics on numbers that overflow u64 and
+/// loops `count` times over elements that have no properties (no bytes to run out of), so a
+/// header can make it panic or exhaust memory. Every element must have a property, and no count
+/// may exceed the bytes left after the header (each element takes at least one).
+fn check_ply_header(bytes: &[u8]) -> Result<(), String> {
+    let end = bytes
+        .windows(10)
+        .position(|w| w == b"end_header")
+        .ok_or("no 'end_header' line")?;
+    let header = String::from_utf8_lossy(&bytes[..end]);
+    let left = (bytes.len() - end) as u64;
+    let mut elements: Vec<(String, u64, usize)> = Vec::new();
+    for line in header.lines() {
+        let mut digits = 0;
+        for c in line.chars() {
+            digits = if c.is_ascii_digit() { digits + 1 } else { 0 };
+            if digits > 18 {
+                return Err(format!(
+                    "header line '{}' has a number too large",
+                    line.trim()
+                ));
+            }
+        }
+        let words: Vec<&str> = line.split_whitespace().collect();
+        match words.as_slice() {
+            ["element", name, n] => {
+                let n: u64 = n.parse().unwrap_or(0);
+                if n > left {
+                    return Err(format!(
+                        "element '{name}' claims {n} entries but the file has {left} bytes after \
+                         its header"
+                    ));
+                }
+                elements.push((name.to_string(), n, 0));
+            }
+            ["property", ..] => {
+                if let Some(e) = elements.last_mut() {
+                    e.2 += 1;
+                }
+            }
+            _ => {}
+        }
+    }
+    if let Some((name, n, _)) = elements.iter().find(|e| e.1 > 0 && e.2 == 0) {
+        return Err(format!(
+            "element '{name}' has {n} entries but no properties"
+        ));
+    }
+    Ok(())
+}
+
+fn ply_from_bytes(bytes: &[u8], path: &Path) -> Result<TriangleMesh, String> {
     use ply_rs_bw::parser::Parser;
     use ply_rs_bw::ply::{DefaultElement, Property};
     let bad = |what: String| format!("mesh file {}: {what}", path.display());
-    let mut f = std::fs::File::open(path).map_err(|e| bad(e.to_string()))?;
+    check_ply_header(bytes).map_err(|e| bad(format!("not a readable PLY file ({e})")))?;
     let ply = Parser::<DefaultElement>::new()
-        .read_ply(&mut f)
+        .read_ply(&mut std::io::Cursor::new(bytes))
         .map_err(|e| bad(format!("not a readable PLY file ({e})")))?;
     let num = |p: Option<&Property>| -> Option<f32> {
         Some(match p? {
@@ -150,41 +292,302 @@ fn load_ply(path: &Path) -> Result<TriangleMesh, String> {
     Ok(m)
 }
 
-fn load_gltf(path: &Path) -> Result<TriangleMesh, String> {
+/// The file a glTF buffer URI names, if it names one (not a `data:` URI), resolved against
+/// `base` as the gltf crate resolves it; Err for a relative URI whose percent-encoding is not
+/// UTF-8, on which the gltf crate panics.
+fn buffer_file(uri: &str, base: Option<&Path>) -> Result<Option<std::path::PathBuf>, String> {
+    if uri.starts_with("data:") {
+        return Ok(None);
+    }
+    if let Some(rest) = uri
+        .strip_prefix("file://")
+        .or_else(|| uri.strip_prefix("file:"))
+    {
+        return Ok(base.map(|_| std::path::PathBuf::from(rest)));
+    }
+    if uri.contains(':') {
+        return Ok(None); // an unsupported scheme: the gltf crate refuses it
+    }
+    let b = uri.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'%' && i + 2 < b.len() {
+            let hex = std::str::from_utf8(&b[i + 1..i + 3]).ok();
+            if let Some(v) = hex.and_then(|h| u8::from_str_radix(h, 16).ok()) {
+                out.push(v);
+                i += 3;
+                continue;
+            }
+        }
+        out.push(b[i]);
+        i += 1;
+    }
+    let decoded = String::from_utf8(out).map_err(|_| "its percent-encoding is not UTF-8")?;
+    Ok(base.map(|b| b.join(decoded)))
+}
+
+/// The bytes of an accessor's elements: (data, stride), every range checked. The gltf crate's
+/// own readers panic on inconsistent accessors (overflowing offsets, a count of zero with a
+/// sparse part, component types a semantic does not allow), so matfit reads them itself.
+fn accessor_bytes<'b>(
+    acc: &gltf::Accessor,
+    buffers: &'b [gltf::buffer::Data],
+    elem: usize,
+) -> Result<(&'b [u8], usize), String> {
+    if acc.sparse().is_some() {
+        return Err("sparse accessors are not supported".into());
+    }
+    let view = acc.view().ok_or("the accessor has no buffer view")?;
+    let data = buffers
+        .get(view.buffer().index())
+        .ok_or("the buffer view's buffer does not exist")?;
+    let out_of_range = || {
+        format!(
+            "accessor {} reaches past the end of its buffer view or buffer",
+            acc.index()
+        )
+    };
+    let view_bytes = view
+        .offset()
+        .checked_add(view.length())
+        .and_then(|end| data.0.get(view.offset()..end))
+        .ok_or_else(out_of_range)?;
+    let stride = view.stride().unwrap_or(elem);
+    if stride < elem {
+        return Err(format!(
+            "accessor {}: byte stride {stride} is smaller than an element ({elem} bytes)",
+            acc.index()
+        ));
+    }
+    let count = acc.count();
+    if count == 0 {
+        return Ok((&[], stride));
+    }
+    let end = (count - 1)
+        .checked_mul(stride)
+        .and_then(|n| n.checked_add(elem))
+        .and_then(|n| n.checked_add(acc.offset()))
+        .ok_or_else(out_of_range)?;
+    let bytes = view_bytes.get(acc.offset()..end).ok_or_else(out_of_range)?;
+    Ok((bytes, stride))
+}
+
+/// An accessor of N-component vectors as f32 (float, or normalized unsigned byte / short).
+fn read_floats<const N: usize>(
+    acc: &gltf::Accessor,
+    buffers: &[gltf::buffer::Data],
+) -> Result<Vec<[f32; N]>, String> {
+    use gltf::accessor::{DataType, Dimensions};
+    let dims = match N {
+        2 => Dimensions::Vec2,
+        _ => Dimensions::Vec3,
+    };
+    if acc.dimensions() != dims {
+        return Err(format!(
+            "accessor {} is {:?}, expected {dims:?}",
+            acc.index(),
+            acc.dimensions()
+        ));
+    }
+    let (size, scale): (usize, fn(&[u8]) -> f32) = match (acc.data_type(), acc.normalized()) {
+        (DataType::F32, _) => (4, |b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+        (DataType::U8, true) => (1, |b| b[0] as f32 / 255.0),
+        (DataType::U16, true) => (2, |b| u16::from_le_bytes([b[0], b[1]]) as f32 / 65535.0),
+        (t, n) => {
+            return Err(format!(
+                "accessor {} has components {t:?}{}, expected float",
+                acc.index(),
+                if n { " (normalized)" } else { "" }
+            ))
+        }
+    };
+    let (bytes, stride) = accessor_bytes(acc, buffers, size * N)?;
+    Ok((0..acc.count())
+        .map(|i| std::array::from_fn(|k| scale(&bytes[i * stride + k * size..])))
+        .collect())
+}
+
+/// An index accessor (unsigned byte, short or int scalars).
+fn read_indices(acc: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Result<Vec<u32>, String> {
+    use gltf::accessor::{DataType, Dimensions};
+    if acc.dimensions() != Dimensions::Scalar {
+        return Err(format!("accessor {} is not scalar", acc.index()));
+    }
+    let (size, read): (usize, fn(&[u8]) -> u32) = match acc.data_type() {
+        DataType::U8 => (1, |b| b[0] as u32),
+        DataType::U16 => (2, |b| u16::from_le_bytes([b[0], b[1]]) as u32),
+        DataType::U32 => (4, |b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+        t => {
+            return Err(format!(
+                "accessor {} has components {t:?}, expected unsigned integers",
+                acc.index()
+            ))
+        }
+    };
+    let (bytes, stride) = accessor_bytes(acc, buffers, size)?;
+    Ok((0..acc.count())
+        .map(|i| read(&bytes[i * stride..]))
+        .collect())
+}
+
+/// gltf's own validation (what `Gltf::from_slice` runs), after the check it lacks: it looks up
+/// each primitive's POSITION accessor before checking that the index exists, and panics.
+fn validate_gltf(root: &gltf::json::Root) -> Result<(), String> {
+    use gltf::json::validation::Validate;
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            for acc in prim.attributes.values() {
+                if acc.value() >= root.accessors.len() {
+                    return Err(format!(
+                        "mesh {m}, primitive {p}: accessor {} does not exist",
+                        acc.value()
+                    ));
+                }
+            }
+        }
+    }
+    let mut errors = Vec::new();
+    root.validate(root, gltf::json::Path::new, &mut |path, error| {
+        errors.push(format!("{}: {error}", path()))
+    });
+    if errors.is_empty() {
+        Ok(())
+    } else {
+        Err(errors.join("; "))
+    }
+}
+
+fn gltf_from_bytes(bytes: &[u8], path: &Path, base: Option<&Path>) -> Result<TriangleMesh, String> {
     let bad = |what: String| format!("mesh file {}: {what}", path.display());
-    let (doc, buffers, _) =
-        gltf::import(path).map_err(|e| bad(format!("not a readable glTF file ({e})")))?;
+    let unreadable = |e: gltf::Error| bad(format!("not a readable glTF file ({e})"));
+    // The gltf crate subtracts the header's size from the GLB length without checking it.
+    if let Some(len) = bytes
+        .strip_prefix(b"glTF")
+        .and_then(|b| b.get(4..8))
+        .map(|l| u32::from_le_bytes([l[0], l[1], l[2], l[3]]))
+    {
+        if len < 12 {
+            return Err(bad(format!(
+                "not a readable glTF file (the GLB header gives a length of {len} bytes, less \
+                 than the header itself)"
+            )));
+        }
+    }
+    let gltf::Gltf {
+        document: doc,
+        blob,
+    } = gltf::Gltf::from_slice_without_validation(bytes).map_err(unreadable)?;
+    validate_gltf(doc.as_json()).map_err(|e| bad(format!("not a valid glTF file ({e})")))?;
+    // Buffer files are checked before the gltf crate reads them whole.
+    for b in doc.buffers() {
+        if let gltf::buffer::Source::Uri(uri) = b.source() {
+            let file = buffer_file(uri, base).map_err(|e| {
+                bad(format!(
+                    "buffer {} has an invalid URI '{uri}': {e}",
+                    b.index()
+                ))
+            })?;
+            if let Some(f) = file {
+                match std::fs::metadata(&f) {
+                    Ok(m) if !m.is_file() || m.len() > MAX_MESH_BYTES => {
+                        return Err(bad(format!(
+                            "buffer {}: {} is not a regular file of at most {} MB",
+                            b.index(),
+                            f.display(),
+                            MAX_MESH_BYTES >> 20
+                        )))
+                    }
+                    Ok(_) => {}
+                    Err(e) => {
+                        return Err(bad(format!(
+                            "buffer {}: cannot read {}: {e}",
+                            b.index(),
+                            f.display()
+                        )))
+                    }
+                }
+            }
+        }
+    }
+    let buffers = gltf::import_buffers(&doc, base, blob).map_err(unreadable)?;
     let mut parts = Vec::new();
     let scene = doc.default_scene().or_else(|| doc.scenes().next());
     let roots: Vec<gltf::Node> = match &scene {
         Some(s) => s.nodes().collect(),
-        None => doc.nodes().collect(),
+        None => {
+            // No scene: every node that is no other node's child is a root.
+            let mut child = vec![false; doc.nodes().len()];
+            for n in doc.nodes() {
+                for c in n.children() {
+                    child[c.index()] = true;
+                }
+            }
+            doc.nodes().filter(|n| !child[n.index()]).collect()
+        }
     };
+    // glTF's node hierarchy is a set of disjoint trees: a node reached twice is a cycle (which
+    // would never end) or a shared child; both are refused.
+    let mut seen = vec![false; doc.nodes().len()];
     let mut stack: Vec<(gltf::Node, Mat4)> =
         roots.into_iter().map(|n| (n, Mat4::IDENTITY)).collect();
     while let Some((node, parent)) = stack.pop() {
+        if std::mem::replace(&mut seen[node.index()], true) {
+            return Err(bad(format!(
+                "node {} is reached twice in the node hierarchy (a cycle or a shared child)",
+                node.index()
+            )));
+        }
         let m = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
         if let Some(mesh) = node.mesh() {
             for prim in mesh.primitives() {
                 if prim.mode() != gltf::mesh::Mode::Triangles {
                     continue;
                 }
-                let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-                let Some(pos) = reader.read_positions() else {
+                let get = |sem: gltf::Semantic| prim.get(&sem);
+                let Some(pos) = get(gltf::Semantic::Positions) else {
                     continue;
                 };
-                let positions: Vec<Vec3> = pos.map(Vec3::from).collect();
-                let n = positions.len() as u32;
-                let indices: Vec<u32> = match reader.read_indices() {
-                    Some(i) => i.into_u32().collect(),
-                    None => (0..n).collect(),
+                let at = |what: &str, e: String| {
+                    bad(format!(
+                        "mesh {}, primitive {}: {what}: {e}",
+                        mesh.index(),
+                        prim.index()
+                    ))
+                };
+                let positions: Vec<Vec3> = read_floats::<3>(&pos, &buffers)
+                    .map_err(|e| at("POSITION", e))?
+                    .into_iter()
+                    .map(Vec3::from)
+                    .collect();
+                let indices: Vec<u32> = match prim.indices() {
+                    Some(a) => read_indices(&a, &buffers).map_err(|e| at("indices", e))?,
+                    None => (0..positions.len() as u32).collect(),
+                };
+                let normals = match get(gltf::Semantic::Normals) {
+                    Some(a) => Some(
+                        read_floats::<3>(&a, &buffers)
+                            .map_err(|e| at("NORMAL", e))?
+                            .into_iter()
+                            .map(Vec3::from)
+                            .collect(),
+                    ),
+                    None => None,
+                };
+                let uvs = match get(gltf::Semantic::TexCoords(0)) {
+                    // glTF puts v = 0 at the top of the image; matfit's textures at the bottom.
+                    Some(a) => Some(
+                        read_floats::<2>(&a, &buffers)
+                            .map_err(|e| at("TEXCOORD_0", e))?
+                            .into_iter()
+                            .map(|[u, v]| Vec2::new(u, 1.0 - v))
+                            .collect(),
+                    ),
+                    None => None,
                 };
                 let mut part = TriangleMesh {
-                    normals: reader.read_normals().map(|it| it.map(Vec3::from).collect()),
-                    // glTF puts v = 0 at the top of the image; matfit's textures at the bottom.
-                    uvs: reader
-                        .read_tex_coords(0)
-                        .map(|t| t.into_f32().map(|[u, v]| Vec2::new(u, 1.0 - v)).collect()),
+                    normals,
+                    uvs,
                     positions,
                     indices: indices
                         .chunks_exact(3)
@@ -256,5 +659,44 @@ mod tests {
         assert!((m.positions[1] - Vec3::new(2.0, 0.0, 3.0)).length() < 1e-6);
         std::fs::write(&p, "{ not json").unwrap();
         assert!(load_mesh(&p).unwrap_err().contains("tri.gltf"));
+    }
+
+    /// Inputs that made the parsers underneath panic, loop or exhaust memory are refused with a
+    /// message instead (issue 6).
+    #[test]
+    fn hostile_mesh_files_are_refused_not_crashed_on() {
+        let p = |name: &str| Path::new(name).to_path_buf();
+        let cases: [(&str, &[u8], &str); 5] = [
+            (
+                "big.ply",
+                b"ply\nformat ascii 1.0\nelement vertex 123456789012345678901\nproperty float x\nend_header\n",
+                "number too large",
+            ),
+            (
+                "noprop.ply",
+                b"ply\nformat binary_little_endian 1.0\nelement vertex 9000000000\nend_header\n",
+                "claims 9000000000 entries",
+            ),
+            (
+                "noprop2.ply",
+                b"ply\nformat ascii 1.0\nelement vertex 3\nend_header\n\n\n\n",
+                "no properties",
+            ),
+            (
+                "cycle.gltf",
+                br#"{"asset":{"version":"2.0"},"nodes":[{"children":[1]},{"children":[0]}],"scenes":[{"nodes":[0]}]}"#,
+                "reached twice",
+            ),
+            (
+                "uri.gltf",
+                br#"{"asset":{"version":"2.0"},"buffers":[{"byteLength":4,"uri":"%ff%fe.bin"}]}"#,
+                "percent-encoding",
+            ),
+        ];
+        let dir = tempfile::tempdir().unwrap();
+        for (name, bytes, needle) in cases {
+            let e = mesh_from_bytes(bytes, &p(name), Some(dir.path())).unwrap_err();
+            assert!(e.contains(name) && e.contains(needle), "{name}: {e}");
+        }
     }
 }
