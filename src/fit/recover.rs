@@ -293,8 +293,9 @@ pub fn recover_resumable(
         if finished {
             break;
         }
-        if pixel_budget(opts, it) != cap {
-            cap = pixel_budget(opts, it);
+        let budget = pixel_budget(opts, it);
+        if budget != cap {
+            cap = budget;
             pixel_lists = choose_all(cap);
         }
         let levels_before: Vec<_> = states.iter().map(|s| s.level).collect();

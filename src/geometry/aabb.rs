@@ -25,49 +25,4 @@ impl Aabb {
         self.min = self.min.min(p);
         self.max = self.max.max(p);
     }
-
-    #[inline]
-    pub fn union(&self, o: &Aabb) -> Aabb {
-        Aabb {
-            min: self.min.min(o.min),
-            max: self.max.max(o.max),
-        }
-    }
-
-    #[inline]
-    pub fn centroid(&self) -> Vec3 {
-        0.5 * (self.min + self.max)
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.min.x > self.max.x
-    }
-
-    /// Surface area (0 for an empty box).
-    #[inline]
-    pub fn area(&self) -> f32 {
-        if self.is_empty() {
-            return 0.0;
-        }
-        let d = self.max - self.min;
-        2.0 * (d.x * d.y + d.y * d.z + d.z * d.x)
-    }
-
-    /// Slab test against a ray given by origin and reciprocal direction; returns the entry
-    /// distance if the box is hit within (0, t_max). Written so that NaNs from 0 × ∞ fail safe.
-    #[inline]
-    pub fn hit(&self, o: Vec3, inv_d: Vec3, t_max: f32) -> Option<f32> {
-        let t0 = (self.min - o) * inv_d;
-        let t1 = (self.max - o) * inv_d;
-        let tmin = t0.min(t1);
-        let tmax = t0.max(t1);
-        let enter = tmin.x.max(tmin.y).max(tmin.z).max(0.0);
-        // The robust traversal of Ize 2013: scale the exit distance up by 1 + 2γ(3).
-        let exit = tmax.x.min(tmax.y).min(tmax.z).min(t_max) * 1.000_000_4;
-        if enter <= exit {
-            Some(enter)
-        } else {
-            None
-        }
-    }
 }

@@ -21,14 +21,15 @@ const BACKOFF: f32 = 2e-4;
 
 pub struct Bvh {
     bvh: CwBvh,
-    /// Triangle vertices in the order of `bvh.primitive_indices`.
+    /// Triangle vertices in the order of `bvh.primitive_indices` (which, for each entry, holds
+    /// the index of the triangle in the caller's list).
     tris: Vec<[Vec3; 3]>,
-    /// For each entry of `tris`, the index of the triangle in the caller's list.
-    ids: Vec<u32>,
     bounds: Aabb,
 }
 
 impl Bvh {
+    /// Builds the hierarchy over `tris` (the index of a triangle in this slice is what `Hit::prim`
+    /// reports).
     pub fn build(tris: &[[Vec3; 3]]) -> Bvh {
         let mut bounds = Aabb::EMPTY;
         for t in tris {
@@ -38,7 +39,6 @@ impl Bvh {
             return Bvh {
                 bvh: CwBvh::default(),
                 tris: Vec::new(),
-                ids: Vec::new(),
                 bounds,
             };
         }
@@ -55,14 +55,12 @@ impl Bvh {
             BvhBuildParams::medium_build(),
             &mut std::time::Duration::default(),
         );
-        let ids = bvh.primitive_indices.clone();
-        let tris = ids.iter().map(|&i| tris[i as usize]).collect();
-        Bvh {
-            bvh,
-            tris,
-            ids,
-            bounds,
-        }
+        let tris = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| tris[i as usize])
+            .collect();
+        Bvh { bvh, tris, bounds }
     }
 
     pub fn bounds(&self) -> Aabb {
@@ -104,7 +102,7 @@ impl Bvh {
                     Some((t, b1, b2)) => {
                         best = Some(Hit {
                             t,
-                            prim: self.ids[i],
+                            prim: self.bvh.primitive_indices[i],
                             b1,
                             b2,
                         });
