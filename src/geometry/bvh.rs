@@ -1,66 +1,156 @@
-//! The bounding volume hierarchy: an eight-wide compressed BVH (Ylitie, Karras & Laine 2017,
-//! "Efficient incoherent ray traversal on GPUs through compressed wide BVHs") built (PLOC +
-//! reinsertion) and traversed (four child boxes per SIMD test) by the `obvhs` crate, with
-//! matfit's watertight triangle test (`triangle.rs`) in the leaves.
+//! The bounding volume hierarchy: four-wide, as Embree lays it out (Wald et al. 2014, "Embree: a
+//! kernel framework for efficient CPU ray tracing"): each node holds four child boxes tested
+//! with one SIMD slab test, each leaf four triangles tested at once by the watertight test of
+//! `triangle.rs` ([`intersect4`]). Built by `bvh_build.rs` (binned SAH, then collapsed from
+//! binary to four-wide).
 //!
-//! Chosen by measurement over matfit's first BVH (binary, binned SAH, scalar slab tests; in git
-//! history before this file): with the same triangle test, 1-thread user time of a figure6
-//! render fell 18% (1.24 s → 1.02 s, 256×192, 16 spp) and primary-ray throughput rose from
-//! 4.3 to 6.4 Mrays/s on figure6 and from 3.0 to 3.3 Mrays/s on a 200k-triangle sphere.
+//! Chosen by measurement over the obvhs crate's eight-wide compressed BVH (used before this file,
+//! in git history), which tested one triangle at a time with the scalar test: same images to the
+//! bit; 1-thread user time of a figure6 render (256×192, 16 spp) 1.08 s → 0.95 s; primary rays
+//! on a 400k-triangle sphere 2.8 → 5.0 Mrays/s (on figure6's 38 triangles, 7.8 → 6.7: the
+//! camera's coherent rays favoured obvhs's ordered eight-wide nodes).
+//!
+//! Traversal is front-to-back for closest hits (children sorted by entry distance, popped
+//! entries culled against the closest hit so far) and stops at the first hit for shadow rays.
+//! The slab test is the robust one of Ize 2013 ("Robust BVH ray traversal"): exit distances
+//! are scaled up by 1 + 2γ(3), so a ray never slips between boxes that share a face.
 
 use super::aabb::Aabb;
-use super::triangle::{intersect, RayShear};
+use super::bvh_build;
+use super::triangle::{intersect4, RayShear, Tri4};
 use super::{Hit, Ray};
-use glam::{Vec3, Vec3A};
-use obvhs::cwbvh::{builder::build_cwbvh_from_tris, CwBvh};
-use obvhs::triangle::Triangle;
-use obvhs::BvhBuildParams;
+use arrayvec::ArrayVec;
+use glam::Vec3;
+use wide::{f32x4, CmpLe};
 
-/// See [`Bvh::obvhs_ray`]; twice obvhs's box-test epsilon.
-const BACKOFF: f32 = 2e-4;
+/// A child reference with this bit set is a leaf: the rest is the index of its `Tri4` block.
+pub(super) const LEAF: u32 = 1 << 31;
+/// The child reference of an unused slot (its box is empty, so it is never entered).
+pub(super) const EMPTY: u32 = u32::MAX;
+
+/// Four child boxes in structure-of-arrays form: `b[0][axis]` the minima, `b[1][axis]` the
+/// maxima, lane i for child i.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Node4 {
+    pub b: [[f32x4; 3]; 2],
+    pub child: [u32; 4],
+}
+
+impl Node4 {
+    pub(super) const EMPTY: Node4 = Node4 {
+        b: [
+            [f32x4::new([f32::INFINITY; 4]); 3],
+            [f32x4::new([f32::NEG_INFINITY; 4]); 3],
+        ],
+        child: [EMPTY; 4],
+    };
+
+    pub(super) fn set(&mut self, slot: usize, bounds: &Aabb, child: u32) {
+        for axis in 0..3 {
+            self.b[0][axis].as_array_mut()[slot] = bounds.min[axis];
+            self.b[1][axis].as_array_mut()[slot] = bounds.max[axis];
+        }
+        self.child[slot] = child;
+    }
+}
 
 pub struct Bvh {
-    bvh: CwBvh,
-    /// Triangle vertices in the order of `bvh.primitive_indices` (which, for each entry, holds
-    /// the index of the triangle in the caller's list).
-    tris: Vec<[Vec3; 3]>,
-    bounds: Aabb,
+    /// Node 0 is the root (when there is any triangle).
+    pub(super) nodes: Vec<Node4>,
+    pub(super) tris: Vec<Tri4>,
+    /// For each block of `tris`, the index of each lane's triangle in the caller's list.
+    pub(super) ids: Vec<[u32; 4]>,
+    pub(super) bounds: Aabb,
+}
+
+/// What a ray needs for the slab tests: its origin and reciprocal direction splatted, and for
+/// each axis which of a box's planes (0: min, 1: max) it meets first.
+struct SlabRay {
+    o: [f32x4; 3],
+    inv: [f32x4; 3],
+    near: [usize; 3],
+}
+
+impl SlabRay {
+    fn new(ray: &Ray) -> SlabRay {
+        // A zero component becomes ±1e-30: the reciprocal stays finite, so (b − o) / d is never
+        // 0 × ∞ = NaN, and ±1e30 is far beyond any scene.
+        let fix = |c: f32| {
+            if c.abs() < 1e-30 {
+                1e-30f32.copysign(c)
+            } else {
+                c
+            }
+        };
+        let d = [fix(ray.d.x), fix(ray.d.y), fix(ray.d.z)];
+        SlabRay {
+            o: [
+                f32x4::splat(ray.o.x),
+                f32x4::splat(ray.o.y),
+                f32x4::splat(ray.o.z),
+            ],
+            inv: [
+                f32x4::splat(1.0 / d[0]),
+                f32x4::splat(1.0 / d[1]),
+                f32x4::splat(1.0 / d[2]),
+            ],
+            near: [
+                usize::from(d[0] < 0.0),
+                usize::from(d[1] < 0.0),
+                usize::from(d[2] < 0.0),
+            ],
+        }
+    }
+
+    /// Entry distances of the four boxes and the mask (bit i: child i) of those entered within
+    /// [0, t_max].
+    #[inline(always)]
+    fn hit(&self, node: &Node4, t_max: f32) -> (f32x4, u32) {
+        let mut t0 = f32x4::ZERO;
+        let mut t1 = f32x4::splat(f32::INFINITY);
+        for axis in 0..3 {
+            let n = self.near[axis];
+            t0 = t0.fast_max((node.b[n][axis] - self.o[axis]) * self.inv[axis]);
+            t1 = t1.fast_min((node.b[1 - n][axis] - self.o[axis]) * self.inv[axis]);
+        }
+        // Ize 2013: 1 + 2γ(3), γ(n) = nε / (1 − nε).
+        let t1 = (t1 * f32x4::splat(1.000_000_4)).fast_min(f32x4::splat(t_max));
+        (t0, t0.cmp_le(t1).move_mask() as u32)
+    }
+}
+
+/// A traversal stack: 64 entries inline, uninitialised until pushed (far more than a balanced
+/// tree needs), a heap spill beyond that for pathological trees.
+struct Stack {
+    inline: ArrayVec<(u32, f32), 64>,
+    spill: Vec<(u32, f32)>,
+}
+
+impl Stack {
+    #[inline(always)]
+    fn new() -> Stack {
+        Stack {
+            inline: ArrayVec::new(),
+            spill: Vec::new(),
+        }
+    }
+    #[inline(always)]
+    fn push(&mut self, e: (u32, f32)) {
+        if let Err(e) = self.inline.try_push(e) {
+            self.spill.push(e.element());
+        }
+    }
+    #[inline(always)]
+    fn pop(&mut self) -> Option<(u32, f32)> {
+        self.spill.pop().or_else(|| self.inline.pop())
+    }
 }
 
 impl Bvh {
     /// Builds the hierarchy over `tris` (the index of a triangle in this slice is what `Hit::prim`
     /// reports).
     pub fn build(tris: &[[Vec3; 3]]) -> Bvh {
-        let mut bounds = Aabb::EMPTY;
-        for t in tris {
-            t.iter().for_each(|&p| bounds.grow(p));
-        }
-        if tris.is_empty() {
-            return Bvh {
-                bvh: CwBvh::default(),
-                tris: Vec::new(),
-                bounds,
-            };
-        }
-        let prims: Vec<Triangle> = tris
-            .iter()
-            .map(|t| Triangle {
-                v0: t[0].into(),
-                v1: t[1].into(),
-                v2: t[2].into(),
-            })
-            .collect();
-        let bvh = build_cwbvh_from_tris(
-            &prims,
-            BvhBuildParams::medium_build(),
-            &mut std::time::Duration::default(),
-        );
-        let tris = bvh
-            .primitive_indices
-            .iter()
-            .map(|&i| tris[i as usize])
-            .collect();
-        Bvh { bvh, tris, bounds }
+        bvh_build::build(tris)
     }
 
     pub fn bounds(&self) -> Aabb {
@@ -68,74 +158,134 @@ impl Bvh {
     }
 
     pub fn node_count(&self) -> usize {
-        self.bvh.nodes.len()
-    }
-
-    /// The ray handed to obvhs: backed off by `BACKOFF` along itself, because obvhs's box test
-    /// ignores boxes that the ray leaves before t = 10⁻⁴, which would hide surfaces closer than
-    /// that to the origin. Boxes are then tested in t' = t + BACKOFF; triangles, from the true
-    /// origin in t.
-    ///
-    /// The direction's −0 components become +0: obvhs orders a node's slabs by the sign test
-    /// `d < 0` but divides by the signed zero, so a −0 component would miss every box.
-    fn obvhs_ray(ray: &Ray, t_max: f32) -> obvhs::ray::Ray {
-        obvhs::ray::Ray::new(
-            Vec3A::from(ray.o - ray.d * BACKOFF),
-            Vec3A::from(ray.d) + Vec3A::ZERO,
-            0.0,
-            t_max + BACKOFF,
-        )
+        self.nodes.len()
     }
 
     /// The closest hit with 0 < t < `t_max`.
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
-        if self.tris.is_empty() {
+        if self.nodes.is_empty() {
             return None;
         }
+        let slab = SlabRay::new(ray);
         let sh = RayShear::new(ray.d);
         let mut best: Option<Hit> = None;
-        let mut rh = obvhs::ray::RayHit::none();
-        self.bvh
-            .ray_traverse(Bvh::obvhs_ray(ray, t_max), &mut rh, |r, i| {
-                let [p0, p1, p2] = self.tris[i];
-                match intersect(ray.o, &sh, p0, p1, p2, best.map_or(t_max, |h| h.t)) {
-                    Some((t, b1, b2)) => {
-                        best = Some(Hit {
-                            t,
-                            prim: self.bvh.primitive_indices[i],
-                            b1,
-                            b2,
-                        });
-                        // obvhs keeps the closest t' so far as its ray's end.
-                        r.tmax.min(t + BACKOFF)
-                    }
-                    None => f32::INFINITY,
+        let mut t_best = t_max;
+        let mut stack = Stack::new();
+        let mut node = 0u32;
+        loop {
+            if node & LEAF != 0 {
+                let block = (node & !LEAF) as usize;
+                if let Some((lane, t, b1, b2)) = intersect4(ray.o, &sh, &self.tris[block], t_best) {
+                    t_best = t;
+                    best = Some(Hit {
+                        t,
+                        prim: self.ids[block][lane],
+                        b1,
+                        b2,
+                    });
                 }
-            });
-        best
+            } else {
+                let n = &self.nodes[node as usize];
+                let (t0, mut mask) = slab.hit(n, t_best);
+                if mask != 0 {
+                    let t0 = t0.to_array();
+                    let a = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    if mask == 0 {
+                        node = n.child[a];
+                        continue;
+                    }
+                    let b = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    // Two children entered (the common case): the nearer now, the other later.
+                    let (near, far) = if t0[b] < t0[a] { (b, a) } else { (a, b) };
+                    if mask == 0 {
+                        stack.push((n.child[far], t0[far]));
+                        node = n.child[near];
+                        continue;
+                    }
+                    // Three or four: sort them, farthest first; visit the nearest now.
+                    let mut hits = [
+                        (n.child[far], t0[far]),
+                        (n.child[near], t0[near]),
+                        (0, 0.0),
+                        (0, 0.0),
+                    ];
+                    let mut k = 2;
+                    while mask != 0 {
+                        let i = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        let e = (n.child[i], t0[i]);
+                        let mut j = k;
+                        while j > 0 && hits[j - 1].1 < e.1 {
+                            hits[j] = hits[j - 1];
+                            j -= 1;
+                        }
+                        hits[j] = e;
+                        k += 1;
+                    }
+                    for &h in &hits[..k - 1] {
+                        stack.push(h);
+                    }
+                    node = hits[k - 1].0;
+                    continue;
+                }
+            }
+            // Pop, skipping subtrees entered beyond the closest hit so far.
+            loop {
+                match stack.pop() {
+                    None => return best,
+                    Some((n, t0)) if t0 <= t_best => {
+                        node = n;
+                        break;
+                    }
+                    Some(_) => {}
+                }
+            }
+        }
     }
 
     /// Whether anything is hit with 0 < t < `t_max` (shadow rays).
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
-        if self.tris.is_empty() {
+        if self.nodes.is_empty() {
             return false;
         }
+        let slab = SlabRay::new(ray);
         let sh = RayShear::new(ray.d);
-        !self
-            .bvh
-            .ray_traverse_miss(Bvh::obvhs_ray(ray, t_max), |_, i| {
-                let [p0, p1, p2] = self.tris[i];
-                // Any hit in (0, t_max) ends the traversal: report one inside obvhs's range.
-                match intersect(ray.o, &sh, p0, p1, p2, t_max) {
-                    Some(_) => 0.0,
-                    None => f32::INFINITY,
+        let mut stack = Stack::new();
+        let mut node = 0u32;
+        loop {
+            if node & LEAF != 0 {
+                let block = (node & !LEAF) as usize;
+                if intersect4(ray.o, &sh, &self.tris[block], t_max).is_some() {
+                    return true;
                 }
-            })
+            } else {
+                let n = &self.nodes[node as usize];
+                let (_, mut mask) = slab.hit(n, t_max);
+                if mask != 0 {
+                    let first = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    while mask != 0 {
+                        let i = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        stack.push((n.child[i], 0.0));
+                    }
+                    node = n.child[first];
+                    continue;
+                }
+            }
+            match stack.pop() {
+                None => return false,
+                Some((n, _)) => node = n,
+            }
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
+    use super::super::triangle::intersect;
     use super::*;
 
     /// Reference: test every triangle.
@@ -187,9 +337,9 @@ mod tests {
     }
 
     #[test]
-    fn surfaces_closer_than_obvhs_epsilon_are_hit() {
-        // A triangle 10⁻⁵ in front of the origin and another behind it: obvhs alone skips
-        // boxes left before t = 10⁻⁴.
+    fn surfaces_very_close_to_the_origin_are_hit() {
+        // A triangle 10⁻⁵ in front of the origin and another behind it (obvhs, the BVH used
+        // before, skipped boxes left before t = 10⁻⁴).
         let tris = vec![
             [
                 Vec3::new(-1.0, -1.0, 1e-5),
@@ -220,6 +370,41 @@ mod tests {
                 .prim,
             1
         );
+    }
+
+    #[test]
+    fn degenerate_and_skewed_inputs_build_usable_trees() {
+        let mut rng = Rng(5);
+        // 3000 copies of one triangle (all centroids coincide: no SAH split exists), and
+        // triangles at exponentially growing distances (the SAH peels one off per level, so
+        // the depth limit and the stack's spill are exercised).
+        let one = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let same = vec![one; 3000];
+        let skewed: Vec<[Vec3; 3]> = (0..120)
+            .map(|i| {
+                let c = Vec3::splat(1.2f32.powi(i));
+                [c, c + Vec3::X * 0.1, c + Vec3::Y * 0.1]
+            })
+            .collect();
+        for tris in [same, skewed] {
+            let bvh = Bvh::build(&tris);
+            for _ in 0..3000 {
+                let o = rng.vec3() * 2.0 - 0.5;
+                let ray = Ray::new(o, rng.vec3() - 0.5);
+                let b = brute(&tris, &ray, f32::INFINITY);
+                assert_same_hit(bvh.intersect(&ray, f32::INFINITY), b);
+                assert_eq!(bvh.occluded(&ray, f32::INFINITY), b.is_some());
+            }
+            // Rays along the skewed diagonal meet many boxes at once.
+            for i in 0..500 {
+                let ray = Ray::new(
+                    Vec3::splat(-1.0),
+                    Vec3::new(1.0, 1.0 + i as f32 * 1e-4, 1.0),
+                );
+                let b = brute(&tris, &ray, f32::INFINITY);
+                assert_same_hit(bvh.intersect(&ray, f32::INFINITY), b);
+            }
+        }
     }
 
     #[test]

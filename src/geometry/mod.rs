@@ -2,6 +2,7 @@
 
 pub mod aabb;
 pub mod bvh;
+mod bvh_build;
 pub mod mesh;
 pub mod shapes;
 pub mod triangle;

@@ -3,17 +3,18 @@
 //! never neither, so no light leaks through the seams of a mesh.
 
 use glam::Vec3;
+use wide::{f32x4, CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
 /// Per-ray precomputation of the shear transform: the axis along which the ray travels most
 /// becomes z, and the other two are sheared so the ray is (0, 0, 1).
 #[derive(Clone, Copy, Debug)]
 pub struct RayShear {
-    kx: usize,
-    ky: usize,
-    kz: usize,
-    sx: f32,
-    sy: f32,
-    sz: f32,
+    pub kx: usize,
+    pub ky: usize,
+    pub kz: usize,
+    pub sx: f32,
+    pub sy: f32,
+    pub sz: f32,
 }
 
 impl RayShear {
@@ -103,6 +104,123 @@ pub fn intersect(
     Some((t, v * inv, w * inv))
 }
 
+/// Four triangles in structure-of-arrays form, for [`intersect4`]: `v[k][axis]` holds vertex k's
+/// coordinate along `axis` for the four triangles. A block of fewer than four triangles repeats
+/// its last one.
+#[derive(Clone, Copy, Debug)]
+pub struct Tri4 {
+    pub v: [[f32x4; 3]; 3],
+}
+
+impl Tri4 {
+    /// Packs 1 to 4 triangles.
+    pub fn new(tris: &[[Vec3; 3]]) -> Tri4 {
+        assert!((1..=4).contains(&tris.len()));
+        let mut v = [[[0.0f32; 4]; 3]; 3];
+        for lane in 0..4 {
+            let t = tris[lane.min(tris.len() - 1)];
+            for (k, p) in t.iter().enumerate() {
+                for axis in 0..3 {
+                    v[k][axis][lane] = p[axis];
+                }
+            }
+        }
+        Tri4 {
+            v: v.map(|vk| vk.map(f32x4::from)),
+        }
+    }
+
+    /// Triangle `lane`'s vertices.
+    pub fn triangle(&self, lane: usize) -> [Vec3; 3] {
+        self.v.map(|vk| {
+            Vec3::new(
+                vk[0].as_array_ref()[lane],
+                vk[1].as_array_ref()[lane],
+                vk[2].as_array_ref()[lane],
+            )
+        })
+    }
+}
+
+/// [`intersect`] for four triangles at once, lane for lane the same arithmetic (the same
+/// numbers to the bit). Returns the closest hit among them with 0 < t < `t_max` as
+/// (lane, t, b1, b2). The rare lanes that sit on an edge in single precision (some u, v, w = 0)
+/// are handed to the scalar test, which redoes them in double precision.
+#[inline(always)]
+pub fn intersect4(
+    o: Vec3,
+    sh: &RayShear,
+    tri: &Tri4,
+    t_max: f32,
+) -> Option<(usize, f32, f32, f32)> {
+    let o = o.to_array();
+    let (ox, oy, oz) = (
+        f32x4::splat(o[sh.kx]),
+        f32x4::splat(o[sh.ky]),
+        f32x4::splat(o[sh.kz]),
+    );
+    let (sx, sy, sz) = (
+        f32x4::splat(sh.sx),
+        f32x4::splat(sh.sy),
+        f32x4::splat(sh.sz),
+    );
+    let rel = |k: usize| {
+        let vz = tri.v[k][sh.kz] - oz;
+        (
+            (tri.v[k][sh.kx] - ox) - sx * vz,
+            (tri.v[k][sh.ky] - oy) - sy * vz,
+            sz * vz,
+        )
+    };
+    let (ax, ay, az) = rel(0);
+    let (bx, by, bz) = rel(1);
+    let (cx, cy, cz) = rel(2);
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    let zero = f32x4::ZERO;
+    let on_edge = (u.cmp_eq(zero) | v.cmp_eq(zero) | w.cmp_eq(zero)).move_mask();
+    let outside = (u.cmp_lt(zero) | v.cmp_lt(zero) | w.cmp_lt(zero))
+        & (u.cmp_gt(zero) | v.cmp_gt(zero) | w.cmp_gt(zero));
+    let det = u + v + w;
+    let t_scaled = u * az + v * bz + w * cz;
+    let tmd = f32x4::splat(t_max) * det;
+    // Sign-aware range test 0 < t < t_max, as in `intersect`.
+    let in_range = (det.cmp_lt(zero) & t_scaled.cmp_lt(zero) & t_scaled.cmp_ge(tmd))
+        | (det.cmp_gt(zero) & t_scaled.cmp_gt(zero) & t_scaled.cmp_le(tmd));
+    let inv = f32x4::ONE / det;
+    let t = t_scaled * inv;
+    let valid = (in_range & t.cmp_gt(zero)).move_mask() & !outside.move_mask() & !on_edge;
+    let mut best: Option<(usize, f32, f32, f32)> = None;
+    if valid != 0 {
+        let ta = t.to_array();
+        let mut lane = valid.trailing_zeros() as usize;
+        let mut rest = valid & (valid - 1);
+        while rest != 0 {
+            let l = rest.trailing_zeros() as usize;
+            if ta[l] < ta[lane] {
+                lane = l;
+            }
+            rest &= rest - 1;
+        }
+        let (va, wa, ia) = (v.to_array(), w.to_array(), inv.to_array());
+        best = Some((lane, ta[lane], va[lane] * ia[lane], wa[lane] * ia[lane]));
+    }
+    let mut edge = on_edge;
+    while edge != 0 {
+        let lane = edge.trailing_zeros() as usize;
+        edge &= edge - 1;
+        let [p0, p1, p2] = tri.triangle(lane);
+        let limit = best.map_or(t_max, |b| b.1);
+        if let Some((t, b1, b2)) = intersect(Vec3::from_array(o), sh, p0, p1, p2, limit) {
+            if best.is_none_or(|b| t < b.1) {
+                best = Some((lane, t, b1, b2));
+            }
+        }
+    }
+    best
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -117,6 +235,57 @@ mod tests {
         assert!(intersect(Vec3::new(0.75, 0.75, 2.0), &sh, p0, p1, p2, 10.0).is_none());
         assert!(intersect(Vec3::new(0.25, 0.25, 2.0), &sh, p0, p1, p2, 1.5).is_none());
         assert!(intersect(Vec3::new(0.25, 0.25, -2.0), &sh, p0, p1, p2, 10.0).is_none());
+    }
+
+    #[test]
+    fn four_wide_test_matches_the_scalar_one_to_the_bit() {
+        // Random blocks of 1–4 triangles and random rays, plus rays through shared vertices
+        // and edges (where u, v or w is 0 and the scalar test's double-precision path runs).
+        let mut seed = 11u64;
+        let mut r = || {
+            seed = seed.wrapping_add(1);
+            (crate::math::sampler::mix64(seed) >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut edge_cases = 0;
+        for case in 0..20000 {
+            let n = 1 + case % 4;
+            let mut tris = Vec::new();
+            let shared = Vec3::new(r(), r(), r());
+            for _ in 0..n {
+                let c = Vec3::new(r(), r(), r()) * 2.0;
+                // Every triangle of a block shares vertex `shared`, like a fan.
+                tris.push([shared, c, c + Vec3::new(r(), r(), r()) - 0.5]);
+            }
+            let o = Vec3::new(r(), r(), r()) * 4.0 - 2.0;
+            let target = match case % 3 {
+                0 => shared,
+                1 => (tris[0][0] + tris[0][1]) * 0.5,
+                _ => Vec3::new(r(), r(), r()) * 2.0,
+            };
+            let d = target - o;
+            let sh = RayShear::new(d);
+            let t_max = if case % 5 == 0 { 0.9 } else { f32::INFINITY };
+            let mut want: Option<(usize, f32, f32, f32)> = None;
+            for (lane, t) in tris.iter().enumerate() {
+                let limit = want.map_or(t_max, |w| w.1);
+                if let Some((t, b1, b2)) = intersect(o, &sh, t[0], t[1], t[2], limit) {
+                    if want.is_none_or(|w| t < w.1) {
+                        want = Some((lane, t, b1, b2));
+                    }
+                }
+            }
+            let got = intersect4(o, &sh, &Tri4::new(&tris), t_max);
+            match (got, want) {
+                (None, None) => {}
+                (Some(g), Some(w)) => {
+                    assert_eq!((g.1, g.2, g.3), (w.1, w.2, w.3), "case {case}");
+                    assert!(g.0 == w.0 || tris[g.0] == tris[w.0] || g.1 == w.1);
+                    edge_cases += usize::from(case % 3 != 2);
+                }
+                _ => panic!("case {case}: {got:?} vs {want:?}"),
+            }
+        }
+        assert!(edge_cases > 1000, "{edge_cases}");
     }
 
     #[test]

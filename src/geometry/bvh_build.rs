@@ -1,0 +1,263 @@
+//! Builds the four-wide BVH of `bvh.rs`: a binary tree by the binned surface area heuristic
+//! (Wald 2007, "On fast construction of SAH-based bounding volume hierarchies"), leaves of at
+//! most four triangles (one SIMD block), then collapsed to four children per node by opening,
+//! while a node has fewer than four, the child of largest surface area (Wald, Benthin & Boulos
+//! 2008, "Getting rid of packets").
+
+use super::aabb::Aabb;
+use super::bvh::{Bvh, Node4, LEAF};
+use super::triangle::Tri4;
+use glam::Vec3;
+
+const BINS: usize = 16;
+/// Triangles per leaf: one `Tri4` block.
+const MAX_LEAF: usize = 4;
+/// Cost of a node visit relative to a four-triangle test (both one SIMD pass; the node's is
+/// lighter).
+const TRAVERSAL_COST: f32 = 0.5;
+/// Below this depth of the binary tree, splits fall back to the object median, which halves
+/// the count: the tree's depth stays below SAH_DEPTH + log2(n) however the SAH behaves.
+const SAH_DEPTH: usize = 40;
+
+struct BuildPrim {
+    bounds: Aabb,
+    centroid: Vec3,
+    id: u32,
+}
+
+/// A node of the binary tree: a leaf holds `prims[start..start + count]`.
+struct BinNode {
+    bounds: Aabb,
+    kind: Kind,
+}
+
+enum Kind {
+    Leaf { start: usize, count: usize },
+    Inner { left: usize, right: usize },
+}
+
+pub(super) fn build(tris: &[[Vec3; 3]]) -> Bvh {
+    let mut prims: Vec<BuildPrim> = tris
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let mut b = Aabb::EMPTY;
+            t.iter().for_each(|&p| b.grow(p));
+            BuildPrim {
+                bounds: b,
+                centroid: b.centroid(),
+                id: i as u32,
+            }
+        })
+        .collect();
+    let mut bvh = Bvh {
+        nodes: Vec::new(),
+        tris: Vec::new(),
+        ids: Vec::new(),
+        bounds: Aabb::EMPTY,
+    };
+    if prims.is_empty() {
+        return bvh;
+    }
+    let mut bin = Vec::with_capacity(2 * prims.len() / 2 + 1);
+    let root = build_binary(&mut prims, 0, 0, &mut bin);
+    bvh.bounds = bin[root].bounds;
+    // The root is always a four-wide node, even over a single leaf.
+    bvh.nodes.push(Node4::EMPTY);
+    let kids = open_children(&bin, root);
+    for (slot, &k) in kids.iter().enumerate() {
+        let r = collapse(&bin, k, &prims, tris, &mut bvh);
+        bvh.nodes[0].set(slot, &bin[k].bounds, r);
+    }
+    bvh
+}
+
+/// Up to four nodes under `node` that together cover its triangles: `node` itself if it is a
+/// leaf, else its children with the largest inner one opened until there are four.
+fn open_children(bin: &[BinNode], node: usize) -> Vec<usize> {
+    let mut kids = match bin[node].kind {
+        Kind::Leaf { .. } => return vec![node],
+        Kind::Inner { left, right } => vec![left, right],
+    };
+    while kids.len() < 4 {
+        let largest = kids
+            .iter()
+            .enumerate()
+            .filter(|(_, &k)| matches!(bin[k].kind, Kind::Inner { .. }))
+            .max_by(|a, b| bin[*a.1].bounds.area().total_cmp(&bin[*b.1].bounds.area()))
+            .map(|(i, _)| i);
+        let Some(i) = largest else { break };
+        let Kind::Inner { left, right } = bin[kids[i]].kind else {
+            unreachable!()
+        };
+        kids[i] = left;
+        kids.push(right);
+    }
+    kids
+}
+
+/// Emits the four-wide subtree of binary node `node`; returns its child reference.
+fn collapse(
+    bin: &[BinNode],
+    node: usize,
+    prims: &[BuildPrim],
+    tris: &[[Vec3; 3]],
+    bvh: &mut Bvh,
+) -> u32 {
+    if let Kind::Leaf { start, count } = bin[node].kind {
+        let leaf = &prims[start..start + count];
+        let vertices: Vec<[Vec3; 3]> = leaf.iter().map(|p| tris[p.id as usize]).collect();
+        let mut ids = [0u32; 4];
+        for (lane, id) in ids.iter_mut().enumerate() {
+            *id = leaf[lane.min(count - 1)].id;
+        }
+        bvh.tris.push(Tri4::new(&vertices));
+        bvh.ids.push(ids);
+        return LEAF | (bvh.tris.len() - 1) as u32;
+    }
+    let me = bvh.nodes.len();
+    bvh.nodes.push(Node4::EMPTY);
+    for (slot, k) in open_children(bin, node).into_iter().enumerate() {
+        let r = collapse(bin, k, prims, tris, bvh);
+        bvh.nodes[me].set(slot, &bin[k].bounds, r);
+    }
+    me as u32
+}
+
+/// Builds the binary subtree over `prims` (which start at `first` in the final order);
+/// returns its index in `bin`.
+fn build_binary(
+    prims: &mut [BuildPrim],
+    first: usize,
+    depth: usize,
+    bin: &mut Vec<BinNode>,
+) -> usize {
+    let mut bounds = Aabb::EMPTY;
+    let mut cbounds = Aabb::EMPTY;
+    for p in prims.iter() {
+        bounds = bounds.union(&p.bounds);
+        cbounds.grow(p.centroid);
+    }
+    let n = prims.len();
+    let leaf = BinNode {
+        bounds,
+        kind: Kind::Leaf {
+            start: first,
+            count: n,
+        },
+    };
+    let split = if depth < SAH_DEPTH {
+        best_split(prims, &bounds, &cbounds)
+    } else {
+        None
+    };
+    let mid = match split {
+        Some((axis, pos, cost)) => {
+            // A leaf costs one block test; splitting a small set can still pay when its
+            // triangles lie far apart (two walls in one box).
+            if n <= MAX_LEAF && cost >= 1.0 {
+                bin.push(leaf);
+                return bin.len() - 1;
+            }
+            let mid = partition(prims, |p| p.centroid[axis] < pos);
+            if mid == 0 || mid == n {
+                median_split(prims, &cbounds)
+            } else {
+                mid
+            }
+        }
+        None if n <= MAX_LEAF => {
+            bin.push(leaf);
+            return bin.len() - 1;
+        }
+        None => median_split(prims, &cbounds),
+    };
+    let (left, right) = prims.split_at_mut(mid);
+    let l = build_binary(left, first, depth + 1, bin);
+    let r = build_binary(right, first + mid, depth + 1, bin);
+    bin.push(BinNode {
+        bounds,
+        kind: Kind::Inner { left: l, right: r },
+    });
+    bin.len() - 1
+}
+
+/// Splits at the object median along the centroids' widest axis (in list order when they all
+/// coincide).
+fn median_split(prims: &mut [BuildPrim], cbounds: &Aabb) -> usize {
+    let e = cbounds.max - cbounds.min;
+    let axis = if e.x >= e.y && e.x >= e.z {
+        0
+    } else if e.y >= e.z {
+        1
+    } else {
+        2
+    };
+    let mid = prims.len() / 2;
+    if e[axis] > 0.0 {
+        prims.select_nth_unstable_by(mid, |a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
+    }
+    mid
+}
+
+fn partition(prims: &mut [BuildPrim], pred: impl Fn(&BuildPrim) -> bool) -> usize {
+    let mut i = 0;
+    for j in 0..prims.len() {
+        if pred(&prims[j]) {
+            prims.swap(i, j);
+            i += 1;
+        }
+    }
+    i
+}
+
+/// Leaf blocks needed for `n` triangles.
+fn blocks(n: u32) -> f32 {
+    n.div_ceil(MAX_LEAF as u32) as f32
+}
+
+/// The binned-SAH split: (axis, plane position, cost in units of block tests).
+fn best_split(prims: &[BuildPrim], bounds: &Aabb, cbounds: &Aabb) -> Option<(usize, f32, f32)> {
+    let extent = cbounds.max - cbounds.min;
+    let parent_area = bounds.area().max(f32::MIN_POSITIVE);
+    let mut best: Option<(usize, f32, f32)> = None;
+    for axis in 0..3 {
+        if !(extent[axis] > 0.0) {
+            continue;
+        }
+        let scale = BINS as f32 / extent[axis];
+        let mut bin_bounds = [Aabb::EMPTY; BINS];
+        let mut bin_count = [0u32; BINS];
+        for p in prims {
+            let b = (((p.centroid[axis] - cbounds.min[axis]) * scale) as usize).min(BINS - 1);
+            bin_count[b] += 1;
+            bin_bounds[b] = bin_bounds[b].union(&p.bounds);
+        }
+        // Sweep from the right, then from the left.
+        let mut right_area = [0.0f32; BINS];
+        let mut right_count = [0u32; BINS];
+        let (mut acc, mut n) = (Aabb::EMPTY, 0);
+        for i in (1..BINS).rev() {
+            acc = acc.union(&bin_bounds[i]);
+            n += bin_count[i];
+            right_area[i] = acc.area();
+            right_count[i] = n;
+        }
+        let (mut acc, mut n) = (Aabb::EMPTY, 0);
+        for i in 0..BINS - 1 {
+            acc = acc.union(&bin_bounds[i]);
+            n += bin_count[i];
+            if n == 0 || right_count[i + 1] == 0 {
+                continue;
+            }
+            let cost = TRAVERSAL_COST
+                + (acc.area() * blocks(n) + right_area[i + 1] * blocks(right_count[i + 1]))
+                    / parent_area;
+            if best.is_none_or(|b| cost < b.2) {
+                let pos = cbounds.min[axis] + (i + 1) as f32 / scale;
+                best = Some((axis, pos, cost));
+            }
+        }
+    }
+    best
+}
