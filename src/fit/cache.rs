@@ -196,7 +196,7 @@ pub fn build(
                 let wo = frame.to_local(wo_world);
                 let (wi_world, c) = if k < hl {
                     // Next-event estimation, MIS-weighted against the mixture.
-                    let Some(ls) = pt.lights.sample(scene, hit.p, &mut sampler) else {
+                    let Some(ls) = pt.lights.sample(hit.p, &mut sampler) else {
                         continue;
                     };
                     let wi = frame.to_local(ls.wi);

@@ -10,6 +10,7 @@
 //! bounce gains nothing measurable from stratification, and Owen scrambling costs ~10× a hash.
 
 use super::Vec2;
+use sobol_burley::parts::{self, Int4};
 
 /// Dimensions served from Sobol points, four at a time (`sample_4d` computes four dimensions
 /// with SIMD, several times faster than four scalar calls). 2 film + 2 × 7 per bounce.
@@ -41,6 +42,13 @@ pub struct Sampler {
     buffer: [f32; 4],
     /// SplitMix64 state of the current sample's dimensions past `SOBOL_DIMS`.
     tail: u64,
+    /// `sobol_burley::sample_4d`'s work, split by what it depends on. Per block of 2^16
+    /// samples: its seed, and the Owen scrambles of the index and of each dimension set. Per
+    /// sample: the scrambled, bit-reversed index.
+    block: Option<u32>,
+    index_scramble: u32,
+    set_scramble: [Int4; (SOBOL_DIMS / 4) as usize],
+    shuffled_rev_index: u32,
 }
 
 impl Sampler {
@@ -52,6 +60,10 @@ impl Sampler {
             dim: 0,
             buffer: [0.0; 4],
             tail: 0,
+            block: None,
+            index_scramble: 0,
+            set_scramble: [Int4::from([0; 4]); (SOBOL_DIMS / 4) as usize],
+            shuffled_rev_index: 0,
         }
     }
 
@@ -60,25 +72,40 @@ impl Sampler {
         self.index = index;
         self.dim = 0;
         self.tail = mix64(self.seed ^ index as u64);
+        // sobol_burley's sequences hold 2^16 samples: each further block of 2^16 is another
+        // independently scrambled sequence.
+        let block = index >> 16;
+        if self.block != Some(block) {
+            let seed = if block == 0 {
+                self.seed
+            } else {
+                mix64(self.seed ^ block as u64)
+            };
+            let seed = (seed ^ (seed >> 32)) as u32;
+            // As sample_4d (sobol_burley 0.5, lib.rs) computes them.
+            self.index_scramble = parts::hash(seed ^ 0x79c6_8e4a);
+            for (k, s) in self.set_scramble.iter_mut().enumerate() {
+                let v: Int4 = [seed.wrapping_mul(0x9c8f_2d3b); 4].into();
+                let ds: Int4 = [k as u32; 4].into();
+                *s = parts::hash_int4(
+                    v ^ ds ^ [0x912f_69ba, 0x174f_18ab, 0x691e_72ca, 0xb40c_c1b8].into(),
+                );
+            }
+            self.block = Some(block);
+        }
+        self.shuffled_rev_index =
+            parts::owen_scramble_rev((index & 0xFFFF).reverse_bits(), self.index_scramble);
     }
 
-    /// The next 1-D sample in [0, 1).
-    #[inline]
+    /// The next 1-D sample in [0, 1). Inlined: a buffered Sobol dimension or a SplitMix64
+    /// step; the Sobol computation, once per four dimensions, is out of line.
+    #[inline(always)]
     pub fn next_1d(&mut self) -> f32 {
         let d = self.dim;
         self.dim += 1;
         if d < SOBOL_DIMS {
             if d.is_multiple_of(4) {
-                // sobol_burley's sequences hold 2^16 samples: each further block of 2^16 is
-                // another independently scrambled sequence.
-                let block = (self.index >> 16) as u64;
-                let seed = if block == 0 {
-                    self.seed
-                } else {
-                    mix64(self.seed ^ block)
-                };
-                let scramble = (seed ^ (seed >> 32)) as u32;
-                self.buffer = sobol_burley::sample_4d(self.index & 0xFFFF, d / 4, scramble);
+                self.refill(d);
             }
             self.buffer[(d % 4) as usize]
         } else {
@@ -87,6 +114,18 @@ impl Sampler {
             let h = mix64(self.tail);
             ((h >> 40) as f32) * (1.0 / (1u64 << 24) as f32)
         }
+    }
+
+    /// Computes Sobol dimensions d..d+4 of the current sample into `buffer`: what
+    /// `sobol_burley::sample_4d(index, d / 4, seed)` returns, without redoing its per-pixel and
+    /// per-sample parts.
+    #[inline(never)]
+    fn refill(&mut self, d: u32) {
+        let set = d / 4;
+        let sobol = parts::sobol_int4_rev(self.shuffled_rev_index, set);
+        self.buffer = parts::owen_scramble_int4_rev(sobol, self.set_scramble[set as usize])
+            .reverse_bits()
+            .to_f32_norm();
     }
 
     #[inline]
@@ -114,6 +153,28 @@ mod tests {
         assert_eq!(xa, xb);
         assert_ne!(xa, xc);
         assert!(xa.iter().all(|&x| (0.0..1.0).contains(&x)));
+    }
+
+    #[test]
+    fn sobol_dimensions_are_sobol_burleys_sample_4d() {
+        // The split computation gives the crate's numbers, in the first block of 2^16 samples
+        // and in a later one.
+        let mut s = Sampler::new(9, 4);
+        for index in [0u32, 1, 2, 77, 65535, 65536, 65537, 200_000] {
+            s.start_sample(index);
+            let got: Vec<f32> = (0..SOBOL_DIMS).map(|_| s.next_1d()).collect();
+            let block = (index >> 16) as u64;
+            let seed = if block == 0 {
+                s.seed
+            } else {
+                mix64(s.seed ^ block)
+            };
+            let scramble = (seed ^ (seed >> 32)) as u32;
+            let want: Vec<f32> = (0..SOBOL_DIMS / 4)
+                .flat_map(|k| sobol_burley::sample_4d(index & 0xFFFF, k, scramble))
+                .collect();
+            assert_eq!(got, want, "sample {index}");
+        }
     }
 
     #[test]

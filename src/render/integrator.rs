@@ -175,7 +175,7 @@ impl<'a> PathTracer<'a> {
             let wo = frame.to_local(wo_world);
             // Next-event estimation.
             if bsdf.has_smooth_part() {
-                if let Some(ls) = self.lights.sample(scene, hit.p, sampler) {
+                if let Some(ls) = self.lights.sample(hit.p, sampler) {
                     let wi = frame.to_local(ls.wi);
                     let cos_g = ng.dot(ls.wi);
                     if wi.z > 0.0 && cos_g > 0.0 {

@@ -7,12 +7,23 @@ use crate::math::{luminance_mean, warp, Rgb, Sampler, Vec3};
 use crate::scene::Scene;
 
 pub struct Lights {
-    /// Emissive triangles (indices into the scene's triangle list).
-    tris: Vec<u32>,
+    /// Emissive triangles, in the order of `cdf`.
+    tris: Vec<LightTri>,
     /// Cumulative selection probability, last entry 1.
     cdf: Vec<f32>,
     /// Per scene triangle: probability of choosing it divided by its area (0 if not a light).
     pdf_area: Vec<f32>,
+}
+
+/// What sampling needs of one emissive triangle, gathered in one place.
+#[derive(Clone, Copy, Debug)]
+struct LightTri {
+    v: [Vec3; 3],
+    /// Unit geometric normal, the side it emits to.
+    n: Vec3,
+    radiance: Rgb,
+    /// Probability of choosing it divided by its area.
+    pdf_area: f32,
 }
 
 /// A point sampled on a light, seen from a reference point.
@@ -34,11 +45,18 @@ impl Lights {
         let mut tris = Vec::new();
         let mut weights = Vec::new();
         let mut areas = Vec::new();
+        let mut ids = Vec::new();
         for obj in scene.objects.iter().filter(|o| o.is_emitter()) {
             for t in obj.tri_range.clone() {
                 let [a, b, c] = g.tris[t as usize].v.map(|i| g.positions[i as usize]);
                 let area = 0.5 * (b - a).cross(c - a).length();
-                tris.push(t);
+                ids.push(t);
+                tris.push(LightTri {
+                    v: [a, b, c],
+                    n: (b - a).cross(c - a).normalize(),
+                    radiance: obj.emission,
+                    pdf_area: 0.0,
+                });
                 weights.push(area * luminance_mean(obj.emission));
                 areas.push(area);
             }
@@ -50,7 +68,8 @@ impl Lights {
         for (i, w) in weights.iter().enumerate() {
             acc += w / total;
             cdf.push(acc);
-            pdf_area[tris[i] as usize] = (w / total) / areas[i];
+            pdf_area[ids[i] as usize] = (w / total) / areas[i];
+            tris[i].pdf_area = pdf_area[ids[i] as usize];
         }
         if let Some(last) = cdf.last_mut() {
             *last = 1.0;
@@ -68,7 +87,7 @@ impl Lights {
 
     /// Samples a point on a light as seen from `p`; None if there are no lights or the point is
     /// on the light's back side. Occlusion is not tested.
-    pub fn sample(&self, scene: &Scene, p: Vec3, sampler: &mut Sampler) -> Option<LightSample> {
+    pub fn sample(&self, p: Vec3, sampler: &mut Sampler) -> Option<LightSample> {
         let uc = sampler.next_1d();
         let u = sampler.next_2d();
         if self.tris.is_empty() {
@@ -78,28 +97,24 @@ impl Lights {
             .cdf
             .partition_point(|&c| c <= uc)
             .min(self.tris.len() - 1);
-        let t = self.tris[k] as usize;
-        let g = &scene.geometry;
-        let tri = g.tris[t];
-        let [a, b, c] = tri.v.map(|i| g.positions[i as usize]);
+        let light = &self.tris[k];
+        let [a, b, c] = light.v;
         let (b1, b2) = warp::uniform_triangle(u);
         let q = a * (1.0 - b1 - b2) + b * b1 + c * b2;
-        let n = (b - a).cross(c - a).normalize();
         let d = q - p;
         let dist2 = d.length_squared();
         let dist = dist2.sqrt();
         let wi = d / dist;
-        let cos_l = -n.dot(wi);
+        let cos_l = -light.n.dot(wi);
         if cos_l <= 0.0 || dist <= 0.0 {
             return None;
         }
-        let radiance = scene.objects[tri.object as usize].emission;
         Some(LightSample {
             wi,
             dist,
             point: q,
-            radiance,
-            pdf: self.pdf_area[t] * dist2 / cos_l,
+            radiance: light.radiance,
+            pdf: light.pdf_area * dist2 / cos_l,
         })
     }
 
