@@ -59,7 +59,7 @@ pub(super) fn build(tris: &[[Vec3; 3]]) -> Bvh {
     if prims.is_empty() {
         return bvh;
     }
-    let mut bin = Vec::with_capacity(2 * prims.len() / 2 + 1);
+    let mut bin = Vec::with_capacity(2 * prims.len()); // a binary tree has < 2n nodes
     let root = build_binary(&mut prims, 0, 0, &mut bin);
     bvh.bounds = bin[root].bounds;
     // The root is always a four-wide node, even over a single leaf.
