@@ -62,13 +62,8 @@ pub(super) fn build(tris: &[[Vec3; 3]]) -> Bvh {
     let mut bin = Vec::with_capacity(2 * prims.len()); // a binary tree has < 2n nodes
     let root = build_binary(&mut prims, 0, 0, &mut bin);
     bvh.bounds = bin[root].bounds;
-    // The root is always a four-wide node, even over a single leaf.
-    bvh.nodes.push(Node4::EMPTY);
-    let kids = open_children(&bin, root);
-    for (slot, &k) in kids.iter().enumerate() {
-        let r = collapse(&bin, k, &prims, tris, &mut bvh);
-        bvh.nodes[0].set(slot, &bin[k].bounds, r);
-    }
+    // The root is always a four-wide node (node 0), even over a single leaf.
+    emit_node(&bin, root, &prims, tris, &mut bvh);
     bvh
 }
 
@@ -115,6 +110,18 @@ fn collapse(
         bvh.ids.push(ids);
         return LEAF | (bvh.tris.len() - 1) as u32;
     }
+    emit_node(bin, node, prims, tris, bvh)
+}
+
+/// Emits a four-wide node over [`open_children`] of binary node `node` (which may be a leaf, for
+/// the root); returns its index.
+fn emit_node(
+    bin: &[BinNode],
+    node: usize,
+    prims: &[BuildPrim],
+    tris: &[[Vec3; 3]],
+    bvh: &mut Bvh,
+) -> u32 {
     let me = bvh.nodes.len();
     bvh.nodes.push(Node4::EMPTY);
     for (slot, k) in open_children(bin, node).into_iter().enumerate() {

@@ -125,6 +125,19 @@ fn size_mismatch(path: &Path, w: usize, h: usize, cw: usize, ch: usize) -> Strin
     }
 }
 
+/// The exposure of `opts` (1 when not given), which must be positive and finite.
+fn exposure(opts: &PhotoOptions) -> Result<f32, String> {
+    let exposure = opts.exposure.unwrap_or(1.0);
+    if !(exposure > 0.0 && exposure.is_finite()) {
+        return Err(format!("exposure must be positive, got {exposure}"));
+    }
+    Ok(exposure)
+}
+
+fn empty_photo(path: &Path) -> String {
+    format!("{}: the photo file is empty (0 bytes)", path.display())
+}
+
 /// Loads a photo (EXR, HDR, PFM as linear; PNG/JPEG through `opts.response`), checks it against
 /// the camera's size and the validity rule of [`Photo`], and divides by the exposure.
 pub fn load_photo(
@@ -133,17 +146,10 @@ pub fn load_photo(
     height: u32,
     opts: &PhotoOptions,
 ) -> Result<Photo, String> {
-    let exposure = opts.exposure.unwrap_or(1.0);
-    if !(exposure > 0.0 && exposure.is_finite()) {
-        return Err(format!("exposure must be positive, got {exposure}"));
-    }
+    // Checked before reading, so that a bad --exposure is reported ahead of decoding errors.
+    exposure(opts)?;
     match std::fs::metadata(path) {
-        Ok(m) if m.len() == 0 => {
-            return Err(format!(
-                "{}: the photo file is empty (0 bytes)",
-                path.display()
-            ))
-        }
+        Ok(m) if m.len() == 0 => return Err(empty_photo(path)),
         Ok(m) if m.is_dir() => return Err(format!("{}: is a folder, not a photo", path.display())),
         Ok(_) => crate::io::image::check_image_file(path)?,
         Err(e) => return Err(format!("{}: cannot read the photo: {e}", path.display())),
@@ -163,10 +169,7 @@ pub fn photo_from_bytes(
     opts: &PhotoOptions,
 ) -> Result<Photo, String> {
     if bytes.is_empty() {
-        return Err(format!(
-            "{}: the photo file is empty (0 bytes)",
-            path.display()
-        ));
+        return Err(empty_photo(path));
     }
     // The size is checked from the header, before the pixels are decoded.
     let raw = decode_raw_checked(bytes, path, |w, h| {
@@ -187,10 +190,7 @@ pub fn photo_from_raw(
     height: u32,
     opts: &PhotoOptions,
 ) -> Result<Photo, String> {
-    let exposure = opts.exposure.unwrap_or(1.0);
-    if !(exposure > 0.0 && exposure.is_finite()) {
-        return Err(format!("exposure must be positive, got {exposure}"));
-    }
+    let exposure = exposure(opts)?;
     let (w, h) = (raw.image.width, raw.image.height);
     if (w, h) != (width as usize, height as usize) {
         return Err(size_mismatch(path, w, h, width as usize, height as usize));

@@ -53,7 +53,7 @@ impl Lights {
                 ids.push(t);
                 tris.push(LightTri {
                     v: [a, b, c],
-                    n: (b - a).cross(c - a).normalize(),
+                    n: g.faces[t as usize].ng,
                     radiance: obj.emission,
                     pdf_area: 0.0,
                 });
@@ -68,8 +68,8 @@ impl Lights {
         for (i, w) in weights.iter().enumerate() {
             acc += w / total;
             cdf.push(acc);
-            pdf_area[ids[i] as usize] = (w / total) / areas[i];
-            tris[i].pdf_area = pdf_area[ids[i] as usize];
+            tris[i].pdf_area = (w / total) / areas[i];
+            pdf_area[ids[i] as usize] = tris[i].pdf_area;
         }
         if let Some(last) = cdf.last_mut() {
             *last = 1.0;
