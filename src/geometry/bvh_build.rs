@@ -1,11 +1,11 @@
-//! Builds the four-wide BVH of `bvh.rs`: a binary tree by the binned surface area heuristic
+//! Builds the eight-wide BVH of `bvh.rs`: a binary tree by the binned surface area heuristic
 //! (Wald 2007, "On fast construction of SAH-based bounding volume hierarchies"), leaves of at
-//! most four triangles (one SIMD block), then collapsed to four children per node by opening,
-//! while a node has fewer than four, the child of largest surface area (Wald, Benthin & Boulos
+//! most four triangles (one SIMD block), then collapsed to eight children per node by opening,
+//! while a node has fewer than eight, the child of largest surface area (Wald, Benthin & Boulos
 //! 2008, "Getting rid of packets").
 
 use super::aabb::Aabb;
-use super::bvh::{Bvh, Node4, LEAF};
+use super::bvh::{Bvh, Node, LEAF, WIDTH};
 use super::triangle::Tri4;
 use glam::Vec3;
 
@@ -66,19 +66,19 @@ pub(super) fn build(tris: &[[Vec3; 3]]) -> Bvh {
     let mut bin = Vec::with_capacity(2 * prims.len()); // a binary tree has < 2n nodes
     let root = build_binary(&mut prims, 0, 0, &mut bin);
     bvh.bounds = bin[root].bounds;
-    // The root is always a four-wide node (node 0), even over a single leaf.
+    // The root is always an eight-wide node (node 0), even over a single leaf.
     emit_node(&bin, root, &prims, tris, &mut bvh);
     bvh
 }
 
-/// Up to four nodes under `node` that together cover its triangles: `node` itself if it is a
-/// leaf, else its children with the largest inner one opened until there are four.
+/// Up to `WIDTH` nodes under `node` that together cover its triangles: `node` itself if it is
+/// a leaf, else its children with the largest inner one opened until there are `WIDTH`.
 fn open_children(bin: &[BinNode], node: usize) -> Vec<usize> {
     let mut kids = match bin[node].kind {
         Kind::Leaf { .. } => return vec![node],
         Kind::Inner { left, right } => vec![left, right],
     };
-    while kids.len() < 4 {
+    while kids.len() < WIDTH {
         let largest = kids
             .iter()
             .enumerate()
@@ -95,7 +95,7 @@ fn open_children(bin: &[BinNode], node: usize) -> Vec<usize> {
     kids
 }
 
-/// Emits the four-wide subtree of binary node `node`; returns its child reference.
+/// Emits the eight-wide subtree of binary node `node`; returns its child reference.
 fn collapse(
     bin: &[BinNode],
     node: usize,
@@ -117,7 +117,7 @@ fn collapse(
     emit_node(bin, node, prims, tris, bvh)
 }
 
-/// Emits a four-wide node over [`open_children`] of binary node `node` (which may be a leaf, for
+/// Emits an eight-wide node over [`open_children`] of binary node `node` (which may be a leaf, for
 /// the root); returns its index.
 fn emit_node(
     bin: &[BinNode],
@@ -127,7 +127,7 @@ fn emit_node(
     bvh: &mut Bvh,
 ) -> u32 {
     let me = bvh.nodes.len();
-    bvh.nodes.push(Node4::EMPTY);
+    bvh.nodes.push(Node::EMPTY);
     for (slot, k) in open_children(bin, node).into_iter().enumerate() {
         let r = collapse(bin, k, prims, tris, bvh);
         bvh.nodes[me].set(slot, &bin[k].bounds, r);
