@@ -95,6 +95,7 @@ impl Bsdf {
     }
 
     /// Draws an incident direction; None if the sample is lost (below the surface, or black).
+    #[inline]
     pub fn sample(&self, wo: Vec3, sampler: &mut Sampler) -> Option<BsdfSample> {
         if wo.z <= 0.0 {
             return None;
