@@ -12,6 +12,7 @@ use crate::math::{power_heuristic, Frame, Rgb, Sampler, Vec3};
 use crate::scene::{Material, Scene, SurfaceHit, WardVariant};
 
 /// The BSDF of `material` at a hit, with the shading frame it is expressed in.
+#[inline]
 pub fn bsdf_at(material: &Material, hit: &SurfaceHit, variant: WardVariant) -> (Bsdf, Frame) {
     match material {
         Material::Diffuse { rho_d } => (Bsdf::Diffuse { rho_d: *rho_d }, hit.frame),

@@ -87,7 +87,7 @@ impl Lights {
 
     /// Samples a point on a light as seen from `p`; None if there are no lights or the point is
     /// on the light's back side. Occlusion is not tested.
-    #[inline]
+    #[inline(always)]
     pub fn sample(&self, p: Vec3, sampler: &mut Sampler) -> Option<LightSample> {
         let uc = sampler.next_1d();
         let u = sampler.next_2d();
