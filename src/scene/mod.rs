@@ -200,6 +200,7 @@ impl Scene {
     }
 
     /// Expands a BVH hit into positions, normals, UVs and the shading frame.
+    #[inline]
     pub fn surface_hit(&self, _ray: &Ray, hit: &Hit) -> SurfaceHit {
         let g = &*self.geometry;
         let tri = g.tris[hit.prim as usize];
