@@ -36,13 +36,15 @@ impl RayShear {
         if d[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
+        // One division: |d[kz]| ≥ |d| / √3, so the reciprocal is well conditioned.
+        let sz = 1.0 / d[kz];
         RayShear {
             kx,
             ky,
             kz,
-            sx: d[kx] / d[kz],
-            sy: d[ky] / d[kz],
-            sz: 1.0 / d[kz],
+            sx: d[kx] * sz,
+            sy: d[ky] * sz,
+            sz,
         }
     }
 }
