@@ -88,8 +88,14 @@ mod tests {
                     (y * t.cos(), y * t.sin())
                 };
                 let d = concentric_disk(u);
-                assert!((d.x as f64 - expected.0).abs() < 3e-7, "{u:?}: {d:?} vs {expected:?}");
-                assert!((d.y as f64 - expected.1).abs() < 3e-7, "{u:?}: {d:?} vs {expected:?}");
+                assert!(
+                    (d.x as f64 - expected.0).abs() < 3e-7,
+                    "{u:?}: {d:?} vs {expected:?}"
+                );
+                assert!(
+                    (d.y as f64 - expected.1).abs() < 3e-7,
+                    "{u:?}: {d:?} vs {expected:?}"
+                );
             }
         }
     }
