@@ -122,6 +122,7 @@ fn figure6_exports_the_same_triangles_camera_and_lights() {
     assert!(xml.contains("<float name=\"fov\" value=\"40"), "{xml}");
     assert!(xml.contains("<rfilter type=\"box\"/>"));
     assert!(xml.contains("<integer name=\"max_depth\" value=\"8\"/>"));
+    assert!(xml.contains("<integer name=\"rr_depth\" value=\"5\"/>"));
     assert_eq!(
         xml.matches("<bsdf type=\"twosided\">").count(),
         scene.objects.len(),

@@ -92,6 +92,32 @@ fn white_furnace_converges_to_le_over_one_minus_rho() {
     assert!(worst < 0.1, "worst pixel off by {worst}");
 }
 
+#[test]
+fn russian_roulette_from_the_first_segment_stays_unbiased() {
+    // The furnace of the test above with roulette on every segment (rr_depth = 1): paths end
+    // after ~2 segments instead of ~5, and the mean must still be Le / (1 − ρ) = 1.
+    let text = format!(
+        "[render]\nmax_depth = 1000\nrr_depth = 1\n[camera]\nwidth = 16\nheight = 16\neye = [0.1, 0.2, 0.3]\ntarget = [0.5, -0.4, -1.0]\nfov_y_deg = 90.0\n{}",
+        enclosure("{ type = \"diffuse\", rho_d = 0.5 }", "0.5")
+    );
+    let sc = scene(&text);
+    assert_eq!(sc.render.rr_depth, 1);
+    let img = render(
+        &sc,
+        &sc.camera,
+        &RenderOptions {
+            spp: 256,
+            seed: 4,
+            progress: false,
+        },
+    );
+    let mean = img.mean();
+    assert!(
+        (mean - Rgb::ONE).abs().max_element() < 0.01,
+        "furnace mean with roulette from segment 1: {mean}"
+    );
+}
+
 /// Form factor from a differential area to a parallel rectangle a × b at height c, with the
 /// area under one corner (Howell's catalogue, C-11).
 fn form_factor_corner(a: f64, b: f64, c: f64) -> f64 {

@@ -19,8 +19,8 @@
 //!   that they cut nothing.
 //! - **Film.** `hdrfilm`, the same width and height, `rfilter = box` (matfit's pixel filter),
 //!   `pixel_format = rgb`. **Sampler** `independent` with the scene's spp.
-//! - **Integrator.** `path` with `max_depth` = the scene's (same meaning: segments of a path) and
-//!   `hide_emitters = false`.
+//! - **Integrator.** `path` with `max_depth` and `rr_depth` = the scene's (same meanings:
+//!   segments of a path; the same roulette) and `hide_emitters = false`.
 //! - **BSDFs**, each wrapped in `twosided` (matfit's surfaces reflect on both sides):
 //!   diffuse → `diffuse`; mirror → `conductor` with `material = "none"` (a 100% mirror) and
 //!   `specular_reflectance` = ρs; diffuse + mirror → `blendbsdf` of weight w of
@@ -111,8 +111,9 @@ fn write_integrator(xml: &mut String, scene: &Scene) {
         xml,
         "    <integrator type=\"path\">\n        \
          <integer name=\"max_depth\" value=\"{}\"/>\n        \
+         <integer name=\"rr_depth\" value=\"{}\"/>\n        \
          <boolean name=\"hide_emitters\" value=\"false\"/>\n    </integrator>",
-        scene.render.max_depth
+        scene.render.max_depth, scene.render.rr_depth
     );
 }
 

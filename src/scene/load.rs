@@ -253,6 +253,9 @@ fn build_render(file: &SceneFile, cx: &Ctx) -> Result<RenderSettings, SceneError
         if let Some(d) = spec.max_depth {
             r.max_depth = d;
         }
+        if let Some(d) = spec.rr_depth {
+            r.rr_depth = d;
+        }
         if let Some(s) = spec.seed {
             r.seed = s;
         }

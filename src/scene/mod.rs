@@ -25,6 +25,9 @@ use std::sync::Arc;
 pub struct RenderSettings {
     pub spp: u32,
     pub max_depth: u32,
+    /// Russian roulette applies from this path segment on (1: the camera ray's hit). 5, as
+    /// Mitsuba 3's `rr_depth`: paths then do the same work per sample in both renderers.
+    pub rr_depth: u32,
     pub seed: u64,
     pub ward_variant: WardVariant,
 }
@@ -34,6 +37,7 @@ impl Default for RenderSettings {
         RenderSettings {
             spp: 64,
             max_depth: 8,
+            rr_depth: 5,
             seed: 0,
             ward_variant: WardVariant::Ward1992,
         }

@@ -6,6 +6,7 @@
 //! [render]                      # optional
 //! spp = 64
 //! max_depth = 8
+//! rr_depth = 5                  # Russian roulette from this path segment on (Mitsuba's)
 //! seed = 0
 //! ward_variant = "ward1992"     # or "balanced"
 //!
@@ -58,6 +59,8 @@ pub struct RenderSpec {
     pub spp: Option<u32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_depth: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rr_depth: Option<u32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub seed: Option<u64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -89,6 +89,7 @@ pub fn scene_to_toml(scene: &Scene, dest: &Path) -> String {
     file.render = Some(super::schema::RenderSpec {
         spp: Some(r.spp),
         max_depth: Some(r.max_depth),
+        rr_depth: Some(r.rr_depth),
         seed: Some(r.seed),
         ward_variant: Some(r.ward_variant),
     });
