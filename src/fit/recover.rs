@@ -2,6 +2,13 @@
 //! re-renders what each fitted group sees with *all* current parameters (so light bounced off a
 //! surface whose BRDF changed reaches the others), refits each group on its fresh cache and lets
 //! the hierarchy decide its level; then one final render gives the synthetic image.
+//!
+//! Groups are visited in turn and each one's new parameters enter the scene at once
+//! (Gauss–Seidel), so a group's cache already sees the groups refitted before it in the same
+//! iteration. Measured against updating all groups at the end of the iteration (Jacobi) on the
+//! bench's diffuse figure6 (Mitsuba photo): worst ρ error after iterations 0, 1, 2 went from
+//! 0.23, 0.11, 0.024 to 0.12, 0.017, 0.006 (≤ 0.01 at 0.62 s instead of 1.11 s), 9 → 8
+//! iterations; the demo 15 → 12 iterations, recovery 31.5 → 27.7 s, same accuracy.
 
 use super::cache::{build, choose_pixels, CacheOptions};
 use super::hierarchy::{Event, GroupState, HierarchyOptions, Status};
@@ -301,7 +308,6 @@ pub fn recover_resumable(
         let levels_before: Vec<_> = states.iter().map(|s| s.level).collect();
         iterations = it + 1;
         let before: Vec<GroupParams> = states.iter().map(|s| s.params).collect();
-        let pt = PathTracer::new(&current);
         // Groups try higher levels only once the previous iteration changed no level and moved
         // no parameter much; at most one moves per iteration: the one furthest above its
         // threshold.
@@ -319,6 +325,9 @@ pub fn recover_resumable(
             }
             let tg = Instant::now();
             let (px, tiles, n_tiles) = &pixel_lists[g];
+            // Gauss–Seidel: each group's cache sees the groups fitted before it in this
+            // iteration with their new parameters (`apply` below), not last iteration's.
+            let pt = PathTracer::new(&current);
             let cache = build(
                 &current,
                 &pt,
@@ -370,8 +379,8 @@ pub fn recover_resumable(
                     }
                 ));
             }
+            apply(&mut current, &states);
         }
-        apply(&mut current, &states);
         pb.inc(1);
         let moved = states
             .iter()
