@@ -61,24 +61,31 @@ fn enclosure(material: &str, emission: &str) -> String {
         .collect()
 }
 
-#[test]
-fn white_furnace_converges_to_le_over_one_minus_rho() {
-    // Every wall emits Le = 0.5 and reflects ρ = 0.5: L = Le Σ ρᵏ = Le / (1 − ρ) = 1 everywhere.
+/// The white furnace: every wall of a closed cube emits Le = 0.5 and reflects ρ = 0.5, so
+/// L = Le Σ ρᵏ = Le / (1 − ρ) = 1 everywhere. Rendered at 16×16, 256 spp, with `render_extra`
+/// added to the `[render]` table. Returns the scene and the image.
+fn furnace(render_extra: &str, seed: u64) -> (matfit::scene::Scene, matfit::io::image::Image) {
     let text = format!(
-        "[render]\nmax_depth = 1000\n[camera]\nwidth = 16\nheight = 16\neye = [0.1, 0.2, 0.3]\ntarget = [0.5, -0.4, -1.0]\nfov_y_deg = 90.0\n{}",
+        "[render]\nmax_depth = 1000\n{render_extra}\n[camera]\nwidth = 16\nheight = 16\neye = [0.1, 0.2, 0.3]\ntarget = [0.5, -0.4, -1.0]\nfov_y_deg = 90.0\n{}",
         enclosure("{ type = \"diffuse\", rho_d = 0.5 }", "0.5")
     );
     let sc = scene(&text);
-    // Inward-facing check: the camera sees the walls' front sides.
     let img = render(
         &sc,
         &sc.camera,
         &RenderOptions {
             spp: 256,
-            seed: 3,
+            seed,
             progress: false,
         },
     );
+    (sc, img)
+}
+
+#[test]
+fn white_furnace_converges_to_le_over_one_minus_rho() {
+    // Inward-facing check: the camera sees the walls' front sides.
+    let (_, img) = furnace("", 3);
     let mean = img.mean();
     assert!(
         (mean - Rgb::ONE).abs().max_element() < 0.01,
@@ -94,23 +101,10 @@ fn white_furnace_converges_to_le_over_one_minus_rho() {
 
 #[test]
 fn russian_roulette_from_the_first_segment_stays_unbiased() {
-    // The furnace of the test above with roulette on every segment (rr_depth = 1): paths end
-    // after ~2 segments instead of ~5, and the mean must still be Le / (1 − ρ) = 1.
-    let text = format!(
-        "[render]\nmax_depth = 1000\nrr_depth = 1\n[camera]\nwidth = 16\nheight = 16\neye = [0.1, 0.2, 0.3]\ntarget = [0.5, -0.4, -1.0]\nfov_y_deg = 90.0\n{}",
-        enclosure("{ type = \"diffuse\", rho_d = 0.5 }", "0.5")
-    );
-    let sc = scene(&text);
+    // The furnace with roulette on every segment (rr_depth = 1; the default is 5): paths end
+    // after ~2 segments instead of ~6, and the mean must still be Le / (1 − ρ) = 1.
+    let (sc, img) = furnace("rr_depth = 1", 4);
     assert_eq!(sc.render.rr_depth, 1);
-    let img = render(
-        &sc,
-        &sc.camera,
-        &RenderOptions {
-            spp: 256,
-            seed: 4,
-            progress: false,
-        },
-    );
     let mean = img.mean();
     assert!(
         (mean - Rgb::ONE).abs().max_element() < 0.01,
