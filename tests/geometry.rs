@@ -144,7 +144,7 @@ fn bvh_equals_brute_force_on_100k_rays_with_meshes() {
     let mut state = 12345u64;
     let mut rnd = || {
         state = state.wrapping_add(1);
-        (matfit::math::sampler::mix64(state) >> 40) as f32 / (1u64 << 24) as f32
+        matfit::math::sampler::unit_f32(matfit::math::sampler::mix64(state))
     };
     let mut hits = 0;
     for scene in &scenes {

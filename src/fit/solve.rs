@@ -226,11 +226,8 @@ mod tests {
     fn cross_half_moments_remove_errors_in_variables_bias() {
         // d has heavy noise, independent in its two halves; plain least squares on the mean
         // is biased low, the cross-half estimator is not.
-        let mut state = 7u64;
-        let mut rnd = || {
-            state = state.wrapping_add(1);
-            (crate::math::sampler::mix64(state) >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rng = crate::math::sampler::TestRng(7);
+        let mut rnd = || rng.f32();
         let (mut m, mut plain) = (Moments::default(), Moments::default());
         for i in 0..20000 {
             let d = 1.0 + 0.5 * (i as f32 * 0.01).sin();

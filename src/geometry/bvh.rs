@@ -298,6 +298,7 @@ impl Bvh {
 mod tests {
     use super::super::triangle::intersect;
     use super::*;
+    use crate::math::sampler::TestRng as Rng;
 
     /// Reference: test every triangle.
     fn brute(tris: &[[Vec3; 3]], ray: &Ray, t_max: f32) -> Option<Hit> {
@@ -315,18 +316,6 @@ mod tests {
             }
         }
         best
-    }
-
-    /// A tiny deterministic generator for test data (SplitMix64).
-    pub(crate) struct Rng(pub u64);
-    impl Rng {
-        pub(crate) fn f32(&mut self) -> f32 {
-            self.0 = self.0.wrapping_add(1);
-            (crate::math::sampler::mix64(self.0) >> 40) as f32 / (1u64 << 24) as f32
-        }
-        pub(crate) fn vec3(&mut self) -> Vec3 {
-            Vec3::new(self.f32(), self.f32(), self.f32())
-        }
     }
 
     /// Asserts that two closest-hit answers agree: same distance, and the same triangle unless

@@ -243,11 +243,8 @@ mod tests {
     fn four_wide_test_matches_the_scalar_one_to_the_bit() {
         // Random blocks of 1–4 triangles and random rays, plus rays through shared vertices
         // and edges (where u, v or w is 0 and the scalar test's double-precision path runs).
-        let mut seed = 11u64;
-        let mut r = || {
-            seed = seed.wrapping_add(1);
-            (crate::math::sampler::mix64(seed) >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rng = crate::math::sampler::TestRng(11);
+        let mut r = || rng.f32();
         let mut edge_cases = 0;
         for case in 0..20000 {
             let n = 1 + case % 4;

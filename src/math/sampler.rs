@@ -26,6 +26,27 @@ pub fn mix64(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// The top 24 bits of `h` as a number in [0, 1) (each value exact in f32).
+#[inline(always)]
+pub fn unit_f32(h: u64) -> f32 {
+    ((h >> 40) as f32) * (1.0 / (1u64 << 24) as f32)
+}
+
+/// A tiny deterministic generator for test data: SplitMix64 numbers in [0, 1).
+#[cfg(test)]
+pub(crate) struct TestRng(pub u64);
+
+#[cfg(test)]
+impl TestRng {
+    pub(crate) fn f32(&mut self) -> f32 {
+        self.0 = self.0.wrapping_add(1);
+        unit_f32(mix64(self.0))
+    }
+    pub(crate) fn vec3(&mut self) -> super::Vec3 {
+        super::Vec3::new(self.f32(), self.f32(), self.f32())
+    }
+}
+
 /// Hash of several integers, for seeding.
 pub fn hash_seed(parts: &[u64]) -> u64 {
     parts
@@ -111,8 +132,7 @@ impl Sampler {
         } else {
             // SplitMix64: `mix64` steps the state by the golden ratio and finalises it.
             self.tail = self.tail.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let h = mix64(self.tail);
-            ((h >> 40) as f32) * (1.0 / (1u64 << 24) as f32)
+            unit_f32(mix64(self.tail))
         }
     }
 
