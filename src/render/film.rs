@@ -2,7 +2,7 @@
 //! its own sampler stream keyed by (seed, pixel), so the image is bit-identical whatever the
 //! number of threads. Pixels use a box filter (uniform jitter inside the pixel).
 
-use super::PathTracer;
+use super::{batch, PathTracer};
 use crate::io::image::Image;
 use crate::math::{Rgb, Sampler, Vec2};
 use crate::scene::{Camera, Scene};
@@ -41,9 +41,12 @@ pub fn render(scene: &Scene, camera: &Camera, opts: &RenderOptions) -> Image {
     let (w, h) = (camera.width as usize, camera.height as usize);
     let mut img = Image::new(w, h);
     let pb = progress_bar(h as u64, "render", opts.progress);
+    // Pixels go to the batch integrator a run at a time, at most ~2^16 samples per run (the
+    // size of its buffer of per-sample values).
+    let run = (65_536 / opts.spp.max(1) as usize).clamp(1, w.max(1));
     img.data.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        for (x, out) in row.iter_mut().enumerate() {
-            *out = render_pixel(&pt, camera, x, y, opts.spp, opts.seed);
+        for (k, pixels) in row.chunks_mut(run).enumerate() {
+            batch::render_pixels(&pt, camera, y, k * run, opts.spp, opts.seed, pixels);
         }
         pb.inc(1);
     });
@@ -51,7 +54,8 @@ pub fn render(scene: &Scene, camera: &Camera, opts: &RenderOptions) -> Image {
     img
 }
 
-/// The mean of `spp` samples of pixel (x, y). Non-finite samples are dropped (and would be a bug).
+/// The mean of `spp` samples of pixel (x, y), one path at a time (`batch.rs` computes the same
+/// value eight paths at a time). Non-finite samples are dropped (and would be a bug).
 pub fn render_pixel(
     pt: &PathTracer,
     camera: &Camera,

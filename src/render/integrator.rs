@@ -87,6 +87,53 @@ pub fn facing(frame: Frame, ng: Vec3, wo: Vec3) -> (Frame, Vec3) {
     }
 }
 
+/// A path in flight: its current ray, throughput, radiance gathered so far, and what the MIS
+/// weight of emission at its next hit needs.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PathState {
+    pub ray: Ray,
+    pub beta: Rgb,
+    pub l: Rgb,
+    /// Segments of the path so far, `ray`'s included once it has arrived.
+    pub segments: u32,
+    /// How `ray`'s direction was drawn: None = delta or camera (emission counts fully), else the
+    /// BSDF sampling density.
+    pub prev_pdf: Option<f32>,
+    /// `ray` is the path's first segment.
+    pub first: bool,
+    /// Whether emission seen at the first hit counts fully (a camera ray, or a ray after a
+    /// delta reflection); otherwise it is left out entirely (the caller did next-event
+    /// estimation for it without MIS).
+    pub count_emission: bool,
+}
+
+impl PathState {
+    /// A path whose next segment is `ray`, after `depth` segments elsewhere.
+    pub fn new(ray: Ray, depth: u32, count_emission: bool) -> PathState {
+        PathState {
+            ray,
+            beta: Rgb::ONE,
+            l: Rgb::ZERO,
+            segments: depth,
+            prev_pdf: None,
+            first: true,
+            count_emission,
+        }
+    }
+}
+
+/// A surface point to scatter from: the BSDF in its shading frame, both turned to the side the
+/// path arrives from, and the outgoing direction in that frame.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Vertex {
+    pub p: Vec3,
+    pub bsdf: Bsdf,
+    pub frame: Frame,
+    /// Geometric normal on the arriving side.
+    pub ng: Vec3,
+    pub wo: Vec3,
+}
+
 pub struct PathTracer<'a> {
     pub scene: &'a Scene,
     pub lights: Lights,
@@ -122,110 +169,124 @@ impl<'a> PathTracer<'a> {
     /// `scene.intersect(&ray, ∞)`.
     pub fn trace_from(
         &self,
-        mut ray: Ray,
+        ray: Ray,
         first_hit: Option<SurfaceHit>,
         sampler: &mut Sampler,
         depth: u32,
         count_emission: bool,
     ) -> Rgb {
-        let scene = self.scene;
-        let mut first_hit = Some(first_hit);
-        let variant = scene.render.ward_variant;
-        let mut l = Rgb::ZERO;
-        let mut beta = Rgb::ONE;
-        let mut segments = depth; // segments of the path before `ray`
-                                  // How the previous direction was drawn: None = delta or camera (emission counts fully).
-        let mut prev_pdf: Option<f32> = None;
-        let mut first = true;
-        loop {
-            segments += 1;
-            let hit = match first_hit.take() {
-                Some(h) => h,
-                None => scene.intersect(&ray, f32::INFINITY),
-            };
-            let Some(hit) = hit else {
-                break;
-            };
-            let obj = &scene.objects[hit.object as usize];
-            let wo_world = -ray.d;
-            // Emission (front side only).
-            if obj.is_emitter() && hit.ng.dot(wo_world) > 0.0 {
-                let w = match prev_pdf {
-                    _ if first => {
-                        if count_emission {
-                            1.0
-                        } else {
-                            0.0
-                        }
-                    }
-                    None => 1.0,
-                    Some(pb) => {
-                        let pl = self.lights.pdf(hit.prim, hit.t, ray.d, hit.ng);
-                        power_heuristic(pb, pl)
-                    }
-                };
-                l += beta * obj.emission * w;
-            }
-            first = false;
-            if segments >= self.max_depth {
+        let mut st = PathState::new(ray, depth, count_emission);
+        let mut hit = first_hit;
+        while let Some(v) = self.arrive(&mut st, hit) {
+            if !self.scatter(&mut st, &v, sampler) {
                 break;
             }
-            let (bsdf, frame) = bsdf_at(&obj.material, &hit, variant);
-            if matches!(bsdf, Bsdf::Black) {
-                break;
-            }
-            let (frame, ng) = facing(frame, hit.ng, wo_world);
-            let wo = frame.to_local(wo_world);
-            // Next-event estimation.
-            if bsdf.has_smooth_part() {
-                if let Some(ls) = self.lights.sample(hit.p, sampler) {
-                    let wi = frame.to_local(ls.wi);
-                    let cos_g = ng.dot(ls.wi);
-                    if wi.z > 0.0 && cos_g > 0.0 {
-                        let f = bsdf.eval(wo, wi);
-                        if f.max_element() > 0.0 {
-                            let origin = offset_origin(hit.p, ng, ls.wi);
-                            if self.lights.visible(scene, origin, &ls) {
-                                let w = power_heuristic(ls.pdf, bsdf.pdf(wo, wi));
-                                l += beta * f * ls.radiance * (wi.z * w / ls.pdf);
-                            }
-                        }
-                    }
-                } else {
-                    // Keep the sampler's dimensions aligned whether or not a light was found.
-                }
-            } else {
-                // Consume the same dimensions so that paths stay stratified alike.
-                sampler.next_1d();
-                sampler.next_2d();
-            }
-            // Continue the path by sampling the BSDF.
-            let Some(bs) = bsdf.sample(wo, sampler) else {
-                break;
-            };
-            let wi_world = frame.to_world(bs.wi);
-            if ng.dot(wi_world) <= 0.0 {
-                break; // shading normal sent the path into the surface
-            }
-            beta *= bs.weight;
-            prev_pdf = (!bs.delta).then_some(bs.pdf);
-            if beta.max_element() <= 0.0 || !beta.is_finite() {
-                break;
-            }
-            // Russian roulette from segment `rr_depth` on, as Mitsuba 3 plays it: continue with
-            // probability min(max β, 0.95). From segment 5 by default: measured on figure6
-            // (diffuse floor, 4 seeds × 32 spp against the bench's reference), efficiency
-            // 1 / (RMSE² × time) is 9% higher than from segment 3, flat from 4 to 6.
-            let u_rr = sampler.next_1d();
-            if segments >= self.rr_depth {
-                let q = (1.0 - beta.max_element()).max(0.05);
-                if u_rr < q {
-                    break;
-                }
-                beta /= 1.0 - q;
-            }
-            ray = Ray::new(offset_origin(hit.p, ng, wi_world), wi_world);
+            hit = self.scene.intersect(&st.ray, f32::INFINITY);
         }
-        l
+        st.l
+    }
+
+    /// The first half of a path segment: `hit` is where `st.ray` lands. Adds the emission seen
+    /// there (MIS-weighted against next-event estimation at the previous vertex) and returns
+    /// the vertex to scatter from, or None where the path ends (no hit, maximum depth, a black
+    /// surface).
+    #[inline(always)]
+    pub(super) fn arrive(&self, st: &mut PathState, hit: Option<SurfaceHit>) -> Option<Vertex> {
+        st.segments += 1;
+        let hit = hit?;
+        let obj = &self.scene.objects[hit.object as usize];
+        let wo_world = -st.ray.d;
+        // Emission (front side only).
+        if obj.is_emitter() && hit.ng.dot(wo_world) > 0.0 {
+            let w = match st.prev_pdf {
+                _ if st.first => {
+                    if st.count_emission {
+                        1.0
+                    } else {
+                        0.0
+                    }
+                }
+                None => 1.0,
+                Some(pb) => {
+                    let pl = self.lights.pdf(hit.prim, hit.t, st.ray.d, hit.ng);
+                    power_heuristic(pb, pl)
+                }
+            };
+            st.l += st.beta * obj.emission * w;
+        }
+        st.first = false;
+        if st.segments >= self.max_depth {
+            return None;
+        }
+        let (bsdf, frame) = bsdf_at(&obj.material, &hit, self.scene.render.ward_variant);
+        if matches!(bsdf, Bsdf::Black) {
+            return None;
+        }
+        let (frame, ng) = facing(frame, hit.ng, wo_world);
+        let wo = frame.to_local(wo_world);
+        Some(Vertex {
+            p: hit.p,
+            bsdf,
+            frame,
+            ng,
+            wo,
+        })
+    }
+
+    /// The second half of a path segment: next-event estimation at `v`, then the BSDF-sampled
+    /// direction and Russian roulette. Sets `st.ray` to the next segment and returns true, or
+    /// returns false where the path ends. Draws 3 + 3 + 1 sampler dimensions (light, BSDF,
+    /// roulette) in that order; `batch.rs` relies on it.
+    #[inline(always)]
+    pub(super) fn scatter(&self, st: &mut PathState, v: &Vertex, sampler: &mut Sampler) -> bool {
+        let (bsdf, frame, ng, wo) = (&v.bsdf, &v.frame, v.ng, v.wo);
+        // Next-event estimation.
+        if bsdf.has_smooth_part() {
+            if let Some(ls) = self.lights.sample(v.p, sampler) {
+                let wi = frame.to_local(ls.wi);
+                let cos_g = ng.dot(ls.wi);
+                if wi.z > 0.0 && cos_g > 0.0 {
+                    let f = bsdf.eval(wo, wi);
+                    if f.max_element() > 0.0 {
+                        let origin = offset_origin(v.p, ng, ls.wi);
+                        if self.lights.visible(self.scene, origin, &ls) {
+                            let w = power_heuristic(ls.pdf, bsdf.pdf(wo, wi));
+                            st.l += st.beta * f * ls.radiance * (wi.z * w / ls.pdf);
+                        }
+                    }
+                }
+            }
+        } else {
+            // Consume the same dimensions so that paths stay stratified alike.
+            sampler.next_1d();
+            sampler.next_2d();
+        }
+        // Continue the path by sampling the BSDF.
+        let Some(bs) = bsdf.sample(wo, sampler) else {
+            return false;
+        };
+        let wi_world = frame.to_world(bs.wi);
+        if ng.dot(wi_world) <= 0.0 {
+            return false; // shading normal sent the path into the surface
+        }
+        st.beta *= bs.weight;
+        st.prev_pdf = (!bs.delta).then_some(bs.pdf);
+        if st.beta.max_element() <= 0.0 || !st.beta.is_finite() {
+            return false;
+        }
+        // Russian roulette from segment `rr_depth` on, as Mitsuba 3 plays it: continue with
+        // probability min(max β, 0.95). From segment 5 by default: measured on figure6
+        // (diffuse floor, 4 seeds × 32 spp against the bench's reference), efficiency
+        // 1 / (RMSE² × time) is 9% higher than from segment 3, flat from 4 to 6.
+        let u_rr = sampler.next_1d();
+        if st.segments >= self.rr_depth {
+            let q = (1.0 - st.beta.max_element()).max(0.05);
+            if u_rr < q {
+                return false;
+            }
+            st.beta /= 1.0 - q;
+        }
+        st.ray = Ray::new(offset_origin(v.p, ng, wi_world), wi_world);
+        true
     }
 }

@@ -17,13 +17,13 @@ pub struct Lights {
 
 /// What sampling needs of one emissive triangle, gathered in one place.
 #[derive(Clone, Copy, Debug)]
-struct LightTri {
-    v: [Vec3; 3],
+pub(super) struct LightTri {
+    pub v: [Vec3; 3],
     /// Unit geometric normal, the side it emits to.
-    n: Vec3,
-    radiance: Rgb,
+    pub n: Vec3,
+    pub radiance: Rgb,
     /// Probability of choosing it divided by its area.
-    pdf_area: f32,
+    pub pdf_area: f32,
 }
 
 /// A point sampled on a light, seen from a reference point.
@@ -94,11 +94,7 @@ impl Lights {
         if self.tris.is_empty() {
             return None;
         }
-        let k = self
-            .cdf
-            .partition_point(|&c| c <= uc)
-            .min(self.tris.len() - 1);
-        let light = &self.tris[k];
+        let light = self.pick(uc);
         let [a, b, c] = light.v;
         let (b1, b2) = warp::uniform_triangle(u);
         let q = a * (1.0 - b1 - b2) + b * b1 + c * b2;
@@ -117,6 +113,16 @@ impl Lights {
             radiance: light.radiance,
             pdf: light.pdf_area * dist2 / cos_l,
         })
+    }
+
+    /// The light triangle chosen by `uc` ∈ [0, 1) (there must be one).
+    #[inline(always)]
+    pub(super) fn pick(&self, uc: f32) -> &LightTri {
+        let k = self
+            .cdf
+            .partition_point(|&c| c <= uc)
+            .min(self.tris.len() - 1);
+        &self.tris[k]
     }
 
     /// Density per solid angle with which `sample` would have produced the point on triangle

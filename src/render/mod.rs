@@ -1,6 +1,7 @@
 //! The renderer: BSDFs, lights, the path tracer, images and index buffers.
 
 pub mod aov;
+pub mod batch;
 pub mod bsdf;
 pub mod film;
 pub mod integrator;

@@ -1,0 +1,342 @@
+//! The path tracer of `integrator.rs`, eight paths at a time: what a render spends most of its
+//! time on — next-event estimation and cosine sampling at diffuse surfaces — runs on eight
+//! lanes of one SIMD register (AVX), as a wavefront renderer does (Laine, Karras & Aila 2013,
+//! "Megakernels considered harmful: wavefront path tracing on GPUs"; Mitsuba 3's `llvm`
+//! variants vectorise their whole path loop the same way). Ray traversal stays one ray at a
+//! time: rays of different paths rarely share BVH nodes.
+//!
+//! Each lane runs the scalar integrator's state machine (`PathTracer::arrive`, then `scatter`
+//! or its eight-lane copy here for Lambert surfaces) and draws its random numbers from its own
+//! pixel's sampler in the same order, and the eight-lane arithmetic repeats the scalar one
+//! operation for operation (Rust never fuses a·b + c). So every sample — and every pixel, whose
+//! samples are summed in sample order — is the scalar integrator's to the bit; a test holds
+//! the two to that.
+//!
+//! Lanes that finish a path take the next (pixel, sample) of the batch's list at once, so the
+//! eight lanes stay busy until the list runs out.
+
+use super::bsdf::Bsdf;
+use super::integrator::{PathState, PathTracer, Vertex};
+use crate::geometry::Ray;
+use crate::math::{warp, Rgb, Sampler, Vec2, Vec3, INV_PI, PI};
+use crate::scene::Camera;
+use wide::{f32x8, CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
+
+const LANES: usize = 8;
+
+/// A path in flight on one lane: which sample it is, its state and its pixel's sampler.
+struct Lane {
+    item: usize,
+    st: PathState,
+    sampler: Sampler,
+}
+
+/// Renders pixels `x0..x0 + out.len()` of row `y` of `camera`'s image: `out[i]` is the mean of
+/// pixel x0 + i's `spp` samples, the value `film::render_pixel` gives.
+pub fn render_pixels(
+    pt: &PathTracer,
+    camera: &Camera,
+    y: usize,
+    x0: usize,
+    spp: u32,
+    seed: u64,
+    out: &mut [Rgb],
+) {
+    let spp_n = spp as usize;
+    let total = out.len() * spp_n;
+    let mut results = vec![Rgb::ZERO; total];
+    let mut lanes: [Option<Lane>; LANES] = Default::default();
+    let mut next = 0usize;
+    // The sampler of the pixel whose samples are being handed out (items go pixel by pixel).
+    let (mut template_x, mut template) = (usize::MAX, Sampler::new(seed, 0));
+    loop {
+        for lane in lanes.iter_mut().filter(|l| l.is_none()) {
+            if next == total {
+                break;
+            }
+            let x = x0 + next / spp_n;
+            if x != template_x {
+                template = Sampler::new(seed, (y * camera.width as usize + x) as u64);
+                template_x = x;
+            }
+            let mut sampler = template.clone();
+            sampler.start_sample((next % spp_n) as u32);
+            let film = Vec2::new(x as f32, y as f32) + sampler.next_2d();
+            *lane = Some(Lane {
+                item: next,
+                st: PathState::new(camera.ray(film), 0, true),
+                sampler,
+            });
+            next += 1;
+        }
+        if lanes.iter().all(Option::is_none) {
+            break;
+        }
+        // Every lane arrives; Lambert vertices gather into `diffuse`, the rest scatter alone.
+        let mut diffuse = DiffuseLanes::default();
+        for (i, slot) in lanes.iter_mut().enumerate() {
+            let Some(lane) = slot else { continue };
+            let hit = pt.scene.intersect(&lane.st.ray, f32::INFINITY);
+            let alive = match pt.arrive(&mut lane.st, hit) {
+                None => false,
+                Some(v) => match v.bsdf {
+                    Bsdf::Diffuse { rho_d }
+                        if rho_d.max_element() > 0.0 && v.wo.z > 0.0 && !pt.lights.is_empty() =>
+                    {
+                        diffuse.push(i, pt, &v, rho_d, lane);
+                        true
+                    }
+                    _ => pt.scatter(&mut lane.st, &v, &mut lane.sampler),
+                },
+            };
+            if !alive {
+                finish(slot, &mut results);
+            }
+        }
+        diffuse.scatter(pt, &mut lanes, &mut results);
+    }
+    // Sums in sample order, dropping non-finite samples, as `render_pixel`.
+    for (px, samples) in out.iter_mut().zip(results.chunks(spp_n)) {
+        let mut sum = Rgb::ZERO;
+        for l in samples {
+            if l.is_finite() {
+                sum += *l;
+            }
+        }
+        *px = sum / spp as f32;
+    }
+}
+
+/// Ends the path on a lane: its radiance is the sample's value.
+fn finish(slot: &mut Option<Lane>, results: &mut [Rgb]) {
+    if let Some(lane) = slot.take() {
+        results[lane.item] = lane.st.l;
+    }
+}
+
+/// Eight lanes of Lambert vertices in structure-of-arrays form: what `PathTracer::scatter`
+/// reads for each, and the seven random numbers it would draw (light: 3, BSDF: 3, roulette: 1).
+#[derive(Default)]
+struct DiffuseLanes {
+    n: usize,
+    lane: [usize; LANES],
+    p: [[f32; LANES]; 3],
+    ng: [[f32; LANES]; 3],
+    /// Shading frame: tangent, bitangent, normal.
+    frame: [[[f32; LANES]; 3]; 3],
+    rho: [[f32; LANES]; 3],
+    beta: [[f32; LANES]; 3],
+    l: [[f32; LANES]; 3],
+    /// The chosen light triangle: vertices, normal, radiance, selection pdf / area.
+    light_v: [[[f32; LANES]; 3]; 3],
+    light_n: [[f32; LANES]; 3],
+    light_le: [[f32; LANES]; 3],
+    light_pdf_area: [f32; LANES],
+    u_light: [[f32; LANES]; 2],
+    u_bsdf: [[f32; LANES]; 2],
+    u_rr: [f32; LANES],
+    /// Roulette applies (1) or not (0).
+    rr: [f32; LANES],
+}
+
+fn put(dst: &mut [[f32; LANES]; 3], j: usize, v: Vec3) {
+    dst[0][j] = v.x;
+    dst[1][j] = v.y;
+    dst[2][j] = v.z;
+}
+
+fn x8(a: &[[f32; LANES]; 3]) -> [f32x8; 3] {
+    a.map(f32x8::from)
+}
+
+fn dot(a: &[f32x8; 3], b: &[f32x8; 3]) -> f32x8 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// max(|x|, |y|, |z|), as glam's `abs().max_element()` for finite values.
+fn abs_max(a: &[f32x8; 3]) -> f32x8 {
+    a[0].abs().max(a[1].abs().max(a[2].abs()))
+}
+
+/// `geometry::offset_origin(p, ng, dir)` on eight lanes.
+fn offset_origin(p: &[f32x8; 3], ng: &[f32x8; 3], dir: &[f32x8; 3]) -> [f32x8; 3] {
+    let eps = f32x8::splat(1e-4) * (f32x8::ONE + abs_max(p));
+    let up = dot(ng, dir).cmp_ge(f32x8::ZERO);
+    std::array::from_fn(|k| up.blend(p[k] + ng[k] * eps, p[k] - ng[k] * eps))
+}
+
+impl DiffuseLanes {
+    /// Adds lane `i` at vertex `v` (a Lambert surface of reflectance `rho`, seen from above,
+    /// in a scene with lights), drawing its random numbers.
+    fn push(&mut self, i: usize, pt: &PathTracer, v: &Vertex, rho: Rgb, lane: &mut Lane) {
+        let j = self.n;
+        self.n += 1;
+        self.lane[j] = i;
+        let s = &mut lane.sampler;
+        // `Lights::sample`: the triangle, then the point on it.
+        let uc = s.next_1d();
+        let light = pt.lights.pick(uc);
+        let u = s.next_2d();
+        (self.u_light[0][j], self.u_light[1][j]) = (u.x, u.y);
+        // `Bsdf::sample` (Diffuse): the lobe choice (unused), then the direction.
+        s.next_1d();
+        let u = s.next_2d();
+        (self.u_bsdf[0][j], self.u_bsdf[1][j]) = (u.x, u.y);
+        self.u_rr[j] = s.next_1d();
+        self.rr[j] = if lane.st.segments >= pt.rr_depth {
+            1.0
+        } else {
+            0.0
+        };
+        put(&mut self.p, j, v.p);
+        put(&mut self.ng, j, v.ng);
+        put(&mut self.frame[0], j, v.frame.s);
+        put(&mut self.frame[1], j, v.frame.t);
+        put(&mut self.frame[2], j, v.frame.n);
+        put(&mut self.rho, j, rho);
+        put(&mut self.beta, j, lane.st.beta);
+        put(&mut self.l, j, lane.st.l);
+        for k in 0..3 {
+            put(&mut self.light_v[k], j, light.v[k]);
+        }
+        put(&mut self.light_n, j, light.n);
+        put(&mut self.light_le, j, light.radiance);
+        self.light_pdf_area[j] = light.pdf_area;
+    }
+
+    /// `PathTracer::scatter` for the gathered lanes: each lane's path continues with its next
+    /// ray or ends (its radiance goes to `results`).
+    fn scatter(&self, pt: &PathTracer, lanes: &mut [Option<Lane>; LANES], results: &mut [Rgb]) {
+        if self.n == 0 {
+            return;
+        }
+        let splat = f32x8::splat;
+        let (zero, one) = (f32x8::ZERO, f32x8::ONE);
+        let live = f32x8::from(std::array::from_fn::<f32, LANES, _>(|j| {
+            if j < self.n {
+                1.0
+            } else {
+                0.0
+            }
+        }))
+        .cmp_gt(zero);
+        let p = x8(&self.p);
+        let ng = x8(&self.ng);
+        let fr = self.frame.map(|a| x8(&a));
+        let rho = x8(&self.rho);
+        let mut beta = x8(&self.beta);
+        let mut l = x8(&self.l);
+
+        // Next-event estimation (`Lights::sample`, then `scatter`'s checks).
+        let su = f32x8::from(self.u_light[0]).sqrt();
+        let b1 = one - su;
+        let b2 = f32x8::from(self.u_light[1]) * su;
+        let b0 = one - b1 - b2;
+        let lv = self.light_v.map(|a| x8(&a));
+        let q: [f32x8; 3] = std::array::from_fn(|k| lv[0][k] * b0 + lv[1][k] * b1 + lv[2][k] * b2);
+        let d: [f32x8; 3] = std::array::from_fn(|k| q[k] - p[k]);
+        let dist2 = dot(&d, &d);
+        let dist = dist2.sqrt();
+        let wi: [f32x8; 3] = d.map(|c| c / dist);
+        let cos_l = -dot(&x8(&self.light_n), &wi);
+        let light_ok = !cos_l.cmp_le(zero) & !dist.cmp_le(zero);
+        let light_pdf = f32x8::from(self.light_pdf_area) * dist2 / cos_l;
+        let wi_local = [dot(&wi, &fr[0]), dot(&wi, &fr[1]), dot(&wi, &fr[2])];
+        let cos_g = dot(&ng, &wi);
+        let f = rho.map(|c| c * splat(INV_PI));
+        let f_max = f[0].max(f[1].max(f[2]));
+        let mut nee =
+            live & light_ok & wi_local[2].cmp_gt(zero) & cos_g.cmp_gt(zero) & f_max.cmp_gt(zero);
+        // `Lights::visible`: the shadow ray from the offset origin to the light point.
+        let origin = offset_origin(&p, &ng, &wi);
+        let to_light: [f32x8; 3] = std::array::from_fn(|k| q[k] - origin[k]);
+        let len = dot(&to_light, &to_light).sqrt();
+        let eps = splat(2e-4) * (one + abs_max(&q));
+        nee &= len.cmp_gt(eps);
+        let dir = to_light.map(|c| c / len);
+        let t_max = len - eps;
+        let mut mask = nee.move_mask();
+        let mut visible = [0.0f32; LANES];
+        if mask != 0 {
+            let (o, dir, t_max) = (
+                origin.map(|c| c.to_array()),
+                dir.map(|c| c.to_array()),
+                t_max.to_array(),
+            );
+            while mask != 0 {
+                let j = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                let ray = Ray::new(
+                    Vec3::new(o[0][j], o[1][j], o[2][j]),
+                    Vec3::new(dir[0][j], dir[1][j], dir[2][j]),
+                );
+                if !pt.scene.occluded(&ray, t_max[j]) {
+                    visible[j] = 1.0;
+                }
+            }
+        }
+        let nee = nee & f32x8::from(visible).cmp_gt(zero);
+        // Lambert's pdf (wo is above the surface) and the power heuristic.
+        let bsdf_pdf = wi_local[2].max(zero) * splat(INV_PI);
+        let (a, b) = (light_pdf * light_pdf, bsdf_pdf * bsdf_pdf);
+        let w = (a + b).cmp_eq(zero).blend(zero, a / (a + b));
+        let scale = wi_local[2] * w / light_pdf;
+        let le = x8(&self.light_le);
+        for k in 0..3 {
+            l[k] = nee.blend(l[k] + beta[k] * f[k] * le[k] * scale, l[k]);
+        }
+
+        // The cosine-weighted direction (`warp::cosine_hemisphere`).
+        let ox = splat(2.0) * f32x8::from(self.u_bsdf[0]) - one;
+        let oy = splat(2.0) * f32x8::from(self.u_bsdf[1]) - one;
+        let centre = ox.cmp_eq(zero) & oy.cmp_eq(zero);
+        let x_major = ox.abs().cmp_gt(oy.abs());
+        let ratio = x_major.blend(oy, ox) / x_major.blend(ox, oy);
+        let (sin, cos) = warp::sin_cos_quarter_x8(splat(PI / 4.0) * ratio);
+        let r = x_major.blend(ox, oy);
+        let dx = centre.blend(zero, r * x_major.blend(cos, sin));
+        let dy = centre.blend(zero, r * x_major.blend(sin, cos));
+        let z = (one - dx * dx - dy * dy).max(zero).sqrt();
+        let bsdf_pdf = z.max(zero) * splat(INV_PI);
+        let wi_world: [f32x8; 3] =
+            std::array::from_fn(|k| fr[0][k] * dx + fr[1][k] * dy + fr[2][k] * z);
+        let mut go = live & z.cmp_gt(zero) & !dot(&ng, &wi_world).cmp_le(zero);
+        for k in 0..3 {
+            beta[k] *= rho[k];
+        }
+        let beta_max = beta[0].max(beta[1].max(beta[2]));
+        let finite = beta
+            .iter()
+            .fold(go, |m, c| m & c.abs().cmp_lt(splat(f32::INFINITY)));
+        go = finite & !beta_max.cmp_le(zero);
+        // Russian roulette.
+        let q = (one - beta_max).max(splat(0.05));
+        let rr = f32x8::from(self.rr).cmp_gt(zero);
+        go &= !(rr & f32x8::from(self.u_rr).cmp_lt(q));
+        let keep = one - q;
+        for c in beta.iter_mut() {
+            *c = rr.blend(*c / keep, *c);
+        }
+        let next_o = offset_origin(&p, &ng, &wi_world);
+
+        let go = go.move_mask();
+        let (l, beta) = (l.map(|c| c.to_array()), beta.map(|c| c.to_array()));
+        let (next_o, next_d) = (next_o.map(|c| c.to_array()), wi_world.map(|c| c.to_array()));
+        let bsdf_pdf = bsdf_pdf.to_array();
+        for j in 0..self.n {
+            let slot = &mut lanes[self.lane[j]];
+            let Some(lane) = slot else { continue };
+            lane.st.l = Vec3::new(l[0][j], l[1][j], l[2][j]);
+            if go & (1 << j) == 0 {
+                finish(slot, results);
+                continue;
+            }
+            lane.st.beta = Vec3::new(beta[0][j], beta[1][j], beta[2][j]);
+            lane.st.prev_pdf = Some(bsdf_pdf[j]);
+            lane.st.ray = Ray::new(
+                Vec3::new(next_o[0][j], next_o[1][j], next_o[2][j]),
+                Vec3::new(next_d[0][j], next_d[1][j], next_d[2][j]),
+            );
+        }
+    }
+}
