@@ -10,7 +10,7 @@
 //! half has twice the variance of the whole; their difference four times).
 
 use super::cache::GroupCache;
-use crate::math::{Rgb, Vec3, PI};
+use crate::math::{exp_neg, Rgb, Vec3, PI};
 use crate::scene::WardVariant;
 use rayon::prelude::*;
 
@@ -62,7 +62,7 @@ pub fn ward_with_derivatives(
     let hz2 = h.z * h.z;
     let a2 = hx * hx / (ax * ax * hz2);
     let b2 = hy * hy / (ay * ay * hz2);
-    let e = (-(a2 + b2)).exp();
+    let e = exp_neg(a2 + b2);
     let g = match variant {
         WardVariant::Ward1992 => e / (4.0 * PI * ax * ay * (wi.z * wo.z).sqrt()),
         WardVariant::Balanced => e * h.length_squared() / (PI * ax * ay * hz2 * hz2),

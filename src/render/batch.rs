@@ -49,6 +49,8 @@ pub fn render_pixels(
     let mut next = 0usize;
     // The sampler of the pixel whose samples are being handed out (items go pixel by pixel).
     let (mut template_x, mut template) = (usize::MAX, Sampler::new(seed, 0));
+    // Lanes past `diffuse.n` hold stale values; every use of them is masked.
+    let mut diffuse = DiffuseLanes::default();
     loop {
         for lane in lanes.iter_mut().filter(|l| l.is_none()) {
             if next == total {
@@ -72,11 +74,16 @@ pub fn render_pixels(
         if lanes.iter().all(Option::is_none) {
             break;
         }
-        // Every lane arrives; Lambert vertices gather into `diffuse`, the rest scatter alone.
-        let mut diffuse = DiffuseLanes::default();
-        for (i, slot) in lanes.iter_mut().enumerate() {
+        // Every lane's ray is traced, then every lane arrives; Lambert vertices gather into
+        // `diffuse`, the rest scatter alone.
+        let hits: [_; LANES] = std::array::from_fn(|i| {
+            lanes[i]
+                .as_ref()
+                .and_then(|lane| pt.scene.intersect(&lane.st.ray, f32::INFINITY))
+        });
+        diffuse.n = 0;
+        for ((i, slot), hit) in lanes.iter_mut().enumerate().zip(hits) {
             let Some(lane) = slot else { continue };
-            let hit = pt.scene.intersect(&lane.st.ray, f32::INFINITY);
             let alive = match pt.arrive(&mut lane.st, hit) {
                 None => false,
                 Some(v) => match v.bsdf {

@@ -20,7 +20,7 @@
 //!
 //! All values here are per unit ρs: the caller multiplies by ρs (the fitter relies on that).
 
-use crate::math::{Vec2, Vec3, PI};
+use crate::math::{exp_neg, Vec2, Vec3, PI};
 use crate::scene::WardVariant;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -45,7 +45,7 @@ impl WardLobe {
             return 0.0;
         }
         let h = wi + wo;
-        let e = (-self.exponent(h)).exp();
+        let e = exp_neg(self.exponent(h));
         match self.variant {
             WardVariant::Ward1992 => {
                 e / (4.0 * PI * self.alpha_x * self.alpha_y * (wi.z * wo.z).sqrt())
@@ -65,7 +65,7 @@ impl WardLobe {
         }
         let h = (wi + wo).normalize();
         let cos_d = h.z;
-        let e = (-self.exponent(h)).exp();
+        let e = exp_neg(self.exponent(h));
         e / (PI * self.alpha_x * self.alpha_y * cos_d * cos_d * cos_d * 4.0 * wo.dot(h).abs())
     }
 
