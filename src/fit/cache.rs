@@ -15,6 +15,7 @@
 //!
 //! Samples are split into two halves (even and odd sample index) to measure the noise floor.
 
+use super::objective::HalfVector;
 use crate::geometry::{offset_origin, Ray};
 use crate::math::{Rgb, Sampler, Vec2, Vec3, INV_PI};
 use crate::render::integrator::facing;
@@ -50,12 +51,21 @@ impl Default for CacheOptions {
     }
 }
 
-/// One cached incident sample, in the local shading frame of its hit (unrotated by θ).
+/// One cached incident sample: the half vector of its directions in the local shading frame of
+/// its hit (unrotated by θ), as the lobe's evaluation needs it, and its radiance weight.
 #[derive(Clone, Copy, Debug)]
 pub struct Sample {
-    pub wo: Vec3,
-    pub wi: Vec3,
+    pub half: HalfVector,
     pub c: Rgb,
+}
+
+impl Sample {
+    pub fn new(wo: Vec3, wi: Vec3, c: Rgb) -> Sample {
+        Sample {
+            half: HalfVector::new(wo, wi),
+            c,
+        }
+    }
 }
 
 /// One cached pixel.
@@ -241,11 +251,7 @@ pub fn build(
                 }
                 d_half[half] += c * INV_PI;
                 if needs.lobe_samples {
-                    samples[half].push(Sample {
-                        wo,
-                        wi: frame.to_local(wi_world),
-                        c,
-                    });
+                    samples[half].push(Sample::new(wo, frame.to_local(wi_world), c));
                 }
             }
             let mut mirror_half = [Rgb::ZERO; 2];

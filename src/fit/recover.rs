@@ -622,11 +622,11 @@ emission = 5.0
             end: 2 * i + 2,
             tile: i % 4,
         };
-        let sample = Sample {
-            wo: Vec3::new(0.1, 0.2, 0.97).normalize(),
-            wi: Vec3::new(-0.1, -0.2, 0.97).normalize(),
-            c: Rgb::splat(0.5),
-        };
+        let sample = Sample::new(
+            Vec3::new(0.1, 0.2, 0.97).normalize(),
+            Vec3::new(-0.1, -0.2, 0.97).normalize(),
+            Rgb::splat(0.5),
+        );
         for poison in [f32::NAN, f32::INFINITY, f32::MAX] {
             let mut pixels: Vec<CachePixel> = (0..16).map(|i| good(i, Rgb::splat(0.25))).collect();
             pixels[3].photo = Rgb::new(poison, 0.2, 0.2);
