@@ -5,6 +5,7 @@ mod common;
 mod export;
 mod fuzz_replay;
 mod geometry;
+mod low_resolution;
 mod photo;
 mod recover;
 mod render_physics;

@@ -323,6 +323,7 @@ mod tests {
             object,
             mirror_object: vec![-1; w * h],
             mirror_group: vec![-1; w * h],
+            normal: vec![crate::math::Vec3::new(0.0, 0.0, -1.0); w * h],
         };
         let mut img = Image::new(w, h);
         for (i, c) in img.data.iter_mut().enumerate() {

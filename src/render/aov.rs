@@ -5,7 +5,7 @@
 use super::integrator::facing;
 use crate::geometry::{offset_origin, Ray};
 use crate::io::image::Image;
-use crate::math::{reflect, Rgb, Vec2};
+use crate::math::{reflect, Rgb, Vec2, Vec3};
 use crate::scene::{Camera, Scene};
 use rayon::prelude::*;
 
@@ -19,6 +19,10 @@ pub struct IndexBuffers {
     /// What the pixel's ray hits after one mirror reflection about the shading normal.
     pub mirror_object: Vec<i32>,
     pub mirror_group: Vec<i32>,
+    /// The shading normal on the viewer's side (zero where the pixel sees nothing): where it
+    /// turns sharply inside one object (a box's edges) the photo has an edge the ids do not
+    /// show (`photo::register`).
+    pub normal: Vec<Vec3>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -36,13 +40,13 @@ pub enum Aov {
 /// Renders the index buffers through `camera`: one ray through each pixel centre.
 pub fn index_buffers(scene: &Scene, camera: &Camera) -> IndexBuffers {
     let (w, h) = (camera.width as usize, camera.height as usize);
-    let ids: Vec<[i32; 4]> = (0..w * h)
+    let ids: Vec<([i32; 4], Vec3)> = (0..w * h)
         .into_par_iter()
         .map(|i| {
             let film = Vec2::new((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
             let ray = camera.ray(film);
             let Some(hit) = scene.intersect(&ray, f32::INFINITY) else {
-                return [-1; 4];
+                return ([-1; 4], Vec3::ZERO);
             };
             let obj = hit.object as i32;
             let grp = scene.objects[hit.object as usize].group as i32;
@@ -59,16 +63,17 @@ pub fn index_buffers(scene: &Scene, camera: &Camera) -> IndexBuffers {
             } else {
                 (-1, -1)
             };
-            [obj, grp, mo, mg]
+            ([obj, grp, mo, mg], frame.n)
         })
         .collect();
     IndexBuffers {
         width: w,
         height: h,
-        object: ids.iter().map(|v| v[0]).collect(),
-        group: ids.iter().map(|v| v[1]).collect(),
-        mirror_object: ids.iter().map(|v| v[2]).collect(),
-        mirror_group: ids.iter().map(|v| v[3]).collect(),
+        object: ids.iter().map(|v| v.0[0]).collect(),
+        group: ids.iter().map(|v| v.0[1]).collect(),
+        mirror_object: ids.iter().map(|v| v.0[2]).collect(),
+        mirror_group: ids.iter().map(|v| v.0[3]).collect(),
+        normal: ids.iter().map(|v| v.1).collect(),
     }
 }
 
