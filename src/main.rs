@@ -66,7 +66,7 @@ enum Command {
         #[arg(short, long, default_value = "out/demo")]
         output: PathBuf,
         /// Samples per pixel of the photo.
-        #[arg(long, default_value_t = 512)]
+        #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..))]
         photo_spp: u32,
         /// Add relative Gaussian noise of this standard deviation to the photo (0.01 = 1%).
         #[arg(long, default_value_t = 0.0)]

@@ -168,7 +168,18 @@ fn photo_options_out_of_range() {
         a.extend(extra);
         a.into_iter().map(String::from).collect::<Vec<_>>()
     };
-    let cases: [(Vec<String>, &[&str]); 5] = [
+    let demo = [
+        "demo",
+        "--scene",
+        "scene.toml",
+        "-o",
+        "d",
+        "--photo-spp",
+        "0",
+    ];
+    let demo: Vec<String> = demo.into_iter().map(String::from).collect();
+    let cases: [(Vec<String>, &[&str]); 6] = [
+        (demo, &["--photo-spp", "0"]),
         (
             inspect(&["--exposure=-2"]),
             &["exposure must be positive", "-2"],

@@ -1,5 +1,5 @@
-//! The path tracer of `integrator.rs`, eight paths at a time: what a render spends most of its
-//! time on — next-event estimation and cosine sampling at diffuse surfaces — runs on eight
+//! The path tracer of `integrator.rs`, eight paths at a time: the shading arithmetic of the
+//! path loop — next-event estimation and cosine sampling at diffuse surfaces — runs on eight
 //! lanes of one SIMD register (AVX), as a wavefront renderer does (Laine, Karras & Aila 2013,
 //! "Megakernels considered harmful: wavefront path tracing on GPUs"; Mitsuba 3's `llvm`
 //! variants vectorise their whole path loop the same way). Ray traversal stays one ray at a
@@ -14,6 +14,11 @@
 //!
 //! Lanes that finish a path take the next (pixel, sample) of the batch's list at once, so the
 //! eight lanes stay busy until the list runs out.
+//!
+//! Measured (figure6 with a diffuse floor, 256×192, 16 spp, 1 thread, medians of 15 runs taken
+//! in turns): 0.663 s → 0.586 s. Ray traversal, untouched, is now two thirds of the time. With
+//! figure6's glossy floor (scalar on the first bounce) the gain is a few percent. Sending fewer
+//! than three Lambert lanes through the scalar code instead measured no better.
 
 use super::bsdf::Bsdf;
 use super::integrator::{PathState, PathTracer, Vertex};
@@ -32,7 +37,7 @@ struct Lane {
 }
 
 /// Renders pixels `x0..x0 + out.len()` of row `y` of `camera`'s image: `out[i]` is the mean of
-/// pixel x0 + i's `spp` samples, the value `film::render_pixel` gives.
+/// pixel x0 + i's `spp` samples (at least one), the value `film::render_pixel` gives.
 pub fn render_pixels(
     pt: &PathTracer,
     camera: &Camera,
@@ -42,6 +47,7 @@ pub fn render_pixels(
     seed: u64,
     out: &mut [Rgb],
 ) {
+    let spp = spp.max(1);
     let spp_n = spp as usize;
     let total = out.len() * spp_n;
     let mut results = vec![Rgb::ZERO; total];

@@ -35,18 +35,19 @@ pub fn progress_bar(len: u64, what: &str, show: bool) -> ProgressBar {
     pb
 }
 
-/// Renders the scene through `camera` (normally `scene.camera`).
+/// Renders the scene through `camera` (normally `scene.camera`), at least one sample per pixel.
 pub fn render(scene: &Scene, camera: &Camera, opts: &RenderOptions) -> Image {
     let pt = PathTracer::new(scene);
+    let spp = opts.spp.max(1);
     let (w, h) = (camera.width as usize, camera.height as usize);
     let mut img = Image::new(w, h);
     let pb = progress_bar(h as u64, "render", opts.progress);
     // Pixels go to the batch integrator a run at a time, at most ~2^16 samples per run (the
     // size of its buffer of per-sample values).
-    let run = (65_536 / opts.spp.max(1) as usize).clamp(1, w.max(1));
+    let run = (65_536 / spp as usize).clamp(1, w.max(1));
     img.data.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         for (k, pixels) in row.chunks_mut(run).enumerate() {
-            batch::render_pixels(&pt, camera, y, k * run, opts.spp, opts.seed, pixels);
+            batch::render_pixels(&pt, camera, y, k * run, spp, opts.seed, pixels);
         }
         pb.inc(1);
     });
