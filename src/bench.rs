@@ -81,3 +81,55 @@ pub fn rays(scene: &Scene, triangles: usize, repeat: usize) {
         100.0 * hit_frac
     );
 }
+
+/// One thread's cost per ray (ns, median of `repeat` passes) of closest-hit queries with the
+/// hit record (`Scene::intersect`), of the BVH query alone, and of shadow queries, on the rays
+/// of `path`: little-endian f32 records (origin xyz, direction xyz, shadow-ray length).
+/// `bench/rays.py` writes such a file and times Mitsuba 3 on the same rays.
+pub fn ray_file(scene: &Scene, path: &std::path::Path, repeat: usize) -> anyhow::Result<()> {
+    let bytes = std::fs::read(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    if bytes.is_empty() || bytes.len() % 28 != 0 {
+        anyhow::bail!(
+            "{}: {} bytes is not a whole number of 28-byte ray records",
+            path.display(),
+            bytes.len()
+        );
+    }
+    let f: Vec<f32> = bytes
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    let rays: Vec<(Ray, f32)> = f
+        .chunks_exact(7)
+        .map(|r| {
+            let ray = Ray::new(Vec3::new(r[0], r[1], r[2]), Vec3::new(r[3], r[4], r[5]));
+            (ray, r[6])
+        })
+        .collect();
+    let time = |f: &dyn Fn(&Ray, f32) -> u32| {
+        let runs = (0..repeat.max(1))
+            .map(|_| {
+                let t = Instant::now();
+                let n: u32 = rays.iter().map(|(r, len)| f(r, *len)).sum();
+                std::hint::black_box(n);
+                t.elapsed().as_secs_f64() * 1e9 / rays.len() as f64
+            })
+            .collect();
+        median(runs)
+    };
+    let closest = time(&|r, _| u32::from(scene.intersect(r, f32::INFINITY).is_some()));
+    let bvh = time(&|r, _| u32::from(scene.geometry.bvh.intersect(r, f32::INFINITY).is_some()));
+    let shadow = time(&|r, len| u32::from(scene.occluded(r, len)));
+    let hits = rays
+        .iter()
+        .filter(|(r, _)| scene.intersect(r, f32::INFINITY).is_some())
+        .count();
+    println!(
+        "{} rays from {}, 1 thread, median of {repeat}: closest hit with hit record {closest:.1} ns, \
+         BVH query alone {bvh:.1} ns, shadow {shadow:.1} ns ({:.1}% hit)",
+        rays.len(),
+        path.display(),
+        100.0 * hits as f64 / rays.len() as f64
+    );
+    Ok(())
+}

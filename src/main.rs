@@ -165,6 +165,11 @@ enum BenchCommand {
         /// Repetitions (the median is reported).
         #[arg(long, default_value_t = 5)]
         repeat: usize,
+        /// Instead: time one thread's closest-hit and shadow queries on the rays of this file
+        /// (little-endian f32 records: origin xyz, direction xyz, shadow-ray length; written
+        /// by bench/rays.py, which times Mitsuba 3 on the same rays).
+        #[arg(long)]
+        ray_file: Option<PathBuf>,
     },
 }
 
@@ -374,9 +379,13 @@ fn run(cmd: Command) -> Result<()> {
                 scene,
                 triangles,
                 repeat,
+                ray_file,
             } => {
                 let sc = load_scene(&scene).with_context(|| "loading the benchmark scene")?;
-                matfit::bench::rays(&sc, triangles, repeat);
+                match ray_file {
+                    Some(f) => matfit::bench::ray_file(&sc, &f, repeat)?,
+                    None => matfit::bench::rays(&sc, triangles, repeat),
+                }
                 Ok(())
             }
         },
