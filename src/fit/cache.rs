@@ -18,7 +18,9 @@
 use super::objective::HalfVector;
 use crate::geometry::{offset_origin, Ray};
 use crate::math::{Rgb, Sampler, Vec2, Vec3, INV_PI};
+use crate::render::batch::{trace_jobs, Job};
 use crate::render::integrator::facing;
+use crate::render::integrator::PathState;
 use crate::render::PathTracer;
 use crate::scene::Scene;
 use rayon::prelude::*;
@@ -66,6 +68,18 @@ impl Sample {
             c,
         }
     }
+}
+
+/// A cache sample on its way: its half, directions in the local frame, and its weight `c`, or
+/// for an indirect sample (`path`) the index of its path among the pixel's jobs, the emission
+/// seen at the path's first hit (MIS-weighted) and the factor cos θi / (pdf · n) of its
+/// radiance.
+struct Entry {
+    half: usize,
+    wo: Vec3,
+    wi: Vec3,
+    c: Rgb,
+    path: Option<(usize, Option<Rgb>, f32)>,
 }
 
 /// One cached pixel.
@@ -188,6 +202,10 @@ pub fn build(
             // split by index parity would not be independent estimates of the same integral.
             let (hl, hi) = (nl.div_ceil(2), ni.div_ceil(2));
             let (nl, ni) = (2 * hl, 2 * hi);
+            // Every sample up to its indirect path; the paths, eight at a time; then the
+            // samples in their order (so the sums are the same to the bit as one by one).
+            let mut entries: Vec<Entry> = Vec::new();
+            let mut jobs: Vec<Job> = Vec::new();
             for (half, k) in (0..2usize).flat_map(|h| (0..hl + hi).map(move |k| (h, k))) {
                 let mut sampler = Sampler::new(seed ^ (0x9E37_79B9 * (half as u64 + 1)), p as u64);
                 sampler.start_sample(k);
@@ -204,7 +222,7 @@ pub fn build(
                 let wo_world = -ray.d;
                 let (frame, ng) = facing(hit.frame, hit.ng, wo_world);
                 let wo = frame.to_local(wo_world);
-                let (wi_world, c) = if k < hl {
+                if k < hl {
                     // Next-event estimation, MIS-weighted against the mixture.
                     let Some(ls) = pt.lights.sample(hit.p, &mut sampler) else {
                         continue;
@@ -221,7 +239,13 @@ pub fn build(
                     }
                     let pm = super::mixture::pdf(wo, wi, cw);
                     let w_l = nl as f32 * ls.pdf / (nl as f32 * ls.pdf + ni as f32 * pm);
-                    (ls.wi, ls.radiance * (wi.z * w_l / (ls.pdf * nl as f32)))
+                    entries.push(Entry {
+                        half,
+                        wo,
+                        wi: frame.to_local(ls.wi),
+                        c: ls.radiance * (wi.z * w_l / (ls.pdf * nl as f32)),
+                        path: None,
+                    });
                 } else {
                     let Some(wi) = super::mixture::sample(wo, &mut sampler, cw) else {
                         continue;
@@ -235,23 +259,49 @@ pub fn build(
                     // Emission at the first hit, MIS-weighted against light sampling; the rest
                     // of the path as the path tracer computes it.
                     let h2 = scene.intersect(&r, f32::INFINITY);
-                    let mut li = pt.trace_from(r, h2, &mut sampler, 1, false);
+                    let mut emitted = None;
                     if let Some(h2) = h2 {
                         let o2 = &scene.objects[h2.object as usize];
                         if o2.is_emitter() && h2.ng.dot(-wi_world) > 0.0 {
                             let pl = pt.lights.pdf(h2.prim, h2.t, wi_world, h2.ng);
                             let w_b = ni as f32 * pm / (nl as f32 * pl + ni as f32 * pm);
-                            li += o2.emission * w_b;
+                            emitted = Some(o2.emission * w_b);
                         }
                     }
-                    (wi_world, li * (wi.z / (pm * ni as f32)))
+                    entries.push(Entry {
+                        half,
+                        wo,
+                        wi: frame.to_local(wi_world),
+                        c: Rgb::ZERO,
+                        path: Some((jobs.len(), emitted, wi.z / (pm * ni as f32))),
+                    });
+                    jobs.push(Job {
+                        st: PathState::new(r, 1, false),
+                        hit: Some(h2),
+                        sampler,
+                    });
+                }
+            }
+            let mut traced = vec![Rgb::ZERO; jobs.len()];
+            let mut jobs = jobs.into_iter();
+            trace_jobs(pt, || jobs.next(), |i, l| traced[i] = l);
+            for e in entries {
+                let c = match e.path {
+                    None => e.c,
+                    Some((job, emitted, scale)) => {
+                        let mut li = traced[job];
+                        if let Some(le) = emitted {
+                            li += le;
+                        }
+                        li * scale
+                    }
                 };
                 if !(c.is_finite()) || c.max_element() <= 0.0 {
                     continue;
                 }
-                d_half[half] += c * INV_PI;
+                d_half[e.half] += c * INV_PI;
                 if needs.lobe_samples {
-                    samples[half].push(Sample::new(wo, frame.to_local(wi_world), c));
+                    samples[e.half].push(Sample::new(e.wo, e.wi, c));
                 }
             }
             let mut mirror_half = [Rgb::ZERO; 2];

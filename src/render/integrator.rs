@@ -90,7 +90,7 @@ pub fn facing(frame: Frame, ng: Vec3, wo: Vec3) -> (Frame, Vec3) {
 /// A path in flight: its current ray, throughput, radiance gathered so far, and what the MIS
 /// weight of emission at its next hit needs.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct PathState {
+pub struct PathState {
     pub ray: Ray,
     pub beta: Rgb,
     pub l: Rgb,
