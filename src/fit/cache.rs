@@ -70,16 +70,24 @@ impl Sample {
     }
 }
 
-/// A cache sample on its way: its half, directions in the local frame, and its weight `c`, or
-/// for an indirect sample (`path`) the index of its path among the pixel's jobs, the emission
-/// seen at the path's first hit (MIS-weighted) and the factor cos θi / (pdf · n) of its
-/// radiance.
+/// A cache sample on its way: its half, directions in the local frame, and its weight.
 struct Entry {
     half: usize,
     wo: Vec3,
     wi: Vec3,
-    c: Rgb,
-    path: Option<(usize, Option<Rgb>, f32)>,
+    weight: Weight,
+}
+
+/// A cache sample's weight: known (next-event estimation), or waiting for its indirect path.
+enum Weight {
+    Known(Rgb),
+    /// The index of the path among the pixel's jobs, the emission seen at the path's first hit
+    /// (MIS-weighted), and the factor cos θi / (pdf · n) of the path's radiance.
+    Path {
+        job: usize,
+        emitted: Option<Rgb>,
+        scale: f32,
+    },
 }
 
 /// One cached pixel.
@@ -243,8 +251,7 @@ pub fn build(
                         half,
                         wo,
                         wi: frame.to_local(ls.wi),
-                        c: ls.radiance * (wi.z * w_l / (ls.pdf * nl as f32)),
-                        path: None,
+                        weight: Weight::Known(ls.radiance * (wi.z * w_l / (ls.pdf * nl as f32))),
                     });
                 } else {
                     let Some(wi) = super::mixture::sample(wo, &mut sampler, cw) else {
@@ -272,8 +279,11 @@ pub fn build(
                         half,
                         wo,
                         wi: frame.to_local(wi_world),
-                        c: Rgb::ZERO,
-                        path: Some((jobs.len(), emitted, wi.z / (pm * ni as f32))),
+                        weight: Weight::Path {
+                            job: jobs.len(),
+                            emitted,
+                            scale: wi.z / (pm * ni as f32),
+                        },
                     });
                     jobs.push(Job {
                         st: PathState::new(r, 1, false),
@@ -286,9 +296,13 @@ pub fn build(
             let mut jobs = jobs.into_iter();
             trace_jobs(pt, || jobs.next(), |i, l| traced[i] = l);
             for e in entries {
-                let c = match e.path {
-                    None => e.c,
-                    Some((job, emitted, scale)) => {
+                let c = match e.weight {
+                    Weight::Known(c) => c,
+                    Weight::Path {
+                        job,
+                        emitted,
+                        scale,
+                    } => {
                         let mut li = traced[job];
                         if let Some(le) = emitted {
                             li += le;

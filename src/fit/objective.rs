@@ -171,21 +171,6 @@ fn lobe_sums(samples: &[Sample], p: &LobeParams, derivatives: bool) -> (Rgb, [Rg
     (s, ds)
 }
 
-/// [`ward_at`] for one pair of directions (tests; the fit precomputes the half vectors).
-pub fn ward_with_derivatives(
-    wo: Vec3,
-    wi: Vec3,
-    ax: f32,
-    ay: f32,
-    theta: f32,
-    variant: WardVariant,
-) -> (f32, [f32; 3]) {
-    ward_at(
-        &HalfVector::new(wo, wi),
-        &LobeParams::new(ax, ay, theta, variant),
-    )
-}
-
 /// The specular term of every cached pixel (derivatives only if asked and the term is a lobe).
 pub fn pixel_specs(
     cache: &GroupCache,
@@ -300,6 +285,21 @@ pub fn error(cache: &GroupCache, specs: &[PixelSpec], rho_d: Rgb, rho_s: Rgb) ->
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`ward_at`] for one pair of directions (the fit precomputes the half vectors).
+    fn ward_with_derivatives(
+        wo: Vec3,
+        wi: Vec3,
+        ax: f32,
+        ay: f32,
+        theta: f32,
+        variant: WardVariant,
+    ) -> (f32, [f32; 3]) {
+        ward_at(
+            &HalfVector::new(wo, wi),
+            &LobeParams::new(ax, ay, theta, variant),
+        )
+    }
 
     #[test]
     fn eight_lane_lobe_sums_match_the_one_sample_lobe() {

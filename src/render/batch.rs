@@ -150,15 +150,9 @@ pub fn render_pixels(
         })
     };
     trace_jobs(pt, jobs, |i, l| results[i] = l);
-    // Sums in sample order, dropping non-finite samples, as `render_pixel`.
+    // Sums in sample order, as `render_pixel`.
     for (px, samples) in out.iter_mut().zip(results.chunks(spp_n)) {
-        let mut sum = Rgb::ZERO;
-        for l in samples {
-            if l.is_finite() {
-                sum += *l;
-            }
-        }
-        *px = sum / spp as f32;
+        *px = super::film::pixel_mean(samples.iter().copied(), spp);
     }
 }
 

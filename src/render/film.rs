@@ -66,11 +66,19 @@ pub fn render_pixel(
     seed: u64,
 ) -> Rgb {
     let mut sampler = Sampler::new(seed, (y * camera.width as usize + x) as u64);
-    let mut sum = Rgb::ZERO;
-    for s in 0..spp {
+    let samples = (0..spp).map(|s| {
         sampler.start_sample(s);
         let film = Vec2::new(x as f32, y as f32) + sampler.next_2d();
-        let l = pt.li(camera.ray(film), &mut sampler);
+        pt.li(camera.ray(film), &mut sampler)
+    });
+    pixel_mean(samples, spp)
+}
+
+/// A pixel's value from its `spp` samples, summed in the order given; non-finite samples are
+/// dropped (and would be a bug).
+pub(super) fn pixel_mean(samples: impl IntoIterator<Item = Rgb>, spp: u32) -> Rgb {
+    let mut sum = Rgb::ZERO;
+    for l in samples {
         if l.is_finite() {
             sum += l;
         }
