@@ -127,8 +127,9 @@ mod tests {
     use crate::math::{Rgb, Vec3};
 
     /// A wall (object 0) around a box (object 1, columns 10..30, rows 10..) whose lit top face
-    /// is 3 px tall above its dark front face, as figure6's blocks are at 128×96: a strong photo edge where the box's faces
-    /// meet, three pixels below the outline. The photo is exactly where the model is.
+    /// is 3 px tall above its dark front face, as figure6's blocks are at 128×96: a strong
+    /// photo edge where the box's faces meet, three pixels below the outline. The photo is
+    /// exactly where the model is.
     fn box_below_wall() -> (IndexBuffers, Photo) {
         let (w, h) = (40, 30);
         let up = Vec3::new(0.0, 1.0, 0.0);
@@ -177,7 +178,7 @@ mod tests {
     }
 
     /// With only the id boundaries the outline was pulled onto the crease (a vertical shift of
-    /// about 2 px); with the creases among the model's edges the aligned photo stays aligned.
+    /// 3.06 px); with the creases among the model's edges the aligned photo stays aligned.
     #[test]
     fn a_crease_near_an_outline_does_not_pull_the_registration() {
         let (ib, photo) = box_below_wall();
