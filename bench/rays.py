@@ -84,13 +84,17 @@ def main():
                              text=True).stdout
         num = lambda key: float(re.search(key + r" ([0-9.]+) ns", out).group(1))  # noqa: E731
         mf_full, mf_bvh, mf_shadow = (num("hit record"), num("BVH query alone"), num("shadow"))
+        m8 = re.search(r"packets of 8: BVH query ([0-9.]+) ns, shadow ([0-9.]+) ns", out)
+        mf_bvh8, mf_shadow8 = float(m8.group(1)), float(m8.group(2))
 
     print(f"{n} rays in figure6 (diffuse floor), 1 thread, ns per ray (median of {a.repeat})\n")
     print("| query | matfit | Mitsuba 3 llvm_ad_rgb (Embree) | matfit / Mitsuba |")
     print("|---|---:|---:|---:|")
     for name, m, s in [("closest hit + hit record", mf_full, mi_full),
                        ("closest hit, BVH query alone", mf_bvh, mi_pre),
-                       ("shadow ray (any hit), half the hit distance", mf_shadow, mi_test)]:
+                       ("shadow ray (any hit), half the hit distance", mf_shadow, mi_test),
+                       ("closest hit, BVH query alone, packets of 8", mf_bvh8, mi_pre),
+                       ("shadow ray, packets of 8", mf_shadow8, mi_test)]:
         print(f"| {name} | {m:.1f} | {s:.1f} | {m / s:.2f} |")
 
 

@@ -1,6 +1,7 @@
 //! Benchmarks run by `matfit bench`: figures for the issue notes, measured on the machine at
 //! hand, reported as medians of several repetitions.
 
+use crate::geometry::packet::{Packet, LANES};
 use crate::geometry::{shapes, Bvh, Ray};
 use crate::math::{Vec2, Vec3};
 use crate::scene::{Camera, Scene};
@@ -118,15 +119,46 @@ pub fn ray_file(scene: &Scene, path: &std::path::Path, repeat: usize) -> anyhow:
         median(runs)
     };
     let closest = time(&|r, _| u32::from(scene.intersect(r, f32::INFINITY).is_some()));
-    let bvh = time(&|r, _| u32::from(scene.geometry.bvh.intersect(r, f32::INFINITY).is_some()));
+    let bvh_one = time(&|r, _| u32::from(scene.geometry.bvh.intersect(r, f32::INFINITY).is_some()));
     let shadow = time(&|r, len| u32::from(scene.occluded(r, len)));
+    // The same queries eight rays at a time (`geometry::packet`), in the file's order.
+    let packets = |shadow: bool| -> Vec<Packet> {
+        rays.chunks(LANES)
+            .map(|c| {
+                let idle = (Ray::new(Vec3::ZERO, Vec3::Z), 0.0);
+                let lane = |i: usize| c.get(i).copied().unwrap_or(idle);
+                Packet::new(
+                    std::array::from_fn(|i| lane(i).0),
+                    std::array::from_fn(|i| if shadow { lane(i).1 } else { f32::INFINITY }),
+                    (1u32 << c.len()) - 1,
+                )
+            })
+            .collect()
+    };
+    let time8 = |packets: &[Packet], f: &dyn Fn(&Packet) -> u32| {
+        let runs = (0..repeat.max(1))
+            .map(|_| {
+                let t = Instant::now();
+                let n: u32 = packets.iter().map(f).sum();
+                std::hint::black_box(n);
+                t.elapsed().as_secs_f64() * 1e9 / rays.len() as f64
+            })
+            .collect();
+        median(runs)
+    };
+    let tree = &scene.geometry.bvh;
+    let bvh8 = time8(&packets(false), &|p| {
+        tree.intersect8(p).iter().flatten().count() as u32
+    });
+    let shadow8 = time8(&packets(true), &|p| tree.occluded8(p).count_ones());
     let hits = rays
         .iter()
         .filter(|(r, _)| scene.intersect(r, f32::INFINITY).is_some())
         .count();
     println!(
         "{} rays from {}, 1 thread, median of {repeat}: closest hit with hit record {closest:.1} ns, \
-         BVH query alone {bvh:.1} ns, shadow {shadow:.1} ns ({:.1}% hit)",
+         BVH query alone {bvh_one:.1} ns, shadow {shadow:.1} ns ({:.1}% hit); packets of 8: \
+         BVH query {bvh8:.1} ns, shadow {shadow8:.1} ns",
         rays.len(),
         path.display(),
         100.0 * hits as f64 / rays.len() as f64

@@ -172,32 +172,50 @@ impl Bvh {
         self.nodes.len()
     }
 
-    /// The closest hit with 0 < t < `t_max`.
+    /// The closest hit with 0 < t < `t_max`. Of triangles hit at the same distance, the one
+    /// with the lowest index: the answer does not depend on the order of traversal, so the
+    /// packet traversal of `packet.rs` gives the same hit to the bit.
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
-        if self.nodes.is_empty() {
-            return None;
+        let mut best = None;
+        if !self.nodes.is_empty() {
+            self.intersect_subtree(0, ray, t_max, &mut best);
         }
+        best
+    }
+
+    /// [`Bvh::intersect`] within the subtree under child reference `start` (a node, or a leaf
+    /// with `LEAF` set), improving on `best`, a hit found elsewhere.
+    pub(super) fn intersect_subtree(
+        &self,
+        start: u32,
+        ray: &Ray,
+        t_max: f32,
+        best: &mut Option<Hit>,
+    ) {
         let slab = SlabRay::new(ray);
         let sh = RayShear::new(ray.d);
-        let mut best: Option<Hit> = None;
-        let mut t_best = t_max;
+        let mut t_best = best.map_or(t_max, |b| b.t);
         let mut stack = Stack::new();
-        let mut node = 0u32;
+        let mut node = start;
         loop {
             if node & LEAF != 0 {
                 let block = (node & !LEAF) as usize;
-                if let Some((lane, t, b1, b2)) = intersect4(ray.o, &sh, &self.tris[block], t_best) {
-                    t_best = t;
-                    best = Some(Hit {
-                        t,
-                        prim: self.ids[block][lane],
-                        b1,
-                        b2,
-                    });
+                let h = intersect4(ray.o, &sh, &self.tris[block], t_max);
+                if let Some(i) = h.nearest(&self.ids[block]) {
+                    let prim = self.ids[block][i];
+                    if closer(h.t[i], prim, best) {
+                        t_best = h.t[i];
+                        *best = Some(Hit {
+                            t: t_best,
+                            prim,
+                            b1: h.b1[i],
+                            b2: h.b2[i],
+                        });
+                    }
                 }
             } else {
                 let n = &self.nodes[node as usize];
-                let (t0, mut mask) = slab.hit(n, t_best);
+                let (t0, mut mask) = slab.hit(n, t_best * CULL_SLACK);
                 if mask != 0 {
                     let t0 = t0.to_array();
                     let a = mask.trailing_zeros() as usize;
@@ -242,8 +260,8 @@ impl Bvh {
             // Pop, skipping subtrees entered beyond the closest hit so far.
             loop {
                 match stack.pop() {
-                    None => return best,
-                    Some((n, t0)) if t0 <= t_best => {
+                    None => return,
+                    Some((n, t0)) if t0 <= t_best * CULL_SLACK => {
                         node = n;
                         break;
                     }
@@ -255,20 +273,22 @@ impl Bvh {
 
     /// Whether anything is hit with 0 < t < `t_max` (shadow rays).
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
-        if self.nodes.is_empty() {
-            return false;
-        }
+        !self.nodes.is_empty() && self.occluded_subtree(0, ray, t_max)
+    }
+
+    /// [`Bvh::occluded`] within the subtree under child reference `start`.
+    pub(super) fn occluded_subtree(&self, start: u32, ray: &Ray, t_max: f32) -> bool {
         let slab = SlabRay::new(ray);
         // Most shadow rays in a room reach no leaf (figure6: 0.3 leaf tests per ray), so the
         // triangle test's setup waits for the first leaf.
         let mut sh: Option<RayShear> = None;
         let mut stack = Stack::new();
-        let mut node = 0u32;
+        let mut node = start;
         loop {
             if node & LEAF != 0 {
                 let block = (node & !LEAF) as usize;
                 let sh = sh.get_or_insert_with(|| RayShear::new(ray.d));
-                if intersect4(ray.o, sh, &self.tris[block], t_max).is_some() {
+                if intersect4(ray.o, sh, &self.tris[block], t_max).valid != 0 {
                     return true;
                 }
             } else {
@@ -291,6 +311,21 @@ impl Bvh {
                 Some((n, _)) => node = n,
             }
         }
+    }
+}
+
+/// Boxes are culled against the closest hit so far only beyond `t_best × CULL_SLACK`: a box's
+/// entry distance and a triangle's hit distance are rounded differently, and a triangle hit at
+/// t_best (a tie) must still be found whatever the order of traversal.
+pub(super) const CULL_SLACK: f32 = 1.000_002;
+
+/// Whether a hit at `t` on triangle `prim` replaces `best`: nearer, or as near with a lower
+/// index.
+#[inline(always)]
+pub(super) fn closer(t: f32, prim: u32, best: &Option<Hit>) -> bool {
+    match best {
+        None => true,
+        Some(b) => t < b.t || (t == b.t && prim < b.prim),
     }
 }
 

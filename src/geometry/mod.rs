@@ -4,6 +4,7 @@ pub mod aabb;
 pub mod bvh;
 mod bvh_build;
 pub mod mesh;
+pub mod packet;
 pub mod shapes;
 pub mod triangle;
 

@@ -144,17 +144,56 @@ impl Tri4 {
     }
 }
 
+/// The hits of one ray with the four triangles of a [`Tri4`]: bit i of `valid` says triangle i is
+/// hit with 0 < t < t_max, at distance `t[i]` with barycentrics (`b1[i]`, `b2[i]`).
+#[derive(Clone, Copy, Debug)]
+pub struct Hits4 {
+    pub valid: u32,
+    pub t: [f32; 4],
+    pub b1: [f32; 4],
+    pub b2: [f32; 4],
+}
+
+impl Hits4 {
+    /// The nearest hit lane, of equally near ones the one whose triangle index in `ids` is
+    /// lowest (ties are rare: the search over them is a loop).
+    #[inline(always)]
+    pub fn nearest(&self, ids: &[u32; 4]) -> Option<usize> {
+        if self.valid == 0 {
+            return None;
+        }
+        let inf = f32::INFINITY;
+        let tv: [f32; 4] = std::array::from_fn(|i| {
+            if self.valid & (1 << i) != 0 {
+                self.t[i]
+            } else {
+                inf
+            }
+        });
+        let t_min = tv[0].min(tv[1]).min(tv[2].min(tv[3]));
+        let mut at = f32x4::from(tv).cmp_eq(f32x4::splat(t_min)).move_mask() as u32 & self.valid;
+        let mut lane = at.trailing_zeros() as usize;
+        at &= at.wrapping_sub(1);
+        while at != 0 {
+            let j = at.trailing_zeros() as usize;
+            at &= at - 1;
+            if ids[j] < ids[lane] {
+                lane = j;
+            }
+        }
+        Some(lane)
+    }
+}
+
 /// [`intersect`] for four triangles at once, lane for lane the same arithmetic (the same
-/// numbers to the bit). Returns the closest hit among them with 0 < t < `t_max` as
-/// (lane, t, b1, b2). The rare lanes that sit on an edge in single precision (some u, v, w = 0)
-/// are handed to the scalar test, which redoes them in double precision.
+/// numbers to the bit). The rare lanes that sit on an edge in single precision (some u, v, w =
+/// 0) are handed to the scalar test, which redoes them in double precision.
+///
+/// `t_max` is the ray's own limit, not the closest hit so far: which triangle is closest is the
+/// caller's decision, made on the exact distances, so that a hit does not depend on the order
+/// in which leaves are visited (`bvh.rs`, `packet.rs`).
 #[inline(always)]
-pub fn intersect4(
-    o: Vec3,
-    sh: &RayShear,
-    tri: &Tri4,
-    t_max: f32,
-) -> Option<(usize, f32, f32, f32)> {
+pub fn intersect4(o: Vec3, sh: &RayShear, tri: &Tri4, t_max: f32) -> Hits4 {
     let o = o.to_array();
     let (ox, oy, oz) = (
         f32x4::splat(o[sh.kx]),
@@ -181,7 +220,7 @@ pub fn intersect4(
     let v = ax * cy - ay * cx;
     let w = bx * ay - by * ax;
     let zero = f32x4::ZERO;
-    let on_edge = (u.cmp_eq(zero) | v.cmp_eq(zero) | w.cmp_eq(zero)).move_mask();
+    let on_edge = (u.cmp_eq(zero) | v.cmp_eq(zero) | w.cmp_eq(zero)).move_mask() as u32;
     let outside = (u.cmp_lt(zero) | v.cmp_lt(zero) | w.cmp_lt(zero))
         & (u.cmp_gt(zero) | v.cmp_gt(zero) | w.cmp_gt(zero));
     let det = u + v + w;
@@ -192,35 +231,25 @@ pub fn intersect4(
         | (det.cmp_gt(zero) & t_scaled.cmp_gt(zero) & t_scaled.cmp_le(tmd));
     let inv = f32x4::ONE / det;
     let t = t_scaled * inv;
-    let valid = (in_range & t.cmp_gt(zero)).move_mask() & !outside.move_mask() & !on_edge;
-    let mut best: Option<(usize, f32, f32, f32)> = None;
-    if valid != 0 {
-        let ta = t.to_array();
-        let mut lane = valid.trailing_zeros() as usize;
-        let mut rest = valid & (valid - 1);
-        while rest != 0 {
-            let l = rest.trailing_zeros() as usize;
-            if ta[l] < ta[lane] {
-                lane = l;
-            }
-            rest &= rest - 1;
-        }
-        let (va, wa, ia) = (v.to_array(), w.to_array(), inv.to_array());
-        best = Some((lane, ta[lane], va[lane] * ia[lane], wa[lane] * ia[lane]));
-    }
+    let mut hits = Hits4 {
+        valid: (in_range & t.cmp_gt(zero)).move_mask() as u32
+            & !(outside.move_mask() as u32)
+            & !on_edge,
+        t: t.to_array(),
+        b1: (v * inv).to_array(),
+        b2: (w * inv).to_array(),
+    };
     let mut edge = on_edge;
     while edge != 0 {
         let lane = edge.trailing_zeros() as usize;
         edge &= edge - 1;
         let [p0, p1, p2] = tri.triangle(lane);
-        let limit = best.map_or(t_max, |b| b.1);
-        if let Some((t, b1, b2)) = intersect(Vec3::from_array(o), sh, p0, p1, p2, limit) {
-            if best.is_none_or(|b| t < b.1) {
-                best = Some((lane, t, b1, b2));
-            }
+        if let Some((t, b1, b2)) = intersect(Vec3::from_array(o), sh, p0, p1, p2, t_max) {
+            hits.valid |= 1 << lane;
+            (hits.t[lane], hits.b1[lane], hits.b2[lane]) = (t, b1, b2);
         }
     }
-    best
+    hits
 }
 
 #[cfg(test)]
@@ -264,24 +293,16 @@ mod tests {
             let d = target - o;
             let sh = RayShear::new(d);
             let t_max = if case % 5 == 0 { 0.9 } else { f32::INFINITY };
-            let mut want: Option<(usize, f32, f32, f32)> = None;
-            for (lane, t) in tris.iter().enumerate() {
-                let limit = want.map_or(t_max, |w| w.1);
-                if let Some((t, b1, b2)) = intersect(o, &sh, t[0], t[1], t[2], limit) {
-                    if want.is_none_or(|w| t < w.1) {
-                        want = Some((lane, t, b1, b2));
-                    }
-                }
-            }
             let got = intersect4(o, &sh, &Tri4::new(&tris), t_max);
-            match (got, want) {
-                (None, None) => {}
-                (Some(g), Some(w)) => {
-                    assert_eq!((g.1, g.2, g.3), (w.1, w.2, w.3), "case {case}");
-                    assert!(g.0 == w.0 || tris[g.0] == tris[w.0] || g.1 == w.1);
-                    edge_cases += usize::from(case % 3 != 2);
+            for lane in 0..4 {
+                let t = tris[lane.min(n - 1)];
+                let want = intersect(o, &sh, t[0], t[1], t[2], t_max);
+                let hit = got.valid & (1 << lane) != 0;
+                assert_eq!(hit, want.is_some(), "case {case} lane {lane}");
+                if let Some(w) = want {
+                    assert_eq!((got.t[lane], got.b1[lane], got.b2[lane]), w, "case {case}");
+                    edge_cases += usize::from(case % 3 != 2 && lane == 0);
                 }
-                _ => panic!("case {case}: {got:?} vs {want:?}"),
             }
         }
         assert!(edge_cases > 1000, "{edge_cases}");

@@ -3,7 +3,11 @@
 //! lanes of one SIMD register (AVX), as a wavefront renderer does (Laine, Karras & Aila 2013,
 //! "Megakernels considered harmful: wavefront path tracing on GPUs"; Mitsuba 3's `llvm`
 //! variants vectorise their whole path loop the same way). Ray traversal stays one ray at a
-//! time: rays of different paths rarely share BVH nodes.
+//! time, but for camera rays: `render_pixels` traces them ahead, eight samples of a pixel as
+//! one packet (`geometry::packet`), which walk the same nodes. Rays of different paths rarely
+//! share nodes: packets of the lanes' secondary and shadow rays measured slower (figure6,
+//! 1 thread, 16 spp: 0.638 → 0.753 s; shadow rays alone 0.681 s; git branch
+//! `packet-experiment`), and first-bounce shadow packets no better (within ±2%).
 //!
 //! Each lane runs the scalar integrator's state machine (`PathTracer::arrive`, then `scatter`
 //! or its eight-lane copy here for Lambert surfaces) and draws its random numbers from its own
@@ -20,7 +24,9 @@
 //! Measured (figure6 with a diffuse floor, 256×192, 16 spp, 1 thread, medians of 15 runs taken
 //! in turns): 0.663 s → 0.586 s. Ray traversal, untouched, is now two thirds of the time. With
 //! figure6's glossy floor (scalar on the first bounce) the gain is a few percent. Sending fewer
-//! than three Lambert lanes through the scalar code instead measured no better.
+//! than three Lambert lanes through the scalar code instead measured no better. Camera-ray
+//! packets: 0.632 → 0.602 s (7 runs each, in turns); per camera sample at max_depth 1 (the
+//! camera ray and what it sees; `bench/depth.py`) about 140 → 108 ns.
 
 use super::bsdf::Bsdf;
 use super::integrator::{PathState, PathTracer, Vertex};
@@ -29,7 +35,7 @@ use crate::math::{warp, Rgb, Sampler, Vec2, Vec3, INV_PI, PI};
 use crate::scene::{Camera, SurfaceHit};
 use wide::{f32x8, CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
-const LANES: usize = 8;
+use crate::geometry::packet::LANES;
 
 /// A path to trace: its state before its next segment (`st.ray`), that segment's hit if the
 /// caller has already intersected it, and the sampler it draws from.
@@ -130,24 +136,37 @@ pub fn render_pixels(
     let mut next = 0usize;
     // The sampler of the pixel whose samples are being handed out (items go pixel by pixel).
     let (mut template_x, mut template) = (usize::MAX, Sampler::new(seed, 0));
+    // Camera rays are traced ahead, eight at a time as one packet: eight samples of a pixel
+    // are nearly one ray and walk the same nodes (`geometry::packet`). `ready` holds the jobs
+    // of the last packet not yet handed out, last first.
+    let mut ready: Vec<Job> = Vec::with_capacity(LANES);
     let jobs = || {
-        if next == total {
-            return None;
+        if ready.is_empty() && next < total {
+            let mut samplers: [Option<Sampler>; LANES] = Default::default();
+            let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+            let n = (total - next).min(LANES);
+            for (sampler, ray) in samplers.iter_mut().zip(rays.iter_mut()).take(n) {
+                let x = x0 + next / spp_n;
+                if x != template_x {
+                    template = Sampler::new(seed, (y * camera.width as usize + x) as u64);
+                    template_x = x;
+                }
+                let mut s = template.clone();
+                s.start_sample((next % spp_n) as u32);
+                next += 1;
+                *ray = camera.ray(Vec2::new(x as f32, y as f32) + s.next_2d());
+                *sampler = Some(s);
+            }
+            let mut hits = pt.scene.intersect8(rays, (1u32 << n) - 1);
+            for i in (0..n).rev() {
+                ready.push(Job {
+                    st: PathState::new(rays[i], 0, true),
+                    hit: Some(hits[i].take()),
+                    sampler: samplers[i].take()?,
+                });
+            }
         }
-        let x = x0 + next / spp_n;
-        if x != template_x {
-            template = Sampler::new(seed, (y * camera.width as usize + x) as u64);
-            template_x = x;
-        }
-        let mut sampler = template.clone();
-        sampler.start_sample((next % spp_n) as u32);
-        next += 1;
-        let film = Vec2::new(x as f32, y as f32) + sampler.next_2d();
-        Some(Job {
-            st: PathState::new(camera.ray(film), 0, true),
-            hit: None,
-            sampler,
-        })
+        ready.pop()
     };
     trace_jobs(pt, jobs, |i, l| results[i] = l);
     // Sums in sample order, as `render_pixel`.
@@ -220,6 +239,7 @@ impl DiffuseLanes {
     fn push(&mut self, i: usize, pt: &PathTracer, v: &Vertex, rho: Rgb, lane: &mut Lane) {
         let j = self.n;
         self.n += 1;
+
         self.lane[j] = i;
         let s = &mut lane.sampler;
         // `Lights::sample`: the triangle, then the point on it.
@@ -309,22 +329,25 @@ impl DiffuseLanes {
         nee &= len.cmp_gt(eps);
         let dir = to_light.map(|c| c / len);
         let t_max = len - eps;
-        let mut mask = nee.move_mask();
+        let shadow = nee.move_mask() as u32;
         let mut visible = [0.0f32; LANES];
-        if mask != 0 {
+        if shadow != 0 {
             let (o, dir, t_max) = (
                 origin.map(|c| c.to_array()),
                 dir.map(|c| c.to_array()),
                 t_max.to_array(),
             );
+            let ray = |j: usize| {
+                Ray::new(
+                    Vec3::new(o[0][j], o[1][j], o[2][j]),
+                    Vec3::new(dir[0][j], dir[1][j], dir[2][j]),
+                )
+            };
+            let mut mask = shadow;
             while mask != 0 {
                 let j = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
-                let ray = Ray::new(
-                    Vec3::new(o[0][j], o[1][j], o[2][j]),
-                    Vec3::new(dir[0][j], dir[1][j], dir[2][j]),
-                );
-                if !pt.scene.occluded(&ray, t_max[j]) {
+                if !pt.scene.occluded(&ray(j), t_max[j]) {
                     visible[j] = 1.0;
                 }
             }

@@ -15,6 +15,7 @@ pub use error::SceneError;
 pub use load::load_scene;
 pub use material::{Material, WardVariant};
 
+use crate::geometry::packet::{Packet, LANES};
 use crate::geometry::{Bvh, Hit, Ray};
 use crate::math::{Frame, Rgb, Vec2, Vec3};
 use std::path::PathBuf;
@@ -201,6 +202,14 @@ impl Scene {
 
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
         self.geometry.bvh.occluded(ray, t_max)
+    }
+
+    /// [`Scene::intersect`] for up to eight rays at once (lanes in `active`; the others give
+    /// `None`), traced as a packet (`geometry::packet`): the same hits to the bit.
+    pub fn intersect8(&self, rays: [Ray; LANES], active: u32) -> [Option<SurfaceHit>; LANES] {
+        let hits =
+            (self.geometry.bvh).intersect8(&Packet::new(rays, [f32::INFINITY; LANES], active));
+        std::array::from_fn(|i| hits[i].map(|h| self.surface_hit(&rays[i], &h)))
     }
 
     /// Expands a BVH hit into positions, normals, UVs and the shading frame.
