@@ -107,17 +107,19 @@ pub fn ray_file(scene: &Scene, path: &std::path::Path, repeat: usize) -> anyhow:
             (ray, r[6])
         })
         .collect();
-    let time = |f: &dyn Fn(&Ray, f32) -> u32| {
+    // ns per ray of one pass over all the rays (`pass` returns a count, kept from the optimiser).
+    let per_ray = |pass: &dyn Fn() -> u32| {
         let runs = (0..repeat.max(1))
             .map(|_| {
                 let t = Instant::now();
-                let n: u32 = rays.iter().map(|(r, len)| f(r, *len)).sum();
-                std::hint::black_box(n);
+                std::hint::black_box(pass());
                 t.elapsed().as_secs_f64() * 1e9 / rays.len() as f64
             })
             .collect();
         median(runs)
     };
+    let time =
+        |f: &dyn Fn(&Ray, f32) -> u32| per_ray(&|| rays.iter().map(|(r, len)| f(r, *len)).sum());
     let closest = time(&|r, _| u32::from(scene.intersect(r, f32::INFINITY).is_some()));
     let bvh_one = time(&|r, _| u32::from(scene.geometry.bvh.intersect(r, f32::INFINITY).is_some()));
     let shadow = time(&|r, len| u32::from(scene.occluded(r, len)));
@@ -135,17 +137,8 @@ pub fn ray_file(scene: &Scene, path: &std::path::Path, repeat: usize) -> anyhow:
             })
             .collect()
     };
-    let time8 = |packets: &[Packet], f: &dyn Fn(&Packet) -> u32| {
-        let runs = (0..repeat.max(1))
-            .map(|_| {
-                let t = Instant::now();
-                let n: u32 = packets.iter().map(f).sum();
-                std::hint::black_box(n);
-                t.elapsed().as_secs_f64() * 1e9 / rays.len() as f64
-            })
-            .collect();
-        median(runs)
-    };
+    let time8 =
+        |packets: &[Packet], f: &dyn Fn(&Packet) -> u32| per_ray(&|| packets.iter().map(f).sum());
     let tree = &scene.geometry.bvh;
     let bvh8 = time8(&packets(false), &|p| {
         tree.intersect8(p).iter().flatten().count() as u32

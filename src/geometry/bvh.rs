@@ -82,16 +82,7 @@ struct SlabRay {
 
 impl SlabRay {
     fn new(ray: &Ray) -> SlabRay {
-        // A zero component becomes ±1e-30: the reciprocal stays finite, so (b − o) / d is never
-        // 0 × ∞ = NaN, and ±1e30 is far beyond any scene.
-        let fix = |c: f32| {
-            if c.abs() < 1e-30 {
-                1e-30f32.copysign(c)
-            } else {
-                c
-            }
-        };
-        let d = [fix(ray.d.x), fix(ray.d.y), fix(ray.d.z)];
+        let d = ray.d.to_array().map(slab_component);
         // One SIMD division for the three reciprocals.
         let inv = (Vec3A::ONE / Vec3A::from_array(d)).to_array();
         SlabRay {
@@ -130,30 +121,42 @@ impl SlabRay {
     }
 }
 
-/// A traversal stack: 64 entries inline, uninitialised until pushed (far more than a balanced
-/// tree needs), a heap spill beyond that for pathological trees.
-struct Stack {
-    inline: ArrayVec<(u32, f32), 64>,
-    spill: Vec<(u32, f32)>,
+/// A traversal stack of entries `E` (a child reference and what the traversal keeps with it):
+/// 64 entries inline, uninitialised until pushed (far more than a balanced tree needs), a heap
+/// spill beyond that for pathological trees. Also the packet traversal's (`packet.rs`).
+pub(super) struct Stack<E> {
+    inline: ArrayVec<E, 64>,
+    spill: Vec<E>,
 }
 
-impl Stack {
+impl<E> Stack<E> {
     #[inline(always)]
-    fn new() -> Stack {
+    pub(super) fn new() -> Stack<E> {
         Stack {
             inline: ArrayVec::new(),
             spill: Vec::new(),
         }
     }
     #[inline(always)]
-    fn push(&mut self, e: (u32, f32)) {
+    pub(super) fn push(&mut self, e: E) {
         if let Err(e) = self.inline.try_push(e) {
             self.spill.push(e.element());
         }
     }
     #[inline(always)]
-    fn pop(&mut self) -> Option<(u32, f32)> {
+    pub(super) fn pop(&mut self) -> Option<E> {
         self.spill.pop().or_else(|| self.inline.pop())
+    }
+}
+
+/// A ray direction component made safe to take the reciprocal of for slab tests: a zero
+/// becomes ±1e-30, so that (b − o) / d is never 0 × ∞ = NaN, and ±1e30 is far beyond any scene.
+#[inline(always)]
+pub(super) fn slab_component(c: f32) -> f32 {
+    if c.abs() < 1e-30 {
+        1e-30f32.copysign(c)
+    } else {
+        c
     }
 }
 

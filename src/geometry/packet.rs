@@ -22,7 +22,7 @@
 //! chosen on exact distances with ties to the lower triangle index, which no order of
 //! traversal can change.
 
-use super::bvh::{closer, Bvh, Node, CULL_SLACK, EMPTY, LEAF, WIDTH};
+use super::bvh::{closer, slab_component, Bvh, Node, Stack, CULL_SLACK, EMPTY, LEAF, WIDTH};
 use super::triangle::{intersect, RayShear};
 use super::{Hit, Ray};
 use arrayvec::ArrayVec;
@@ -90,14 +90,6 @@ impl Packet {
         });
         let sh = rays.map(|r| RayShear::new(r.d));
         let comp = |f: &dyn Fn(&Ray) -> f32| f32x8::from(rays.each_ref().map(f));
-        // As `SlabRay`: a zero direction component becomes ±1e-30.
-        let fix = |c: f32| {
-            if c.abs() < 1e-30 {
-                1e-30f32.copysign(c)
-            } else {
-                c
-            }
-        };
         Packet {
             active,
             rays,
@@ -111,9 +103,9 @@ impl Packet {
             })),
             o: [comp(&|r| r.o.x), comp(&|r| r.o.y), comp(&|r| r.o.z)],
             inv: [
-                comp(&|r| 1.0 / fix(r.d.x)),
-                comp(&|r| 1.0 / fix(r.d.y)),
-                comp(&|r| 1.0 / fix(r.d.z)),
+                comp(&|r| 1.0 / slab_component(r.d.x)),
+                comp(&|r| 1.0 / slab_component(r.d.y)),
+                comp(&|r| 1.0 / slab_component(r.d.z)),
             ],
             sh,
             kx: Select::new(sh.map(|s| s.kx)),
@@ -201,33 +193,13 @@ impl Packet {
     }
 }
 
-/// A packet traversal stack entry: a child reference and the entry distance of each lane into
-/// its box (+∞ for lanes that do not enter it).
+/// A closest-hit stack entry: a child reference and the entry distance of each lane into its
+/// box (+∞ for lanes that do not enter it).
 type Entry = (u32, f32x8);
 
-/// The packet stack: 64 entries inline (a balanced tree needs far fewer), a heap spill beyond.
-struct Stack {
-    inline: ArrayVec<Entry, 64>,
-    spill: Vec<Entry>,
-}
-
-impl Stack {
-    fn new() -> Stack {
-        Stack {
-            inline: ArrayVec::new(),
-            spill: Vec::new(),
-        }
-    }
-    #[inline(always)]
-    fn push(&mut self, e: Entry) {
-        if let Err(e) = self.inline.try_push(e) {
-            self.spill.push(e.element());
-        }
-    }
-    #[inline(always)]
-    fn pop(&mut self) -> Option<Entry> {
-        self.spill.pop().or_else(|| self.inline.pop())
-    }
+/// The triangles of a leaf block: a block of fewer than four repeats its last one.
+fn distinct(ids: &[u32; 4]) -> usize {
+    1 + (1..4).take_while(|&k| ids[k] != ids[k - 1]).count()
 }
 
 fn lanes(mask: f32x8) -> u32 {
@@ -243,7 +215,7 @@ impl Bvh {
         }
         let inf = f32x8::splat(f32::INFINITY);
         let mut t_best = p.t_far;
-        let mut stack = Stack::new();
+        let mut stack: Stack<Entry> = Stack::new();
         stack.push((0, f32x8::ZERO));
         while let Some((node, t_entry)) = stack.pop() {
             let cull = t_best * f32x8::splat(CULL_SLACK);
@@ -266,12 +238,7 @@ impl Bvh {
             if node & LEAF != 0 {
                 let block = (node & !LEAF) as usize;
                 let ids = &self.ids[block];
-                for k in 0..4 {
-                    // A block of fewer than four triangles repeats its last one.
-                    if k > 0 && ids[k] == ids[k - 1] {
-                        break;
-                    }
-                    let prim = ids[k];
+                for (k, &prim) in ids.iter().enumerate().take(distinct(ids)) {
                     let (valid, t, b1, b2, edge) = p.triangle(self, block, k);
                     let cand = valid & live & lanes(t.cmp_le(t_best));
                     let edge = edge & live;
@@ -306,7 +273,6 @@ impl Bvh {
             // An inner node: its children that some live lane enters, nearest (by the least
             // entry distance over lanes) popped first.
             let n = &self.nodes[node as usize];
-            let live_mask = entered;
             let mut kids: ArrayVec<(f32, Entry), WIDTH> = ArrayVec::new();
             for c in 0..WIDTH {
                 let child = n.child[c];
@@ -314,7 +280,7 @@ impl Bvh {
                     break;
                 }
                 let (t0, hit) = p.slab(n, c, cull);
-                let hit = hit & live_mask;
+                let hit = hit & entered;
                 if lanes(hit) & p.active == 0 {
                     continue;
                 }
@@ -344,12 +310,11 @@ impl Bvh {
         if self.nodes.is_empty() || p.active == 0 {
             return 0;
         }
-        // Entries carry their lanes as a mask in a vector's sign bits (a plain u32 would do;
-        // this keeps one stack type).
-        let mut stack = Stack::new();
-        stack.push((0, lane_mask(p.active)));
+        // Entries: a child reference and the lanes that enter it (bit i: lane i).
+        let mut stack: Stack<(u32, u32)> = Stack::new();
+        stack.push((0, p.active));
         while let Some((node, m)) = stack.pop() {
-            let live = lanes(m) & p.active & !blocked;
+            let live = m & !blocked;
             if live == 0 {
                 continue;
             }
@@ -361,11 +326,7 @@ impl Bvh {
                 }
             } else if node & LEAF != 0 {
                 let block = (node & !LEAF) as usize;
-                let ids = &self.ids[block];
-                for k in 0..4 {
-                    if k > 0 && ids[k] == ids[k - 1] {
-                        break;
-                    }
+                for k in 0..distinct(&self.ids[block]) {
                     let (valid, _, _, _, edge) = p.triangle(self, block, k);
                     blocked |= valid & live;
                     for j in bits(edge & live & !blocked) {
@@ -379,15 +340,13 @@ impl Bvh {
                 }
             } else {
                 let n = &self.nodes[node as usize];
-                let m = lane_mask(live);
                 for c in 0..WIDTH {
                     let child = n.child[c];
                     if child == EMPTY {
                         break;
                     }
-                    let (_, hit) = p.slab(n, c, p.t_far);
-                    let hit = hit & m;
-                    if lanes(hit) != 0 {
+                    let hit = lanes(p.slab(n, c, p.t_far).1) & live;
+                    if hit != 0 {
                         stack.push((child, hit));
                     }
                 }
@@ -409,18 +368,6 @@ fn bits(mut m: u32) -> impl Iterator<Item = usize> {
             j
         })
     })
-}
-
-/// A SIMD lane mask (all bits set in lanes of `m`).
-fn lane_mask(m: u32) -> f32x8 {
-    f32x8::from(std::array::from_fn::<f32, LANES, _>(|i| {
-        if m & (1 << i) != 0 {
-            1.0
-        } else {
-            0.0
-        }
-    }))
-    .cmp_gt(f32x8::ZERO)
 }
 
 #[cfg(test)]

@@ -30,12 +30,12 @@
 
 use super::bsdf::Bsdf;
 use super::integrator::{PathState, PathTracer, Vertex};
+use crate::geometry::packet::LANES;
 use crate::geometry::Ray;
 use crate::math::{warp, Rgb, Sampler, Vec2, Vec3, INV_PI, PI};
 use crate::scene::{Camera, SurfaceHit};
+use arrayvec::ArrayVec;
 use wide::{f32x8, CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
-
-use crate::geometry::packet::LANES;
 
 /// A path to trace: its state before its next segment (`st.ray`), that segment's hit if the
 /// caller has already intersected it, and the sampler it draws from.
@@ -142,10 +142,10 @@ pub fn render_pixels(
     let mut ready: Vec<Job> = Vec::with_capacity(LANES);
     let jobs = || {
         if ready.is_empty() && next < total {
-            let mut samplers: [Option<Sampler>; LANES] = Default::default();
-            let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
             let n = (total - next).min(LANES);
-            for (sampler, ray) in samplers.iter_mut().zip(rays.iter_mut()).take(n) {
+            let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
+            let mut samplers: ArrayVec<Sampler, LANES> = ArrayVec::new();
+            for ray in rays.iter_mut().take(n) {
                 let x = x0 + next / spp_n;
                 if x != template_x {
                     template = Sampler::new(seed, (y * camera.width as usize + x) as u64);
@@ -155,14 +155,15 @@ pub fn render_pixels(
                 s.start_sample((next % spp_n) as u32);
                 next += 1;
                 *ray = camera.ray(Vec2::new(x as f32, y as f32) + s.next_2d());
-                *sampler = Some(s);
+                samplers.push(s);
             }
-            let mut hits = pt.scene.intersect8(rays, (1u32 << n) - 1);
-            for i in (0..n).rev() {
+            let hits = pt.scene.intersect8(rays, (1u32 << n) - 1);
+            // Last first: `pop` hands them out in sample order.
+            for (i, sampler) in samplers.into_iter().enumerate().rev() {
                 ready.push(Job {
                     st: PathState::new(rays[i], 0, true),
-                    hit: Some(hits[i].take()),
-                    sampler: samplers[i].take()?,
+                    hit: Some(hits[i]),
+                    sampler,
                 });
             }
         }
@@ -239,7 +240,6 @@ impl DiffuseLanes {
     fn push(&mut self, i: usize, pt: &PathTracer, v: &Vertex, rho: Rgb, lane: &mut Lane) {
         let j = self.n;
         self.n += 1;
-
         self.lane[j] = i;
         let s = &mut lane.sampler;
         // `Lights::sample`: the triangle, then the point on it.
@@ -329,25 +329,22 @@ impl DiffuseLanes {
         nee &= len.cmp_gt(eps);
         let dir = to_light.map(|c| c / len);
         let t_max = len - eps;
-        let shadow = nee.move_mask() as u32;
+        let mut mask = nee.move_mask();
         let mut visible = [0.0f32; LANES];
-        if shadow != 0 {
+        if mask != 0 {
             let (o, dir, t_max) = (
                 origin.map(|c| c.to_array()),
                 dir.map(|c| c.to_array()),
                 t_max.to_array(),
             );
-            let ray = |j: usize| {
-                Ray::new(
-                    Vec3::new(o[0][j], o[1][j], o[2][j]),
-                    Vec3::new(dir[0][j], dir[1][j], dir[2][j]),
-                )
-            };
-            let mut mask = shadow;
             while mask != 0 {
                 let j = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
-                if !pt.scene.occluded(&ray(j), t_max[j]) {
+                let ray = Ray::new(
+                    Vec3::new(o[0][j], o[1][j], o[2][j]),
+                    Vec3::new(dir[0][j], dir[1][j], dir[2][j]),
+                );
+                if !pt.scene.occluded(&ray, t_max[j]) {
                     visible[j] = 1.0;
                 }
             }
