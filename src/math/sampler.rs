@@ -11,6 +11,7 @@
 
 use super::Vec2;
 use sobol_burley::parts::{self, Int4};
+use std::sync::OnceLock;
 
 /// Dimensions served from Sobol points, four at a time (`sample_4d` computes four dimensions
 /// with SIMD, several times faster than four scalar calls). 2 film + 2 × 7 per bounce.
@@ -142,7 +143,7 @@ impl Sampler {
     #[inline(never)]
     fn refill(&mut self, d: u32) {
         let set = d / 4;
-        let sobol = parts::sobol_int4_rev(self.shuffled_rev_index, set);
+        let sobol = sobol_int4_rev(self.shuffled_rev_index, set);
         self.buffer = parts::owen_scramble_int4_rev(sobol, self.set_scramble[set as usize])
             .reverse_bits()
             .to_f32_norm();
@@ -153,6 +154,30 @@ impl Sampler {
         let a = self.next_1d();
         Vec2::new(a, self.next_1d())
     }
+}
+
+/// Sets of four dimensions times 16-bit indices' four nibbles times a nibble's 16 values.
+type NibbleTables = [[[Int4; 16]; 4]; (SOBOL_DIMS / 4) as usize];
+
+/// `parts::sobol_int4_rev` by table: a Sobol point is the XOR of the direction vectors of its
+/// index's set bits (Joe & Kuo 2008), so it is the XOR of one precomputed value per nibble of
+/// the index's top 16 bits, the only ones `sobol_int4_rev` reads. Four loads in place of a loop
+/// over the set bits whose unpredictable exit cost a branch miss per call (the loop was 40% of
+/// `refill`'s time on figure6).
+#[inline(always)]
+fn sobol_int4_rev(index_rev: u32, set: u32) -> Int4 {
+    static TABLES: OnceLock<Box<NibbleTables>> = OnceLock::new();
+    let t = &TABLES.get_or_init(|| {
+        Box::new(std::array::from_fn(|set| {
+            std::array::from_fn(|k| {
+                std::array::from_fn(|v| {
+                    parts::sobol_int4_rev((v as u32) << (16 + 4 * k), set as u32)
+                })
+            })
+        }))
+    })[set as usize];
+    let nibble = |k: usize| ((index_rev >> (16 + 4 * k)) & 15) as usize;
+    t[0][nibble(0)] ^ t[1][nibble(1)] ^ t[2][nibble(2)] ^ t[3][nibble(3)]
 }
 
 #[cfg(test)]
@@ -194,6 +219,21 @@ mod tests {
                 .flat_map(|k| sobol_burley::sample_4d(index & 0xFFFF, k, scramble))
                 .collect();
             assert_eq!(got, want, "sample {index}");
+        }
+    }
+
+    #[test]
+    fn sobol_tables_give_the_crates_points() {
+        let mut rng = TestRng(5);
+        for i in 0..2000u32 {
+            let index_rev = if i < 16 { 1u32 << (16 + i) } else { (rng.f32() * 4.0e9) as u32 };
+            for set in 0..SOBOL_DIMS / 4 {
+                // Int4 has no `==`: all 32 bits of the difference are zero.
+                let diff = sobol_int4_rev(index_rev, set) ^ parts::sobol_int4_rev(index_rev, set);
+                let zero = [0.0; 4];
+                assert_eq!(diff.to_f32_norm(), zero, "index {index_rev:#x}, set {set}");
+                assert_eq!((diff << 8).to_f32_norm(), zero, "index {index_rev:#x}, set {set}");
+            }
         }
     }
 
