@@ -287,14 +287,16 @@ pub fn build(
                     });
                     jobs.push(Job {
                         st: PathState::new(r, 1, false),
-                        hit: Some(h2),
+                        hit: h2,
+                        traced: true,
                         sampler,
                     });
                 }
             }
             let mut traced = vec![Rgb::ZERO; jobs.len()];
             let mut jobs = jobs.into_iter();
-            trace_jobs(pt, || jobs.next(), |i, l| traced[i] = l);
+            let next = |lane: &mut Job| jobs.next().map(|job| *lane = job).is_some();
+            trace_jobs(pt, next, |i, l| traced[i] = l);
             for e in entries {
                 let c = match e.weight {
                     Weight::Known(c) => c,

@@ -226,13 +226,21 @@ mod tests {
     fn sobol_tables_give_the_crates_points() {
         let mut rng = TestRng(5);
         for i in 0..2000u32 {
-            let index_rev = if i < 16 { 1u32 << (16 + i) } else { (rng.f32() * 4.0e9) as u32 };
+            let index_rev = if i < 16 {
+                1u32 << (16 + i)
+            } else {
+                (rng.f32() * 4.0e9) as u32
+            };
             for set in 0..SOBOL_DIMS / 4 {
                 // Int4 has no `==`: all 32 bits of the difference are zero.
                 let diff = sobol_int4_rev(index_rev, set) ^ parts::sobol_int4_rev(index_rev, set);
                 let zero = [0.0; 4];
                 assert_eq!(diff.to_f32_norm(), zero, "index {index_rev:#x}, set {set}");
-                assert_eq!((diff << 8).to_f32_norm(), zero, "index {index_rev:#x}, set {set}");
+                assert_eq!(
+                    (diff << 8).to_f32_norm(),
+                    zero,
+                    "index {index_rev:#x}, set {set}"
+                );
             }
         }
     }

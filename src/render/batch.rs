@@ -34,71 +34,84 @@ use crate::geometry::packet::LANES;
 use crate::geometry::Ray;
 use crate::math::{warp, Rgb, Sampler, Vec2, Vec3, INV_PI, PI};
 use crate::scene::{Camera, SurfaceHit};
-use arrayvec::ArrayVec;
 use wide::{f32x8, CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
 /// A path to trace: its state before its next segment (`st.ray`), that segment's hit if the
-/// caller has already intersected it, and the sampler it draws from.
+/// caller has already intersected it, and the sampler it draws from. A lane of `trace_jobs`
+/// is a `Job` filled in place, so a path's state is never moved while it is traced.
 pub struct Job {
     pub st: PathState,
-    pub hit: Option<Option<SurfaceHit>>,
+    /// Where `st.ray` lands, when `traced`.
+    pub hit: Option<SurfaceHit>,
+    /// Whether `hit` is already known (else `trace_jobs` intersects `st.ray`).
+    pub traced: bool,
     pub sampler: Sampler,
 }
 
-/// A path in flight on one lane: which job it is, its state, its sampler, and its next hit if
-/// known.
-struct Lane {
-    item: usize,
-    st: PathState,
-    sampler: Sampler,
-    hit: Option<Option<SurfaceHit>>,
+impl Job {
+    /// A lane's contents before its first job.
+    fn idle() -> Job {
+        Job {
+            st: PathState::new(Ray::new(Vec3::ZERO, Vec3::Z), 0, true),
+            hit: None,
+            traced: false,
+            sampler: Sampler::new(0, 0),
+        }
+    }
 }
 
-/// Traces the paths that `next` hands out, numbered from 0, eight at a time; `done(i, L)` gets
-/// job i's radiance, which is `PathTracer::trace_from`'s for the same job to the bit.
+/// Traces the paths that `next` writes into a free lane (returning false when there are no
+/// more), numbered from 0, eight at a time; `done(i, L)` gets job i's radiance, which is
+/// `PathTracer::trace_from`'s for the same job to the bit.
 pub fn trace_jobs(
     pt: &PathTracer,
-    mut next: impl FnMut() -> Option<Job>,
+    mut next: impl FnMut(&mut Job) -> bool,
     mut done: impl FnMut(usize, Rgb),
 ) {
-    let mut lanes: [Option<Lane>; LANES] = Default::default();
+    let mut lanes: [Job; LANES] = std::array::from_fn(|_| Job::idle());
+    // Which job each lane holds; bit i of `live`: lane i holds one.
+    let mut item = [0usize; LANES];
+    let mut live = 0u32;
     let mut count = 0usize;
     let mut exhausted = false;
     // Lanes past `diffuse.n` hold stale values; every use of them is masked.
     let mut diffuse = DiffuseLanes::default();
     loop {
-        for lane in lanes.iter_mut().filter(|l| l.is_none()) {
-            if exhausted {
-                break;
+        if !exhausted {
+            for (i, lane) in lanes.iter_mut().enumerate() {
+                if live & (1 << i) != 0 {
+                    continue;
+                }
+                if !next(lane) {
+                    exhausted = true;
+                    break;
+                }
+                item[i] = count;
+                live |= 1 << i;
+                count += 1;
             }
-            let Some(job) = next() else {
-                exhausted = true;
-                break;
-            };
-            *lane = Some(Lane {
-                item: count,
-                st: job.st,
-                sampler: job.sampler,
-                hit: job.hit,
-            });
-            count += 1;
         }
-        if lanes.iter().all(Option::is_none) {
+        if live == 0 {
             break;
         }
-        // Every lane's ray is traced, then every lane arrives; Lambert vertices gather into
-        // `diffuse`, the rest scatter alone.
-        let hits: [_; LANES] = std::array::from_fn(|i| {
-            lanes[i].as_mut().and_then(|lane| {
-                lane.hit
-                    .take()
-                    .unwrap_or_else(|| pt.scene.intersect(&lane.st.ray, f32::INFINITY))
-            })
-        });
+        // Each lane's ray is traced and arrives; Lambert vertices gather into `diffuse`, the
+        // rest scatter alone.
+        let mut mask = live;
+        while mask != 0 {
+            let lane = &mut lanes[mask.trailing_zeros() as usize];
+            mask &= mask - 1;
+            if !lane.traced {
+                lane.hit = pt.scene.intersect(&lane.st.ray, f32::INFINITY);
+            }
+            lane.traced = false;
+        }
         diffuse.n = 0;
-        for ((i, slot), hit) in lanes.iter_mut().enumerate().zip(hits) {
-            let Some(lane) = slot else { continue };
-            let alive = match pt.arrive(&mut lane.st, hit) {
+        let mut mask = live;
+        while mask != 0 {
+            let i = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            let lane = &mut lanes[i];
+            let alive = match pt.arrive(&mut lane.st, lane.hit.as_ref()) {
                 None => false,
                 Some(v) => match v.bsdf {
                     Bsdf::Diffuse { rho_d }
@@ -111,11 +124,25 @@ pub fn trace_jobs(
                 },
             };
             if !alive {
-                finish(slot, &mut done);
+                live &= !(1 << i);
+                done(item[i], lane.st.l);
             }
         }
-        diffuse.scatter(pt, &mut lanes, &mut done);
+        diffuse.scatter(pt, &mut lanes, |i, l| {
+            live &= !(1 << i);
+            done(item[i], l);
+        });
     }
+}
+
+/// The next camera packet's paths: eight samples of a pixel, their rays traced together.
+struct CameraPacket {
+    n: usize,
+    /// The next of the `n` to hand out.
+    k: usize,
+    rays: [Ray; LANES],
+    hits: [Option<SurfaceHit>; LANES],
+    samplers: [Sampler; LANES],
 }
 
 /// Renders pixels `x0..x0 + out.len()` of row `y` of `camera`'s image: `out[i]` is the mean of
@@ -137,49 +164,47 @@ pub fn render_pixels(
     // The sampler of the pixel whose samples are being handed out (items go pixel by pixel).
     let (mut template_x, mut template) = (usize::MAX, Sampler::new(seed, 0));
     // Camera rays are traced ahead, eight at a time as one packet: eight samples of a pixel
-    // are nearly one ray and walk the same nodes (`geometry::packet`). `ready` holds the jobs
-    // of the last packet not yet handed out, last first.
-    let mut ready: Vec<Job> = Vec::with_capacity(LANES);
-    let jobs = || {
-        if ready.is_empty() && next < total {
-            let n = (total - next).min(LANES);
-            let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
-            let mut samplers: ArrayVec<Sampler, LANES> = ArrayVec::new();
-            for ray in rays.iter_mut().take(n) {
+    // are nearly one ray and walk the same nodes (`geometry::packet`).
+    let mut packet = CameraPacket {
+        n: 0,
+        k: 0,
+        rays: [Ray::new(Vec3::ZERO, Vec3::Z); LANES],
+        hits: [None; LANES],
+        samplers: std::array::from_fn(|_| Sampler::new(seed, 0)),
+    };
+    let jobs = |job: &mut Job| {
+        let pk = &mut packet;
+        if pk.k == pk.n {
+            if next == total {
+                return false;
+            }
+            pk.n = (total - next).min(LANES);
+            pk.k = 0;
+            for (ray, s) in pk.rays.iter_mut().zip(&mut pk.samplers).take(pk.n) {
                 let x = x0 + next / spp_n;
                 if x != template_x {
                     template = Sampler::new(seed, (y * camera.width as usize + x) as u64);
                     template_x = x;
                 }
-                let mut s = template.clone();
+                s.clone_from(&template);
                 s.start_sample((next % spp_n) as u32);
                 next += 1;
                 *ray = camera.ray(Vec2::new(x as f32, y as f32) + s.next_2d());
-                samplers.push(s);
             }
-            let hits = pt.scene.intersect8(rays, (1u32 << n) - 1);
-            // Last first: `pop` hands them out in sample order.
-            for (i, sampler) in samplers.into_iter().enumerate().rev() {
-                ready.push(Job {
-                    st: PathState::new(rays[i], 0, true),
-                    hit: Some(hits[i]),
-                    sampler,
-                });
-            }
+            pk.hits = pt.scene.intersect8(pk.rays, (1u32 << pk.n) - 1);
         }
-        ready.pop()
+        let k = pk.k;
+        pk.k += 1;
+        job.st = PathState::new(pk.rays[k], 0, true);
+        job.hit = pk.hits[k];
+        job.traced = true;
+        job.sampler.clone_from(&pk.samplers[k]);
+        true
     };
     trace_jobs(pt, jobs, |i, l| results[i] = l);
     // Sums in sample order, as `render_pixel`.
     for (px, samples) in out.iter_mut().zip(results.chunks(spp_n)) {
         *px = super::film::pixel_mean(samples.iter().copied(), spp);
-    }
-}
-
-/// Ends the path on a lane: its radiance is the job's value.
-fn finish(slot: &mut Option<Lane>, done: &mut impl FnMut(usize, Rgb)) {
-    if let Some(lane) = slot.take() {
-        done(lane.item, lane.st.l);
     }
 }
 
@@ -237,7 +262,7 @@ fn offset_origin(p: &[f32x8; 3], ng: &[f32x8; 3], dir: &[f32x8; 3]) -> [f32x8; 3
 impl DiffuseLanes {
     /// Adds lane `i` at vertex `v` (a Lambert surface of reflectance `rho`, seen from above,
     /// in a scene with lights), drawing its random numbers.
-    fn push(&mut self, i: usize, pt: &PathTracer, v: &Vertex, rho: Rgb, lane: &mut Lane) {
+    fn push(&mut self, i: usize, pt: &PathTracer, v: &Vertex, rho: Rgb, lane: &mut Job) {
         let j = self.n;
         self.n += 1;
         self.lane[j] = i;
@@ -278,8 +303,8 @@ impl DiffuseLanes {
     fn scatter(
         &self,
         pt: &PathTracer,
-        lanes: &mut [Option<Lane>; LANES],
-        done: &mut impl FnMut(usize, Rgb),
+        lanes: &mut [Job; LANES],
+        mut finish: impl FnMut(usize, Rgb),
     ) {
         if self.n == 0 {
             return;
@@ -398,11 +423,10 @@ impl DiffuseLanes {
         let (next_o, next_d) = (next_o.map(|c| c.to_array()), wi_world.map(|c| c.to_array()));
         let bsdf_pdf = bsdf_pdf.to_array();
         for j in 0..self.n {
-            let slot = &mut lanes[self.lane[j]];
-            let Some(lane) = slot else { continue };
+            let lane = &mut lanes[self.lane[j]];
             lane.st.l = Vec3::new(l[0][j], l[1][j], l[2][j]);
             if go & (1 << j) == 0 {
-                finish(slot, done);
+                finish(self.lane[j], lane.st.l);
                 continue;
             }
             lane.st.beta = Vec3::new(beta[0][j], beta[1][j], beta[2][j]);

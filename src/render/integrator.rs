@@ -177,7 +177,7 @@ impl<'a> PathTracer<'a> {
     ) -> Rgb {
         let mut st = PathState::new(ray, depth, count_emission);
         let mut hit = first_hit;
-        while let Some(v) = self.arrive(&mut st, hit) {
+        while let Some(v) = self.arrive(&mut st, hit.as_ref()) {
             if !self.scatter(&mut st, &v, sampler) {
                 break;
             }
@@ -191,7 +191,7 @@ impl<'a> PathTracer<'a> {
     /// the vertex to scatter from, or None where the path ends (no hit, maximum depth, a black
     /// surface).
     #[inline(always)]
-    pub(super) fn arrive(&self, st: &mut PathState, hit: Option<SurfaceHit>) -> Option<Vertex> {
+    pub(super) fn arrive(&self, st: &mut PathState, hit: Option<&SurfaceHit>) -> Option<Vertex> {
         st.segments += 1;
         let hit = hit?;
         let obj = &self.scene.objects[hit.object as usize];
