@@ -218,7 +218,7 @@ impl<'a> PathTracer<'a> {
         if st.segments >= self.max_depth {
             return None;
         }
-        let (bsdf, frame) = bsdf_at(&obj.material, &hit, self.scene.render.ward_variant);
+        let (bsdf, frame) = bsdf_at(&obj.material, hit, self.scene.render.ward_variant);
         if matches!(bsdf, Bsdf::Black) {
             return None;
         }
