@@ -60,8 +60,10 @@ pub struct Sampler {
     seed: u64,
     index: u32,
     dim: u32,
-    /// The current set of four dimensions (dimensions 4k..4k+3 for k = dim / 4).
-    buffer: [f32; 4],
+    /// The current sample's Sobol dimensions, all computed when it starts: paths in a closed
+    /// scene use them all, and drawing from a full buffer needs no branch on when to refill
+    /// (lanes at different depths made that branch unpredictable).
+    buffer: [f32; SOBOL_DIMS as usize],
     /// SplitMix64 state of the current sample's dimensions past `SOBOL_DIMS`.
     tail: u64,
     /// `sobol_burley::sample_4d`'s work, split by what it depends on. Per block of 2^16
@@ -80,7 +82,7 @@ impl Sampler {
             seed: hash_seed(&[seed, stream]),
             index: 0,
             dim: 0,
-            buffer: [0.0; 4],
+            buffer: [0.0; SOBOL_DIMS as usize],
             tail: 0,
             block: None,
             index_scramble: 0,
@@ -117,36 +119,52 @@ impl Sampler {
         }
         self.shuffled_rev_index =
             parts::owen_scramble_rev((index & 0xFFFF).reverse_bits(), self.index_scramble);
+        // What `sobol_burley::sample_4d(index, set, seed)` returns for each set, without
+        // redoing its per-pixel and per-sample parts.
+        for (set, chunk) in self.buffer.chunks_exact_mut(4).enumerate() {
+            let sobol = sobol_int4_rev(self.shuffled_rev_index, set as u32);
+            chunk.copy_from_slice(
+                &parts::owen_scramble_int4_rev(sobol, self.set_scramble[set])
+                    .reverse_bits()
+                    .to_f32_norm(),
+            );
+        }
     }
 
-    /// The next 1-D sample in [0, 1). Inlined: a buffered Sobol dimension or a SplitMix64
-    /// step; the Sobol computation, once per four dimensions, is out of line.
+    /// The next 1-D sample in [0, 1): a Sobol dimension or a SplitMix64 step.
     #[inline(always)]
     pub fn next_1d(&mut self) -> f32 {
         let d = self.dim;
         self.dim += 1;
         if d < SOBOL_DIMS {
-            if d.is_multiple_of(4) {
-                self.refill(d);
-            }
-            self.buffer[(d % 4) as usize]
+            self.buffer[d as usize]
         } else {
-            // SplitMix64: `mix64` steps the state by the golden ratio and finalises it.
-            self.tail = self.tail.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            unit_f32(mix64(self.tail))
+            self.tail_1d()
         }
     }
 
-    /// Computes Sobol dimensions d..d+4 of the current sample into `buffer`: what
-    /// `sobol_burley::sample_4d(index, d / 4, seed)` returns, without redoing its per-pixel and
-    /// per-sample parts.
-    #[inline(never)]
-    fn refill(&mut self, d: u32) {
-        let set = d / 4;
-        let sobol = sobol_int4_rev(self.shuffled_rev_index, set);
-        self.buffer = parts::owen_scramble_int4_rev(sobol, self.set_scramble[set as usize])
-            .reverse_bits()
-            .to_f32_norm();
+    /// A dimension past `SOBOL_DIMS`. SplitMix64: `mix64` steps the state by the golden ratio
+    /// and finalises it.
+    #[inline(always)]
+    fn tail_1d(&mut self) -> f32 {
+        self.tail = self.tail.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        unit_f32(mix64(self.tail))
+    }
+
+    /// The next `N` dimensions, as `N` calls of [`Sampler::next_1d`] give them, with one branch
+    /// where they are all Sobol or all SplitMix64.
+    #[inline(always)]
+    pub fn next_n<const N: usize>(&mut self) -> [f32; N] {
+        let d = self.dim as usize;
+        if d + N <= SOBOL_DIMS as usize {
+            self.dim += N as u32;
+            std::array::from_fn(|k| self.buffer[d + k])
+        } else if d >= SOBOL_DIMS as usize {
+            self.dim += N as u32;
+            std::array::from_fn(|_| self.tail_1d())
+        } else {
+            std::array::from_fn(|_| self.next_1d())
+        }
     }
 
     #[inline]
@@ -163,7 +181,7 @@ type NibbleTables = [[[Int4; 16]; 4]; (SOBOL_DIMS / 4) as usize];
 /// index's set bits (Joe & Kuo 2008), so it is the XOR of one precomputed value per nibble of
 /// the index's top 16 bits, the only ones `sobol_int4_rev` reads. Four loads in place of a loop
 /// over the set bits whose unpredictable exit cost a branch miss per call (the loop was 40% of
-/// `refill`'s time on figure6).
+/// the time spent computing Sobol points on figure6).
 #[inline(always)]
 fn sobol_int4_rev(index_rev: u32, set: u32) -> Int4 {
     static TABLES: OnceLock<Box<NibbleTables>> = OnceLock::new();
@@ -242,6 +260,23 @@ mod tests {
                     "index {index_rev:#x}, set {set}"
                 );
             }
+        }
+    }
+
+    #[test]
+    fn next_n_draws_what_next_1d_draws() {
+        for start in 0..24 {
+            let mut a = Sampler::new(3, 8);
+            let mut b = Sampler::new(3, 8);
+            a.start_sample(5);
+            b.start_sample(5);
+            for _ in 0..start {
+                a.next_1d();
+                b.next_1d();
+            }
+            let got: Vec<f32> = [a.next_n::<7>(), a.next_n::<7>()].concat();
+            let want: Vec<f32> = (0..14).map(|_| b.next_1d()).collect();
+            assert_eq!(got, want, "from dimension {start}");
         }
     }
 

@@ -266,22 +266,14 @@ impl DiffuseLanes {
         let j = self.n;
         self.n += 1;
         self.lane[j] = i;
-        let s = &mut lane.sampler;
-        // `Lights::sample`: the triangle, then the point on it.
-        let uc = s.next_1d();
+        // `Lights::sample`: the triangle, then the point on it; `Bsdf::sample` (Diffuse): the
+        // lobe choice (unused), then the direction; roulette.
+        let [uc, l0, l1, _, b0, b1, u_rr] = lane.sampler.next_n::<7>();
         let light = pt.lights.pick(uc);
-        let u = s.next_2d();
-        (self.u_light[0][j], self.u_light[1][j]) = (u.x, u.y);
-        // `Bsdf::sample` (Diffuse): the lobe choice (unused), then the direction.
-        s.next_1d();
-        let u = s.next_2d();
-        (self.u_bsdf[0][j], self.u_bsdf[1][j]) = (u.x, u.y);
-        self.u_rr[j] = s.next_1d();
-        self.rr[j] = if lane.st.segments >= pt.rr_depth {
-            1.0
-        } else {
-            0.0
-        };
+        (self.u_light[0][j], self.u_light[1][j]) = (l0, l1);
+        (self.u_bsdf[0][j], self.u_bsdf[1][j]) = (b0, b1);
+        self.u_rr[j] = u_rr;
+        self.rr[j] = f32::from(u8::from(lane.st.segments >= pt.rr_depth));
         put(&mut self.p, j, v.p);
         put(&mut self.ng, j, v.ng);
         put(&mut self.frame[0], j, v.frame.s);
