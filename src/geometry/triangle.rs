@@ -167,18 +167,16 @@ impl Hits4 {
         });
         let t_min = tv[0].min(tv[1]).min(tv[2].min(tv[3]));
         let at = f32x4::from(tv).cmp_eq(f32x4::splat(t_min)).move_mask() as u32 & self.valid;
-        // Of the lanes at t_min, the lowest index (the first such lane of equal ones). Written
-        // to compile to conditional moves: a block of fewer than four triangles repeats its
-        // last, so ties are common and a loop over them mispredicted.
-        let key = |j: usize| if at & (1 << j) != 0 { ids[j] } else { u32::MAX };
-        let (mut lane, mut best) = (0, key(0));
-        for j in 1..4 {
-            let k = key(j);
-            if k < best {
-                (lane, best) = (j, k);
-            }
-        }
-        Some(lane)
+        // Of the lanes at t_min, the lowest index (the first such lane of equal ones): the
+        // least of (index, lane) keys, lanes not at t_min keyed beyond every index. Without
+        // branches: a block of fewer than four triangles repeats its last, so ties are common
+        // and a loop over them mispredicted.
+        let key = |j: usize| {
+            let off = u64::from((at >> j) & 1 ^ 1) << 40;
+            (u64::from(ids[j]) << 2 | j as u64) | off
+        };
+        let best = key(0).min(key(1)).min(key(2).min(key(3)));
+        Some((best & 3) as usize)
     }
 }
 

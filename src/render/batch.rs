@@ -72,39 +72,39 @@ pub fn trace_jobs(
     // Which job each lane holds; bit i of `live`: lane i holds one.
     let mut item = [0usize; LANES];
     let mut live = 0u32;
+    // Bit i: lane i's next hit is already known (`Job::traced`). Lanes are walked by their
+    // bits: a test per lane of which kind it is mispredicted often.
+    let mut known = 0u32;
     let mut count = 0usize;
     let mut exhausted = false;
     // Lanes past `diffuse.n` hold stale values; every use of them is masked.
     let mut diffuse = DiffuseLanes::default();
     loop {
-        if !exhausted {
-            for (i, lane) in lanes.iter_mut().enumerate() {
-                if live & (1 << i) != 0 {
-                    continue;
-                }
-                if !next(lane) {
-                    exhausted = true;
-                    break;
-                }
-                item[i] = count;
-                live |= 1 << i;
-                count += 1;
+        let mut free = !live & ((1 << LANES) - 1);
+        while free != 0 && !exhausted {
+            let i = free.trailing_zeros() as usize;
+            free &= free - 1;
+            if !next(&mut lanes[i]) {
+                exhausted = true;
+                break;
             }
+            item[i] = count;
+            live |= 1 << i;
+            known |= u32::from(lanes[i].traced) << i;
+            count += 1;
         }
         if live == 0 {
             break;
         }
         // Each lane's ray is traced and arrives; Lambert vertices gather into `diffuse`, the
         // rest scatter alone.
-        let mut mask = live;
+        let mut mask = live & !known;
         while mask != 0 {
             let lane = &mut lanes[mask.trailing_zeros() as usize];
             mask &= mask - 1;
-            if !lane.traced {
-                lane.hit = pt.scene.intersect(&lane.st.ray, f32::INFINITY);
-            }
-            lane.traced = false;
+            lane.hit = pt.scene.intersect(&lane.st.ray, f32::INFINITY);
         }
+        known = 0;
         diffuse.n = 0;
         let mut mask = live;
         while mask != 0 {
