@@ -414,19 +414,24 @@ impl DiffuseLanes {
         let (l, beta) = (l.map(|c| c.to_array()), beta.map(|c| c.to_array()));
         let (next_o, next_d) = (next_o.map(|c| c.to_array()), wi_world.map(|c| c.to_array()));
         let bsdf_pdf = bsdf_pdf.to_array();
+        // Every lane's state is written back, then the ended paths are finished: a branch per
+        // lane on whether its path goes on mispredicted often (an ended path's other fields
+        // are never read again).
         for j in 0..self.n {
             let lane = &mut lanes[self.lane[j]];
             lane.st.l = Vec3::new(l[0][j], l[1][j], l[2][j]);
-            if go & (1 << j) == 0 {
-                finish(self.lane[j], lane.st.l);
-                continue;
-            }
             lane.st.beta = Vec3::new(beta[0][j], beta[1][j], beta[2][j]);
             lane.st.prev_pdf = Some(bsdf_pdf[j]);
             lane.st.ray = Ray::new(
                 Vec3::new(next_o[0][j], next_o[1][j], next_o[2][j]),
                 Vec3::new(next_d[0][j], next_d[1][j], next_d[2][j]),
             );
+        }
+        let mut ended = !go & ((1 << self.n) - 1);
+        while ended != 0 {
+            let j = ended.trailing_zeros() as usize;
+            ended &= ended - 1;
+            finish(self.lane[j], lanes[self.lane[j]].st.l);
         }
     }
 }
