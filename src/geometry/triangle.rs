@@ -151,7 +151,7 @@ pub struct Hits4 {
 
 impl Hits4 {
     /// The nearest hit lane, of equally near ones the one whose triangle index in `ids` is
-    /// lowest (ties are rare: the search over them is a loop).
+    /// lowest.
     #[inline(always)]
     pub fn nearest(&self, ids: &[u32; 4]) -> Option<usize> {
         if self.valid == 0 {

@@ -121,8 +121,9 @@ impl Sampler {
             parts::owen_scramble_rev((index & 0xFFFF).reverse_bits(), self.index_scramble);
         // What `sobol_burley::sample_4d(index, set, seed)` returns for each set, without
         // redoing its per-pixel and per-sample parts.
+        let tables = sobol_tables();
         for (set, chunk) in self.buffer.chunks_exact_mut(4).enumerate() {
-            let sobol = sobol_int4_rev(self.shuffled_rev_index, set as u32);
+            let sobol = sobol_int4_rev(&tables[set], self.shuffled_rev_index);
             chunk.copy_from_slice(
                 &parts::owen_scramble_int4_rev(sobol, self.set_scramble[set])
                     .reverse_bits()
@@ -174,18 +175,13 @@ impl Sampler {
     }
 }
 
-/// Sets of four dimensions times 16-bit indices' four nibbles times a nibble's 16 values.
-type NibbleTables = [[[Int4; 16]; 4]; (SOBOL_DIMS / 4) as usize];
+/// A set of four dimensions' table: the 16-bit index's four nibbles times a nibble's 16 values.
+type NibbleTable = [[Int4; 16]; 4];
 
-/// `parts::sobol_int4_rev` by table: a Sobol point is the XOR of the direction vectors of its
-/// index's set bits (Joe & Kuo 2008), so it is the XOR of one precomputed value per nibble of
-/// the index's top 16 bits, the only ones `sobol_int4_rev` reads. Four loads in place of a loop
-/// over the set bits whose unpredictable exit cost a branch miss per call (the loop was 40% of
-/// the time spent computing Sobol points on figure6).
-#[inline(always)]
-fn sobol_int4_rev(index_rev: u32, set: u32) -> Int4 {
-    static TABLES: OnceLock<Box<NibbleTables>> = OnceLock::new();
-    let t = &TABLES.get_or_init(|| {
+/// The tables of [`sobol_int4_rev`], one per set of four dimensions, built on first use.
+fn sobol_tables() -> &'static [NibbleTable; (SOBOL_DIMS / 4) as usize] {
+    static TABLES: OnceLock<Box<[NibbleTable; (SOBOL_DIMS / 4) as usize]>> = OnceLock::new();
+    TABLES.get_or_init(|| {
         Box::new(std::array::from_fn(|set| {
             std::array::from_fn(|k| {
                 std::array::from_fn(|v| {
@@ -193,7 +189,17 @@ fn sobol_int4_rev(index_rev: u32, set: u32) -> Int4 {
                 })
             })
         }))
-    })[set as usize];
+    })
+}
+
+/// `parts::sobol_int4_rev(index_rev, set)` by table `t` (`sobol_tables()[set]`): a Sobol
+/// point is the XOR of the direction vectors of its index's set bits (Joe & Kuo 2008), so it
+/// is the XOR of one precomputed value per nibble of the index's top 16 bits, the only ones
+/// `sobol_int4_rev` reads. Four loads in place of a loop over the set bits whose unpredictable
+/// exit cost a branch miss per call (the loop was 40% of the time spent computing Sobol points
+/// on figure6).
+#[inline(always)]
+fn sobol_int4_rev(t: &NibbleTable, index_rev: u32) -> Int4 {
     let nibble = |k: usize| ((index_rev >> (16 + 4 * k)) & 15) as usize;
     t[0][nibble(0)] ^ t[1][nibble(1)] ^ t[2][nibble(2)] ^ t[3][nibble(3)]
 }
@@ -251,7 +257,8 @@ mod tests {
             };
             for set in 0..SOBOL_DIMS / 4 {
                 // Int4 has no `==`: all 32 bits of the difference are zero.
-                let diff = sobol_int4_rev(index_rev, set) ^ parts::sobol_int4_rev(index_rev, set);
+                let diff = sobol_int4_rev(&sobol_tables()[set as usize], index_rev)
+                    ^ parts::sobol_int4_rev(index_rev, set);
                 let zero = [0.0; 4];
                 assert_eq!(diff.to_f32_norm(), zero, "index {index_rev:#x}, set {set}");
                 assert_eq!(
