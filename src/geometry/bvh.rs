@@ -1,13 +1,20 @@
-//! The bounding volume hierarchy: eight-wide, as Embree lays it out for AVX (Wald et al. 2014,
-//! "Embree: a kernel framework for efficient CPU ray tracing"): each node holds eight child
-//! boxes tested with one SIMD slab test, each leaf four triangles tested at once by the
-//! watertight test of `triangle.rs` ([`intersect4`]). Built by `bvh_build.rs` (binned SAH, then
-//! collapsed from binary to eight-wide).
+//! The bounding volume hierarchy: sixteen-wide, each node's child boxes laid out as Embree
+//! lays out its eight-wide nodes for AVX (Wald et al. 2014, "Embree: a kernel framework for
+//! efficient CPU ray tracing") in two eight-wide halves, each tested with one SIMD slab test;
+//! each leaf four triangles tested at once by the watertight test of `triangle.rs`
+//! ([`intersect4`]). Built by `bvh_build.rs` (binned SAH, then collapsed from binary to
+//! sixteen-wide).
 //!
-//! Eight-wide over four-wide by measurement: figure6's 12 leaves sit under a root and two
-//! block-sized nodes instead of a root and four nodes, three of them room-sized. Node visits
-//! per closest-hit ray 3.3 → 1.7, per shadow ray 3.7 → 2.4; primary rays (AVX build) on
-//! figure6 9.5 → 10.9 Mrays/s, on an 801k-triangle sphere 5.1 → 6.2 Mrays/s.
+//! Sixteen-wide over eight-wide by measurement. A room's rays start inside the root's box and
+//! enter several children of every node they visit, so what costs is the node visit (its
+//! branches on how many children were entered, its stack traffic), not the box test. figure6's
+//! 15 leaves now all sit under the root, where eight-wide needed a root and two nodes (the back
+//! wall with the light; the two blocks): random rays in the room (`bench rays --ray-file`)
+//! 51.7 → 44.6 ns per closest hit and 31.5 → 23.3 ns per shadow ray, Mitsuba 3's Embree
+//! 39.1 / 22.2 ns on the same rays; a 1-thread figure6 render 0.459 → 0.409 s (median of 7,
+//! same image to the bit); primary rays on a 2M-triangle sphere unchanged (6.3 Mrays/s; 106k
+//! nodes instead of 198k). Eight-wide had replaced four-wide the same way (figure6's node
+//! visits per closest-hit ray 3.3 → 1.7, per shadow ray 3.7 → 2.4).
 //!
 //! Chosen by measurement over the obvhs crate's eight-wide compressed BVH (used before this file,
 //! in git history), which tested one triangle at a time with the scalar test: same images to the
@@ -33,33 +40,45 @@ pub(super) const LEAF: u32 = 1 << 31;
 /// The child reference of an unused slot (its box is empty, so it is never entered).
 pub(super) const EMPTY: u32 = u32::MAX;
 
-/// Children per node: one lane each of an eight-wide SIMD register (AVX; two SSE registers
-/// where the CPU has no AVX).
-pub(super) const WIDTH: usize = 8;
+/// Eight-wide SIMD registers per node (AVX; two SSE registers where the CPU has no AVX).
+pub(super) const HALVES: usize = 2;
+/// Children per node: one lane each of `HALVES` eight-wide registers.
+pub(super) const WIDTH: usize = 8 * HALVES;
 
-/// `WIDTH` child boxes in structure-of-arrays form: `b[0][axis]` the minima, `b[1][axis]` the
-/// maxima, lane i for child i.
+/// `WIDTH` child boxes in structure-of-arrays form: `b[h][0][axis]` the minima, `b[h][1][axis]`
+/// the maxima, lane i of half h for child 8h + i.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Node {
-    pub b: [[f32x8; 3]; 2],
+    pub b: [[[f32x8; 3]; 2]; HALVES],
     pub child: [u32; WIDTH],
 }
 
 impl Node {
     pub(super) const EMPTY: Node = Node {
-        b: [
-            [f32x8::new([f32::INFINITY; WIDTH]); 3],
-            [f32x8::new([f32::NEG_INFINITY; WIDTH]); 3],
-        ],
+        b: [[
+            [f32x8::new([f32::INFINITY; 8]); 3],
+            [f32x8::new([f32::NEG_INFINITY; 8]); 3],
+        ]; HALVES],
         child: [EMPTY; WIDTH],
     };
 
     pub(super) fn set(&mut self, slot: usize, bounds: &Aabb, child: u32) {
+        let (h, lane) = (slot / 8, slot % 8);
         for axis in 0..3 {
-            self.b[0][axis].as_array_mut()[slot] = bounds.min[axis];
-            self.b[1][axis].as_array_mut()[slot] = bounds.max[axis];
+            self.b[h][0][axis].as_array_mut()[lane] = bounds.min[axis];
+            self.b[h][1][axis].as_array_mut()[lane] = bounds.max[axis];
         }
         self.child[slot] = child;
+    }
+
+    /// Child `slot`'s box: (minimum, maximum) along `axis`.
+    #[inline(always)]
+    pub(super) fn bounds(&self, slot: usize, axis: usize) -> (f32, f32) {
+        let b = &self.b[slot / 8];
+        (
+            b[0][axis].as_array_ref()[slot % 8],
+            b[1][axis].as_array_ref()[slot % 8],
+        )
     }
 }
 
@@ -105,19 +124,25 @@ impl SlabRay {
     }
 
     /// Entry distances of the node's boxes and the mask (bit i: child i) of those entered within
-    /// [0, t_max].
+    /// [0, t_max]: one eight-wide test per half.
     #[inline(always)]
-    fn hit(&self, node: &Node, t_max: f32) -> (f32x8, u32) {
-        let mut t0 = f32x8::ZERO;
-        let mut t1 = f32x8::splat(f32::INFINITY);
-        for axis in 0..3 {
-            let n = self.near[axis];
-            t0 = t0.fast_max((node.b[n][axis] - self.o[axis]) * self.inv[axis]);
-            t1 = t1.fast_min((node.b[1 - n][axis] - self.o[axis]) * self.inv[axis]);
+    fn hit(&self, node: &Node, t_max: f32) -> ([f32; WIDTH], u32) {
+        let mut t0s = [0.0f32; WIDTH];
+        let mut mask = 0;
+        for (h, b) in node.b.iter().enumerate() {
+            let mut t0 = f32x8::ZERO;
+            let mut t1 = f32x8::splat(f32::INFINITY);
+            for axis in 0..3 {
+                let n = self.near[axis];
+                t0 = t0.fast_max((b[n][axis] - self.o[axis]) * self.inv[axis]);
+                t1 = t1.fast_min((b[1 - n][axis] - self.o[axis]) * self.inv[axis]);
+            }
+            // Ize 2013: 1 + 2γ(3), γ(n) = nε / (1 − nε).
+            let t1 = (t1 * f32x8::splat(1.000_000_4)).fast_min(f32x8::splat(t_max));
+            t0s[8 * h..8 * h + 8].copy_from_slice(&t0.to_array());
+            mask |= (t0.cmp_le(t1).move_mask() as u32) << (8 * h);
         }
-        // Ize 2013: 1 + 2γ(3), γ(n) = nε / (1 − nε).
-        let t1 = (t1 * f32x8::splat(1.000_000_4)).fast_min(f32x8::splat(t_max));
-        (t0, t0.cmp_le(t1).move_mask() as u32)
+        (t0s, mask)
     }
 }
 
@@ -220,7 +245,6 @@ impl Bvh {
                 let n = &self.nodes[node as usize];
                 let (t0, mut mask) = slab.hit(n, t_best * CULL_SLACK);
                 if mask != 0 {
-                    let t0 = t0.to_array();
                     let a = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
                     if mask == 0 {

@@ -1,7 +1,7 @@
-//! Builds the eight-wide BVH of `bvh.rs`: a binary tree by the binned surface area heuristic
+//! Builds the sixteen-wide BVH of `bvh.rs`: a binary tree by the binned surface area heuristic
 //! (Wald 2007, "On fast construction of SAH-based bounding volume hierarchies"), leaves of at
-//! most four triangles (one SIMD block), then collapsed to eight children per node by opening,
-//! while a node has fewer than eight, the child of largest surface area (Wald, Benthin & Boulos
+//! most four triangles (one SIMD block), then collapsed to `WIDTH` children per node by
+//! opening, while a node has fewer, the child of largest surface area (Wald, Benthin & Boulos
 //! 2008, "Getting rid of packets").
 
 use super::aabb::Aabb;
@@ -66,7 +66,7 @@ pub(super) fn build(tris: &[[Vec3; 3]]) -> Bvh {
     let mut bin = Vec::with_capacity(2 * prims.len()); // a binary tree has < 2n nodes
     let root = build_binary(&mut prims, 0, 0, &mut bin);
     bvh.bounds = bin[root].bounds;
-    // The root is always an eight-wide node (node 0), even over a single leaf.
+    // The root is always a node (node 0), even over a single leaf.
     emit_node(&bin, root, &prims, tris, &mut bvh);
     bvh
 }
@@ -95,7 +95,7 @@ fn open_children(bin: &[BinNode], node: usize) -> Vec<usize> {
     kids
 }
 
-/// Emits the eight-wide subtree of binary node `node`; returns its child reference.
+/// Emits the sixteen-wide subtree of binary node `node`; returns its child reference.
 fn collapse(
     bin: &[BinNode],
     node: usize,
@@ -117,8 +117,8 @@ fn collapse(
     emit_node(bin, node, prims, tris, bvh)
 }
 
-/// Emits an eight-wide node over [`open_children`] of binary node `node` (which may be a leaf, for
-/// the root); returns its index.
+/// Emits a sixteen-wide node over [`open_children`] of binary node `node` (which may be a leaf,
+/// for the root); returns its index.
 fn emit_node(
     bin: &[BinNode],
     node: usize,

@@ -126,8 +126,8 @@ impl Packet {
         let mut t0 = f32x8::ZERO;
         let mut t1 = f32x8::splat(f32::INFINITY);
         for axis in 0..3 {
-            let lo = f32x8::splat(node.b[0][axis].as_array_ref()[c]);
-            let hi = f32x8::splat(node.b[1][axis].as_array_ref()[c]);
+            let (lo, hi) = node.bounds(c, axis);
+            let (lo, hi) = (f32x8::splat(lo), f32x8::splat(hi));
             let a = (lo - self.o[axis]) * self.inv[axis];
             let b = (hi - self.o[axis]) * self.inv[axis];
             t0 = t0.fast_max(a.fast_min(b));
