@@ -51,6 +51,8 @@ pub(super) const WIDTH: usize = 8 * HALVES;
 pub(super) struct Node {
     pub b: [[[f32x8; 3]; 2]; HALVES],
     pub child: [u32; WIDTH],
+    /// Bit i: child i is a leaf.
+    pub leaves: u32,
 }
 
 impl Node {
@@ -60,6 +62,7 @@ impl Node {
             [f32x8::new([f32::NEG_INFINITY; 8]); 3],
         ]; HALVES],
         child: [EMPTY; WIDTH],
+        leaves: 0,
     };
 
     pub(super) fn set(&mut self, slot: usize, bounds: &Aabb, child: u32) {
@@ -69,6 +72,9 @@ impl Node {
             self.b[h][1][axis].as_array_mut()[lane] = bounds.max[axis];
         }
         self.child[slot] = child;
+        if child != EMPTY && child & LEAF != 0 {
+            self.leaves |= 1 << slot;
+        }
     }
 
     /// Child `slot`'s box: (minimum, maximum) along `axis`.
@@ -320,13 +326,25 @@ impl Bvh {
                 }
             } else {
                 let n = &self.nodes[node as usize];
-                let (_, mut mask) = slab.hit(n, t_max);
-                if mask != 0 {
-                    let first = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    while mask != 0 {
-                        let i = mask.trailing_zeros() as usize;
-                        mask &= mask - 1;
+                let (_, mask) = slab.hit(n, t_max);
+                // The leaves entered are tested at once, in child order (any hit will do),
+                // without going through the stack.
+                let mut leaves = mask & n.leaves;
+                while leaves != 0 {
+                    let block = (n.child[leaves.trailing_zeros() as usize] & !LEAF) as usize;
+                    leaves &= leaves - 1;
+                    let sh = sh.get_or_insert_with(|| RayShear::new(ray.d));
+                    if intersect4(ray.o, sh, &self.tris[block], t_max).valid != 0 {
+                        return true;
+                    }
+                }
+                let mut inner = mask & !n.leaves;
+                if inner != 0 {
+                    let first = inner.trailing_zeros() as usize;
+                    inner &= inner - 1;
+                    while inner != 0 {
+                        let i = inner.trailing_zeros() as usize;
+                        inner &= inner - 1;
                         stack.push((n.child[i], 0.0));
                     }
                     node = n.child[first];
