@@ -107,9 +107,12 @@ struct SlabRay {
 
 impl SlabRay {
     fn new(ray: &Ray) -> SlabRay {
-        let d = ray.d.to_array().map(slab_component);
-        // One SIMD division for the three reciprocals.
-        let inv = (Vec3A::ONE / Vec3A::from_array(d)).to_array();
+        // `slab_component` and the reciprocals on all three axes at once.
+        let d = Vec3A::from(ray.d);
+        let tiny = d.abs().cmplt(Vec3A::splat(1e-30));
+        let d = Vec3A::select(tiny, Vec3A::splat(1e-30).copysign(d), d);
+        let inv = (Vec3A::ONE / d).to_array();
+        let neg = d.is_negative_bitmask() as usize;
         SlabRay {
             o: [
                 f32x8::splat(ray.o.x),
@@ -121,11 +124,7 @@ impl SlabRay {
                 f32x8::splat(inv[1]),
                 f32x8::splat(inv[2]),
             ],
-            near: [
-                usize::from(d[0] < 0.0),
-                usize::from(d[1] < 0.0),
-                usize::from(d[2] < 0.0),
-            ],
+            near: [neg & 1, neg >> 1 & 1, neg >> 2 & 1],
         }
     }
 
