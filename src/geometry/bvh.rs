@@ -107,10 +107,8 @@ struct SlabRay {
 
 impl SlabRay {
     fn new(ray: &Ray) -> SlabRay {
-        // `slab_component` and the reciprocals on all three axes at once.
-        let d = Vec3A::from(ray.d);
-        let tiny = d.abs().cmplt(Vec3A::splat(1e-30));
-        let d = Vec3A::select(tiny, Vec3A::splat(1e-30).copysign(d), d);
+        let d = Vec3A::from(ray.d.to_array().map(slab_component));
+        // One SIMD division for the three reciprocals.
         let inv = (Vec3A::ONE / d).to_array();
         let neg = d.is_negative_bitmask() as usize;
         SlabRay {
