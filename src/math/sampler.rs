@@ -10,13 +10,16 @@
 //! bounce gains nothing measurable from stratification, and Owen scrambling costs ~10× a hash.
 
 use super::Vec2;
-use sobol_burley::parts::{self, Int4};
+use sobol_burley::parts;
 use std::sync::OnceLock;
+use wide::{f32x8, u32x8};
 
-/// Dimensions served from Sobol points, four at a time (`sample_4d` computes four dimensions
-/// with SIMD, several times faster than four scalar calls). 2 film + 2 × 7 per bounce.
+/// Dimensions served from Sobol points, eight at a time (one AVX register). 2 film + 2 × 7
+/// per bounce.
 const SOBOL_DIMS: u32 = 16;
-const _: () = assert!(SOBOL_DIMS <= 4 * sobol_burley::NUM_DIMENSION_SETS_4D);
+const _: () = assert!(SOBOL_DIMS <= sobol_burley::NUM_DIMENSIONS && SOBOL_DIMS.is_multiple_of(8));
+/// Registers of eight dimensions.
+const OCTETS: usize = (SOBOL_DIMS / 8) as usize;
 
 /// Mixes 64 bits into 64 well-distributed bits (SplitMix64 finaliser).
 #[inline]
@@ -58,7 +61,6 @@ pub fn hash_seed(parts: &[u64]) -> u64 {
 #[derive(Clone, Debug)]
 pub struct Sampler {
     seed: u64,
-    index: u32,
     dim: u32,
     /// The current sample's Sobol dimensions, all computed when it starts: paths in a closed
     /// scene use them all, and drawing from a full buffer needs no branch on when to refill
@@ -66,69 +68,68 @@ pub struct Sampler {
     buffer: [f32; SOBOL_DIMS as usize],
     /// SplitMix64 state of the current sample's dimensions past `SOBOL_DIMS`.
     tail: u64,
-    /// `sobol_burley::sample_4d`'s work, split by what it depends on. Per block of 2^16
-    /// samples: its seed, and the Owen scrambles of the index and of each dimension set. Per
-    /// sample: the scrambled, bit-reversed index.
-    block: Option<u32>,
+    /// `sobol_burley::sample_4d`'s work, split by what it depends on: per block of 2^16
+    /// samples, the Owen scrambles of the index and of each dimension.
+    block: u32,
     index_scramble: u32,
-    set_scramble: [Int4; (SOBOL_DIMS / 4) as usize],
-    shuffled_rev_index: u32,
+    dim_scramble: [u32x8; OCTETS],
 }
 
 impl Sampler {
     /// A sampler for one pixel (or any other stream key) of a render with seed `seed`.
     pub fn new(seed: u64, stream: u64) -> Sampler {
-        Sampler {
+        let mut s = Sampler {
             seed: hash_seed(&[seed, stream]),
-            index: 0,
             dim: 0,
             buffer: [0.0; SOBOL_DIMS as usize],
             tail: 0,
-            block: None,
+            block: 0,
             index_scramble: 0,
-            set_scramble: [Int4::from([0; 4]); (SOBOL_DIMS / 4) as usize],
-            shuffled_rev_index: 0,
+            dim_scramble: [u32x8::ZERO; OCTETS],
+        };
+        // Ready for the first block, so that copies of a new sampler (`render::batch` starts
+        // each sample of a pixel from one) need not redo it.
+        s.scramble_block(0);
+        s
+    }
+
+    /// The Owen scrambles of block `block` of 2^16 samples: sobol_burley's sequences hold 2^16
+    /// samples, and each further block is another independently scrambled sequence.
+    fn scramble_block(&mut self, block: u32) {
+        let seed = if block == 0 {
+            self.seed
+        } else {
+            mix64(self.seed ^ block as u64)
+        };
+        let seed = (seed ^ (seed >> 32)) as u32;
+        // As sample_4d (sobol_burley 0.5, lib.rs) computes them, for dimension 4 × set + k.
+        self.index_scramble = parts::hash(seed ^ 0x79c6_8e4a);
+        let lane = [0x912f_69ba, 0x174f_18ab, 0x691e_72ca, 0xb40c_c1b8];
+        for (o, s) in self.dim_scramble.iter_mut().enumerate() {
+            *s = u32x8::from(std::array::from_fn::<u32, 8, _>(|k| {
+                let set = (8 * o + k) as u32 / 4;
+                parts::hash(seed.wrapping_mul(0x9c8f_2d3b) ^ set ^ lane[k % 4])
+            }));
         }
+        self.block = block;
     }
 
     /// Starts sample number `index` of the stream (dimension 0).
     pub fn start_sample(&mut self, index: u32) {
-        self.index = index;
         self.dim = 0;
         self.tail = mix64(self.seed ^ index as u64);
-        // sobol_burley's sequences hold 2^16 samples: each further block of 2^16 is another
-        // independently scrambled sequence.
-        let block = index >> 16;
-        if self.block != Some(block) {
-            let seed = if block == 0 {
-                self.seed
-            } else {
-                mix64(self.seed ^ block as u64)
-            };
-            let seed = (seed ^ (seed >> 32)) as u32;
-            // As sample_4d (sobol_burley 0.5, lib.rs) computes them.
-            self.index_scramble = parts::hash(seed ^ 0x79c6_8e4a);
-            for (k, s) in self.set_scramble.iter_mut().enumerate() {
-                let v: Int4 = [seed.wrapping_mul(0x9c8f_2d3b); 4].into();
-                let ds: Int4 = [k as u32; 4].into();
-                *s = parts::hash_int4(
-                    v ^ ds ^ [0x912f_69ba, 0x174f_18ab, 0x691e_72ca, 0xb40c_c1b8].into(),
-                );
-            }
-            self.block = Some(block);
+        if self.block != index >> 16 {
+            self.scramble_block(index >> 16);
         }
-        self.shuffled_rev_index =
+        let shuffled_rev_index =
             parts::owen_scramble_rev((index & 0xFFFF).reverse_bits(), self.index_scramble);
         // What `sobol_burley::sample_4d(index, set, seed)` returns for each set, without
-        // redoing its per-pixel and per-sample parts.
+        // redoing its per-pixel and per-sample parts, eight dimensions at a time.
         let tables = sobol_tables();
-        for (set, chunk) in self.buffer.chunks_exact_mut(4).enumerate() {
-            let sobol = sobol_int4_rev(&tables[set], self.shuffled_rev_index);
-            chunk.copy_from_slice(
-                &parts::owen_scramble_int4_rev(sobol, self.set_scramble[set])
-                    .reverse_bits()
-                    .to_f32_norm(),
-            );
+        for (o, chunk) in self.buffer.chunks_exact_mut(8).enumerate() {
+            let sobol = sobol_x8_rev(&tables[o], shuffled_rev_index);
+            let x = reverse_bits_x8(owen_scramble_x8_rev(sobol, self.dim_scramble[o]));
+            chunk.copy_from_slice(&to_f32_norm_x8(x).to_array());
         }
     }
 
@@ -175,33 +176,65 @@ impl Sampler {
     }
 }
 
-/// A set of four dimensions' table: the 16-bit index's four nibbles times a nibble's 16 values.
-type NibbleTable = [[Int4; 16]; 4];
+/// Eight dimensions' table: the 16-bit index's four nibbles times a nibble's 16 values.
+type NibbleTable = [[u32x8; 16]; 4];
 
-/// The tables of [`sobol_int4_rev`], one per set of four dimensions, built on first use.
-fn sobol_tables() -> &'static [NibbleTable; (SOBOL_DIMS / 4) as usize] {
-    static TABLES: OnceLock<Box<[NibbleTable; (SOBOL_DIMS / 4) as usize]>> = OnceLock::new();
+/// The tables of [`sobol_x8_rev`], one per eight dimensions, built on first use.
+fn sobol_tables() -> &'static [NibbleTable; OCTETS] {
+    static TABLES: OnceLock<Box<[NibbleTable; OCTETS]>> = OnceLock::new();
     TABLES.get_or_init(|| {
-        Box::new(std::array::from_fn(|set| {
+        Box::new(std::array::from_fn(|o| {
             std::array::from_fn(|k| {
                 std::array::from_fn(|v| {
-                    parts::sobol_int4_rev((v as u32) << (16 + 4 * k), set as u32)
+                    u32x8::from(std::array::from_fn::<u32, 8, _>(|d| {
+                        parts::sobol_rev((v as u32) << (16 + 4 * k), (8 * o + d) as u32)
+                    }))
                 })
             })
         }))
     })
 }
 
-/// `parts::sobol_int4_rev(index_rev, set)` by table `t` (`sobol_tables()[set]`): a Sobol
-/// point is the XOR of the direction vectors of its index's set bits (Joe & Kuo 2008), so it
-/// is the XOR of one precomputed value per nibble of the index's top 16 bits, the only ones
-/// `sobol_int4_rev` reads. Four loads in place of a loop over the set bits whose unpredictable
-/// exit cost a branch miss per call (the loop was 40% of the time spent computing Sobol points
-/// on figure6).
+/// `parts::sobol_rev(index_rev, d)` for the eight dimensions d of table `t`
+/// (`sobol_tables()[d / 8]`): a Sobol point is the XOR of the direction vectors of its
+/// index's set bits (Joe & Kuo 2008), so it is the XOR of one precomputed value per nibble of
+/// the index's top 16 bits, the only ones `sobol_rev` reads. Four loads in place of a loop
+/// over the set bits whose unpredictable exit cost a branch miss per call (the loop was 40%
+/// of the time spent computing Sobol points on figure6).
 #[inline(always)]
-fn sobol_int4_rev(t: &NibbleTable, index_rev: u32) -> Int4 {
+fn sobol_x8_rev(t: &NibbleTable, index_rev: u32) -> u32x8 {
     let nibble = |k: usize| ((index_rev >> (16 + 4 * k)) & 15) as usize;
     t[0][nibble(0)] ^ t[1][nibble(1)] ^ t[2][nibble(2)] ^ t[3][nibble(3)]
+}
+
+/// `parts::owen_scramble_rev` on eight lanes (Burley 2020, §4: a hash in which each bit
+/// depends only on the bits below it in the reversed order, that is above it in the point).
+#[inline(always)]
+fn owen_scramble_x8_rev(n: u32x8, scramble: u32x8) -> u32x8 {
+    let n = n ^ (n * u32x8::splat(0x3d20_adea));
+    let n = (n + scramble) * ((scramble >> 16_u32) | u32x8::splat(1));
+    let n = n ^ (n * u32x8::splat(0x0552_6c56));
+    n ^ (n * u32x8::splat(0x53a2_2864))
+}
+
+/// `u32::reverse_bits` on eight lanes: swap halves of ever larger groups.
+#[inline(always)]
+fn reverse_bits_x8(n: u32x8) -> u32x8 {
+    let swap =
+        |n: u32x8, m: u32, s: u32| ((n >> s) & u32x8::splat(m)) | ((n & u32x8::splat(m)) << s);
+    let n = swap(n, 0x5555_5555, 1);
+    let n = swap(n, 0x3333_3333, 2);
+    let n = swap(n, 0x0f0f_0f0f, 4);
+    let n = swap(n, 0x00ff_00ff, 8);
+    (n >> 16_u32) | (n << 16_u32)
+}
+
+/// `parts::u32_to_f32_norm` on eight lanes: the top 23 bits as the mantissa of a number in
+/// [1, 2), minus 1.
+#[inline(always)]
+fn to_f32_norm_x8(n: u32x8) -> f32x8 {
+    let bits = ((n >> 9_u32) | u32x8::splat(0x3f80_0000)).to_array();
+    f32x8::from(bits.map(f32::from_bits)) - f32x8::ONE
 }
 
 #[cfg(test)]
@@ -229,7 +262,7 @@ mod tests {
         // The split computation gives the crate's numbers, in the first block of 2^16 samples
         // and in a later one.
         let mut s = Sampler::new(9, 4);
-        for index in [0u32, 1, 2, 77, 65535, 65536, 65537, 200_000] {
+        for index in [0u32, 1, 2, 77, 65535, 65536, 65537, 200_000, 3] {
             s.start_sample(index);
             let got: Vec<f32> = (0..SOBOL_DIMS).map(|_| s.next_1d()).collect();
             let block = (index >> 16) as u64;
@@ -255,18 +288,29 @@ mod tests {
             } else {
                 (rng.f32() * 4.0e9) as u32
             };
-            for set in 0..SOBOL_DIMS / 4 {
-                // Int4 has no `==`: all 32 bits of the difference are zero.
-                let diff = sobol_int4_rev(&sobol_tables()[set as usize], index_rev)
-                    ^ parts::sobol_int4_rev(index_rev, set);
-                let zero = [0.0; 4];
-                assert_eq!(diff.to_f32_norm(), zero, "index {index_rev:#x}, set {set}");
+            for (o, t) in sobol_tables().iter().enumerate() {
+                let want: [u32; 8] =
+                    std::array::from_fn(|d| parts::sobol_rev(index_rev, (8 * o + d) as u32));
                 assert_eq!(
-                    (diff << 8).to_f32_norm(),
-                    zero,
-                    "index {index_rev:#x}, set {set}"
+                    sobol_x8_rev(t, index_rev).to_array(),
+                    want,
+                    "{index_rev:#x}"
                 );
             }
+        }
+    }
+
+    #[test]
+    fn eight_lane_bit_operations_are_the_scalar_ones() {
+        let mut rng = TestRng(11);
+        for _ in 0..500 {
+            let n: [u32; 8] = std::array::from_fn(|_| (rng.f32() * 4.0e9) as u32);
+            let s: [u32; 8] = std::array::from_fn(|_| (rng.f32() * 4.0e9) as u32);
+            let (nx, sx) = (u32x8::from(n), u32x8::from(s));
+            let scrambled: [u32; 8] = std::array::from_fn(|k| parts::owen_scramble_rev(n[k], s[k]));
+            assert_eq!(owen_scramble_x8_rev(nx, sx).to_array(), scrambled);
+            assert_eq!(reverse_bits_x8(nx).to_array(), n.map(u32::reverse_bits));
+            assert_eq!(to_f32_norm_x8(nx).to_array(), n.map(parts::u32_to_f32_norm));
         }
     }
 
@@ -274,9 +318,8 @@ mod tests {
     fn next_n_draws_what_next_1d_draws() {
         for start in 0..24 {
             let mut a = Sampler::new(3, 8);
-            let mut b = Sampler::new(3, 8);
             a.start_sample(5);
-            b.start_sample(5);
+            let mut b = a.clone();
             for _ in 0..start {
                 a.next_1d();
                 b.next_1d();
