@@ -207,7 +207,7 @@ fn sobol_x8_rev(t: &NibbleTable, index_rev: u32) -> u32x8 {
     t[0][nibble(0)] ^ t[1][nibble(1)] ^ t[2][nibble(2)] ^ t[3][nibble(3)]
 }
 
-/// `parts::owen_scramble_rev` on eight lanes (Burley 2020, §4: a hash in which each bit
+/// `parts::owen_scramble_rev` on eight lanes (Burley 2020: a hash in which each bit
 /// depends only on the bits below it in the reversed order, that is above it in the point).
 #[inline(always)]
 fn owen_scramble_x8_rev(n: u32x8, scramble: u32x8) -> u32x8 {
