@@ -265,9 +265,9 @@ pub fn build(
                     let r = Ray::new(offset_origin(hit.p, ng, wi_world), wi_world);
                     // Emission at the first hit, MIS-weighted against light sampling; the rest
                     // of the path as the path tracer computes it.
-                    let h2 = scene.intersect(&r, f32::INFINITY);
+                    let h2 = scene.intersect_hit(&r, f32::INFINITY);
                     let mut emitted = None;
-                    if let Some(h2) = h2 {
+                    if let Some(h2) = h2.map(|h| scene.surface_hit(&r, &h)) {
                         let o2 = &scene.objects[h2.object as usize];
                         if o2.is_emitter() && h2.ng.dot(-wi_world) > 0.0 {
                             let pl = pt.lights.pdf(h2.prim, h2.t, wi_world, h2.ng);

@@ -7,9 +7,9 @@
 
 use super::bsdf::{Bsdf, WardLobe};
 use super::lights::Lights;
-use crate::geometry::{offset_origin, Ray};
+use crate::geometry::{offset_origin, Hit, Ray};
 use crate::math::{power_heuristic, Frame, Rgb, Sampler, Vec3};
-use crate::scene::{Material, Scene, SurfaceHit, WardVariant};
+use crate::scene::{Material, Object, Scene, SurfaceHit, WardVariant};
 
 /// The BSDF of `material` at a hit, with the shading frame it is expressed in.
 #[inline]
@@ -161,71 +161,86 @@ impl<'a> PathTracer<'a> {
     /// ray after a delta reflection); otherwise it is left out entirely (the caller did next-event
     /// estimation for it without MIS).
     pub fn trace(&self, ray: Ray, sampler: &mut Sampler, depth: u32, count_emission: bool) -> Rgb {
-        let first_hit = self.scene.intersect(&ray, f32::INFINITY);
+        let first_hit = self.scene.intersect_hit(&ray, f32::INFINITY);
         self.trace_from(ray, first_hit, sampler, depth, count_emission)
     }
 
     /// [`PathTracer::trace`] for a caller that has already intersected `ray`: `first_hit` is
-    /// `scene.intersect(&ray, ∞)`.
+    /// `scene.intersect_hit(&ray, ∞)`.
     pub fn trace_from(
         &self,
         ray: Ray,
-        first_hit: Option<SurfaceHit>,
+        first_hit: Option<Hit>,
         sampler: &mut Sampler,
         depth: u32,
         count_emission: bool,
     ) -> Rgb {
         let mut st = PathState::new(ray, depth, count_emission);
         let mut hit = first_hit;
-        while let Some(v) = self.arrive(&mut st, hit.as_ref()) {
+        while let Some(obj) = self.arrive(&mut st, hit.as_ref()) {
+            let Some(v) = hit.and_then(|h| self.vertex(&st, &h, obj)) else {
+                break;
+            };
             if !self.scatter(&mut st, &v, sampler) {
                 break;
             }
-            hit = self.scene.intersect(&st.ray, f32::INFINITY);
+            hit = self.scene.intersect_hit(&st.ray, f32::INFINITY);
         }
         st.l
     }
 
     /// The first half of a path segment: `hit` is where `st.ray` lands. Adds the emission seen
     /// there (MIS-weighted against next-event estimation at the previous vertex) and returns
-    /// the vertex to scatter from, or None where the path ends (no hit, maximum depth, a black
-    /// surface).
+    /// the object hit, or None where the path ends (no hit, maximum depth). Needs only the
+    /// BVH's hit: the rest of the hit record waits for `vertex`.
     #[inline(always)]
-    pub(super) fn arrive(&self, st: &mut PathState, hit: Option<&SurfaceHit>) -> Option<Vertex> {
+    pub(super) fn arrive(&self, st: &mut PathState, hit: Option<&Hit>) -> Option<&'a Object> {
         st.segments += 1;
         let hit = hit?;
-        let obj = &self.scene.objects[hit.object as usize];
-        let wo_world = -st.ray.d;
+        let g = &*self.scene.geometry;
+        let obj = &self.scene.objects[g.tris[hit.prim as usize].object as usize];
         // Emission (front side only).
-        if obj.is_emitter() && hit.ng.dot(wo_world) > 0.0 {
-            let w = match st.prev_pdf {
-                _ if st.first => {
-                    if st.count_emission {
-                        1.0
-                    } else {
-                        0.0
+        if obj.is_emitter() {
+            let ng = g.faces[hit.prim as usize].ng;
+            if ng.dot(-st.ray.d) > 0.0 {
+                let w = match st.prev_pdf {
+                    _ if st.first => {
+                        if st.count_emission {
+                            1.0
+                        } else {
+                            0.0
+                        }
                     }
-                }
-                None => 1.0,
-                Some(pb) => {
-                    let pl = self.lights.pdf(hit.prim, hit.t, st.ray.d, hit.ng);
-                    power_heuristic(pb, pl)
-                }
-            };
-            st.l += st.beta * obj.emission * w;
+                    None => 1.0,
+                    Some(pb) => {
+                        let pl = self.lights.pdf(hit.prim, hit.t, st.ray.d, ng);
+                        power_heuristic(pb, pl)
+                    }
+                };
+                st.l += st.beta * obj.emission * w;
+            }
         }
         st.first = false;
         if st.segments >= self.max_depth {
             return None;
         }
-        let (bsdf, frame) = bsdf_at(&obj.material, hit, self.scene.render.ward_variant);
+        Some(obj)
+    }
+
+    /// The vertex to scatter from where `st.ray` has arrived (`arrive` gave `obj`) at `hit`, or
+    /// None on a black surface.
+    #[inline(always)]
+    pub(super) fn vertex(&self, st: &PathState, hit: &Hit, obj: &Object) -> Option<Vertex> {
+        let sh = self.scene.surface_hit(&st.ray, hit);
+        let (bsdf, frame) = bsdf_at(&obj.material, &sh, self.scene.render.ward_variant);
         if matches!(bsdf, Bsdf::Black) {
             return None;
         }
-        let (frame, ng) = facing(frame, hit.ng, wo_world);
+        let wo_world = -st.ray.d;
+        let (frame, ng) = facing(frame, sh.ng, wo_world);
         let wo = frame.to_local(wo_world);
         Some(Vertex {
-            p: hit.p,
+            p: sh.p,
             bsdf,
             frame,
             ng,

@@ -204,12 +204,26 @@ impl Scene {
         self.geometry.bvh.occluded(ray, t_max)
     }
 
-    /// [`Scene::intersect`] for up to eight rays at once (lanes in `active`; the others give
+    /// The closest hit along `ray` within `t_max` as the BVH reports it: distance, triangle and
+    /// barycentrics, which `surface_hit` expands.
+    #[inline]
+    pub fn intersect_hit(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
+        self.geometry.bvh.intersect(ray, t_max)
+    }
+
+    /// [`Scene::intersect_hit`] for up to eight rays at once (lanes in `active`; the others give
     /// `None`), traced as a packet (`geometry::packet`): the same hits to the bit.
-    pub fn intersect8(&self, rays: [Ray; LANES], active: u32) -> [Option<SurfaceHit>; LANES] {
-        let hits =
-            (self.geometry.bvh).intersect8(&Packet::new(rays, [f32::INFINITY; LANES], active));
-        std::array::from_fn(|i| hits[i].map(|h| self.surface_hit(&rays[i], &h)))
+    pub fn intersect8(&self, rays: [Ray; LANES], active: u32) -> [Option<Hit>; LANES] {
+        (self.geometry.bvh).intersect8(&Packet::new(rays, [f32::INFINITY; LANES], active))
+    }
+
+    /// The point of a hit, interpolated from the triangle's vertices (`SurfaceHit::p`).
+    #[inline(always)]
+    pub fn hit_point(&self, hit: &Hit) -> Vec3 {
+        let g = &*self.geometry;
+        let [i0, i1, i2] = g.tris[hit.prim as usize].v.map(|i| i as usize);
+        let b0 = 1.0 - hit.b1 - hit.b2;
+        g.positions[i0] * b0 + g.positions[i1] * hit.b1 + g.positions[i2] * hit.b2
     }
 
     /// Expands a BVH hit into positions, normals, UVs and the shading frame.
@@ -220,7 +234,7 @@ impl Scene {
         let face = &g.faces[hit.prim as usize];
         let [i0, i1, i2] = tri.v.map(|i| i as usize);
         let b0 = 1.0 - hit.b1 - hit.b2;
-        let p = g.positions[i0] * b0 + g.positions[i1] * hit.b1 + g.positions[i2] * hit.b2;
+        let p = self.hit_point(hit);
         let uv = g.uvs[i0] * b0 + g.uvs[i1] * hit.b1 + g.uvs[i2] * hit.b2;
         let frame = face.frame.unwrap_or_else(|| {
             let n = g.normals[i0] * b0 + g.normals[i1] * hit.b1 + g.normals[i2] * hit.b2;
