@@ -13,6 +13,8 @@ pub struct Lights {
     cdf: Vec<f32>,
     /// Per scene triangle: probability of choosing it divided by its area (0 if not a light).
     pdf_area: Vec<f32>,
+    /// `tris` as rows of sixteen floats (`Lights::row`).
+    rows: Vec<[f32; 16]>,
 }
 
 /// What sampling needs of one emissive triangle, gathered in one place.
@@ -74,10 +76,24 @@ impl Lights {
         if let Some(last) = cdf.last_mut() {
             *last = 1.0;
         }
+        let rows = tris
+            .iter()
+            .map(|t| {
+                let mut r = [0.0; 16];
+                for (k, v) in t.v.iter().enumerate() {
+                    r[Self::V + 3 * k..Self::V + 3 * k + 3].copy_from_slice(&v.to_array());
+                }
+                r[Self::N..Self::N + 3].copy_from_slice(&t.n.to_array());
+                r[Self::LE..Self::LE + 3].copy_from_slice(&t.radiance.to_array());
+                r[Self::PDF_AREA] = t.pdf_area;
+                r
+            })
+            .collect();
         Lights {
             tris,
             cdf,
             pdf_area,
+            rows,
         }
     }
 
@@ -116,13 +132,28 @@ impl Lights {
     }
 
     /// The light triangle chosen by `uc` ∈ [0, 1) (there must be one).
+    /// [`Lights::pick`]'s triangle, by its index (for `row`).
+    #[inline(always)]
+    pub(super) fn pick_index(&self, uc: f32) -> usize {
+        self.cdf
+            .partition_point(|&c| c <= uc)
+            .min(self.tris.len() - 1)
+    }
+
+    /// Triangle `k` as sixteen floats: vertices (`V`), normal (`N`), radiance (`LE`), and
+    /// selection pdf / area (`PDF_AREA`).
+    #[inline(always)]
+    pub(super) fn row(&self, k: usize) -> &[f32] {
+        &self.rows[k]
+    }
+    pub(super) const V: usize = 0;
+    pub(super) const N: usize = 9;
+    pub(super) const LE: usize = 12;
+    pub(super) const PDF_AREA: usize = 15;
+
     #[inline(always)]
     pub(super) fn pick(&self, uc: f32) -> &LightTri {
-        let k = self
-            .cdf
-            .partition_point(|&c| c <= uc)
-            .min(self.tris.len() - 1);
-        &self.tris[k]
+        &self.tris[self.pick_index(uc)]
     }
 
     /// Density per solid angle with which `sample` would have produced the point on triangle
