@@ -22,7 +22,7 @@
 //! chosen on exact distances with ties to the lower triangle index, which no order of
 //! traversal can change.
 
-use super::bvh::{closer, slab_component, Bvh, Node, Stack, CULL_SLACK, EMPTY, LEAF, WIDTH};
+use super::bvh::{closer, Bvh, Node, Stack, CULL_SLACK, EMPTY, LEAF, WIDTH};
 use super::triangle::{intersect, RayShear};
 use super::{Hit, Ray};
 use arrayvec::ArrayVec;
@@ -44,15 +44,6 @@ struct Select {
 }
 
 impl Select {
-    fn new(k: [usize; LANES]) -> Select {
-        let mask = |want: usize| {
-            f32x8::from(k.map(|k| if k == want { 1.0f32 } else { 0.0 })).cmp_gt(f32x8::ZERO)
-        };
-        Select {
-            is0: mask(0),
-            is1: mask(1),
-        }
-    }
     #[inline(always)]
     fn pick(&self, c: &[f32x8; 3]) -> f32x8 {
         self.is0.blend(c[0], self.is1.blend(c[1], c[2]))
@@ -70,7 +61,6 @@ pub struct Packet {
     o: [f32x8; 3],
     inv: [f32x8; 3],
     /// The watertight test's shear (`RayShear`) per lane: its axes as selections, its factors.
-    sh: [RayShear; LANES],
     kx: Select,
     ky: Select,
     kz: Select,
@@ -78,7 +68,10 @@ pub struct Packet {
 }
 
 impl Packet {
-    /// A packet of the rays in lanes `active` (bit i: `rays[i]`, up to `t_max[i]`).
+    /// A packet of the rays in lanes `active` (bit i: `rays[i]`, up to `t_max[i]`). The slab
+    /// reciprocals and the shear are `SlabRay`'s and `RayShear::new`'s arithmetic on eight
+    /// lanes (the same bits; a test holds them to the scalar ones): one at a time they took
+    /// 24 scalar divisions and eight branch-free but long axis selections per packet.
     pub fn new(rays: [Ray; LANES], t_max: [f32; LANES], active: u32) -> Packet {
         let idle = Ray::new(Vec3::ZERO, Vec3::Z);
         let rays: [Ray; LANES] = std::array::from_fn(|i| {
@@ -88,8 +81,36 @@ impl Packet {
                 idle
             }
         });
-        let sh = rays.map(|r| RayShear::new(r.d));
-        let comp = |f: &dyn Fn(&Ray) -> f32| f32x8::from(rays.each_ref().map(f));
+        let comp = |f: fn(&Ray) -> f32| f32x8::from(rays.each_ref().map(f));
+        let o = [comp(|r| r.o.x), comp(|r| r.o.y), comp(|r| r.o.z)];
+        let d = [comp(|r| r.d.x), comp(|r| r.d.y), comp(|r| r.d.z)];
+        let zero = f32x8::ZERO;
+        // `slab_component`: a zero (|c| < 1e-30) becomes ±1e-30.
+        let tiny = f32x8::splat(1e-30);
+        let sign = f32x8::splat(-0.0);
+        let inv = d.map(|c| f32x8::ONE / c.abs().cmp_lt(tiny).blend((c & sign) | tiny, c));
+        // `RayShear::new`: kz = the axis of the largest |d| (x before y, x or y before z on
+        // ties); kx, ky the next two, swapped where the ray runs down kz.
+        let a = d.map(|c| c.abs());
+        let kxy_is_y = !a[0].cmp_gt(a[1]);
+        let kz_is_z = !kxy_is_y.blend(a[1], a[0]).cmp_gt(a[2]);
+        let kz = Select {
+            is0: !kz_is_z & !kxy_is_y,
+            is1: !kz_is_z & kxy_is_y,
+        };
+        let dz = kz.pick(&d);
+        let neg = dz.cmp_lt(zero);
+        let kz2 = kz_is_z;
+        // kx = (kz + 1 + neg) mod 3, ky = (kz + 2 − neg) mod 3.
+        let kx = Select {
+            is0: (kz.is1 & neg) | (kz2 & !neg),
+            is1: (kz.is0 & !neg) | (kz2 & neg),
+        };
+        let ky = Select {
+            is0: (kz.is1 & !neg) | (kz2 & neg),
+            is1: (kz.is0 & neg) | (kz2 & !neg),
+        };
+        let sz = f32x8::ONE / dz;
         Packet {
             active,
             rays,
@@ -101,21 +122,12 @@ impl Packet {
                     -1.0
                 }
             })),
-            o: [comp(&|r| r.o.x), comp(&|r| r.o.y), comp(&|r| r.o.z)],
-            inv: [
-                comp(&|r| 1.0 / slab_component(r.d.x)),
-                comp(&|r| 1.0 / slab_component(r.d.y)),
-                comp(&|r| 1.0 / slab_component(r.d.z)),
-            ],
-            sh,
-            kx: Select::new(sh.map(|s| s.kx)),
-            ky: Select::new(sh.map(|s| s.ky)),
-            kz: Select::new(sh.map(|s| s.kz)),
-            s: [
-                f32x8::from(sh.map(|s| s.sx)),
-                f32x8::from(sh.map(|s| s.sy)),
-                f32x8::from(sh.map(|s| s.sz)),
-            ],
+            o,
+            inv,
+            kx,
+            ky,
+            kz,
+            s: [kx.pick(&d) * sz, ky.pick(&d) * sz, sz],
         }
     }
 
@@ -189,7 +201,8 @@ impl Packet {
         j: usize,
     ) -> Option<(f32, f32, f32)> {
         let [p0, p1, p2] = bvh.tris[block].triangle(lane);
-        intersect(self.rays[j].o, &self.sh[j], p0, p1, p2, self.t_max[j])
+        let r = &self.rays[j];
+        intersect(r.o, &RayShear::new(r.d), p0, p1, p2, self.t_max[j])
     }
 }
 
@@ -372,8 +385,57 @@ fn bits(mut m: u32) -> impl Iterator<Item = usize> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::bvh::slab_component;
     use super::*;
     use crate::math::sampler::TestRng as Rng;
+
+    #[test]
+    fn packet_setup_is_the_one_ray_setup_lane_for_lane() {
+        // Reciprocals and shears of random directions and of the awkward ones: on an axis
+        // (±0 components), on ties between axes, below 1e-30.
+        let mut rng = Rng(21);
+        let mut dirs: Vec<Vec3> = (0..400).map(|_| rng.vec3() * 2.0 - 1.0).collect();
+        for (x, y, z) in [
+            (1.0, 0.0, 0.0),
+            (-0.0, -1.0, 0.0),
+            (0.0, 0.0, -1.0),
+            (1.0, 1.0, 0.5),
+            (-1.0, 1.0, 1.0),
+            (0.5, -1.0, 1.0),
+            (1.0, -1.0, -1.0),
+            (1e-31, -1e-31, 1.0),
+            (-2e-30, 1.0, -0.0),
+        ] {
+            dirs.push(Vec3::new(x, y, z));
+        }
+        for chunk in dirs.chunks(LANES) {
+            let rays: [Ray; LANES] = std::array::from_fn(|i| {
+                Ray::new(Vec3::ZERO, chunk.get(i).copied().unwrap_or(Vec3::Z))
+            });
+            let p = Packet::new(rays, [1.0; LANES], (1 << chunk.len()) - 1);
+            let at = |v: f32x8, i: usize| v.to_array()[i].to_bits();
+            for (i, r) in rays.iter().enumerate().take(chunk.len()) {
+                let d = r.d.to_array();
+                for axis in 0..3 {
+                    let want = 1.0 / slab_component(d[axis]);
+                    assert_eq!(at(p.inv[axis], i), want.to_bits(), "{:?}", r.d);
+                }
+                let sh = RayShear::new(r.d);
+                let axis = |sel: &Select| {
+                    let c: [f32x8; 3] = std::array::from_fn(|k| f32x8::splat(k as f32));
+                    sel.pick(&c).to_array()[i] as usize
+                };
+                assert_eq!(
+                    (axis(&p.kx), axis(&p.ky), axis(&p.kz)),
+                    (sh.kx, sh.ky, sh.kz),
+                    "{:?}",
+                    r.d
+                );
+                let s = [sh.sx, sh.sy, sh.sz].map(f32::to_bits);
+                assert_eq!([0, 1, 2].map(|k| at(p.s[k], i)), s, "{:?}", r.d);
+            }
+        }
+    }
 
     /// Packets of random rays (some lanes idle) give each ray's one-ray answer to the bit.
     fn check(tris: &[[Vec3; 3]], rays: &[(Ray, f32)], seed: u64) {

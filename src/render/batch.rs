@@ -220,6 +220,7 @@ pub fn render_pixels(
         samplers: std::array::from_fn(|_| Sampler::new(seed, 0)),
         pixel: [usize::MAX; LANES],
     };
+    let eye = camera.eye();
     let jobs = |job: &mut Job| {
         let pk = &mut packet;
         if pk.k == pk.n {
@@ -228,8 +229,9 @@ pub fn render_pixels(
             }
             pk.n = (total - next).min(LANES);
             pk.k = 0;
+            let (mut film_x, mut film_y) = ([0.0f32; LANES], [0.0f32; LANES]);
             for k in 0..pk.n {
-                let (ray, s) = (&mut pk.rays[k], &mut pk.samplers[k]);
+                let s = &mut pk.samplers[k];
                 let x = x0 + next / spp_n;
                 if x != template_x {
                     template = Sampler::new(seed, (y * camera.width as usize + x) as u64);
@@ -242,7 +244,14 @@ pub fn render_pixels(
                 }
                 s.start_sample((next % spp_n) as u32);
                 next += 1;
-                *ray = camera.ray(Vec2::new(x as f32, y as f32) + s.next_2d());
+                let film = Vec2::new(x as f32, y as f32) + s.next_2d();
+                (film_x[k], film_y[k]) = (film.x, film.y);
+            }
+            // `camera.ray` for the eight film positions.
+            let d = camera.directions8(f32x8::from(film_x), f32x8::from(film_y));
+            let d = d.map(|c| c.to_array());
+            for (k, ray) in pk.rays.iter_mut().enumerate() {
+                *ray = Ray::new(eye, Vec3::new(d[0][k], d[1][k], d[2][k]));
             }
             pk.hits = pt.scene.intersect8(pk.rays, (1u32 << pk.n) - 1);
         }
