@@ -463,14 +463,20 @@ mod tests {
                 [c, c + Vec3::X * 0.1, c + Vec3::Y * 0.1]
             })
             .collect();
-        for tris in [same, skewed] {
+        for (k, tris) in [same, skewed].into_iter().enumerate() {
             let bvh = Bvh::build(&tris);
+            assert!(bvh.ids.iter().all(|ids| ids.is_sorted()));
             for _ in 0..3000 {
                 let o = rng.vec3() * 2.0 - 0.5;
                 let ray = Ray::new(o, rng.vec3() - 0.5);
                 let b = brute(&tris, &ray, f32::INFINITY);
                 assert_same_hit(bvh.intersect(&ray, f32::INFINITY), b);
                 assert_eq!(bvh.occluded(&ray, f32::INFINITY), b.is_some());
+                if k == 0 {
+                    // Every copy is hit at once: the lowest index wins.
+                    let prim = bvh.intersect(&ray, f32::INFINITY).map(|h| h.prim);
+                    assert_eq!(prim, b.map(|_| 0));
+                }
             }
             // Rays along the skewed diagonal meet many boxes at once.
             for i in 0..500 {

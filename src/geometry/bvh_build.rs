@@ -104,7 +104,10 @@ fn collapse(
     bvh: &mut Bvh,
 ) -> u32 {
     if let Kind::Leaf { start, count } = bin[node].kind {
-        let leaf = &prims[start..start + count];
+        // In triangle order, so that of a block's lanes hit at the same distance the first has
+        // the lowest index (`Hits4::nearest`).
+        let mut leaf: Vec<&BuildPrim> = prims[start..start + count].iter().collect();
+        leaf.sort_by_key(|p| p.id);
         let vertices: Vec<[Vec3; 3]> = leaf.iter().map(|p| tris[p.id as usize]).collect();
         let mut ids = [0u32; 4];
         for (lane, id) in ids.iter_mut().enumerate() {

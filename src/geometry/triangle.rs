@@ -28,9 +28,11 @@ impl RayShear {
         let kxy = usize::from(!(a[0] > a[1]));
         let kz = if a[kxy] > a[2] { kxy } else { 2 };
         let neg = usize::from(d[kz] < 0.0);
-        // (kz + 1, kz + 2) mod 3, swapped where the ray runs down kz (keeps the winding).
-        let kx = (kz + 1 + neg) % 3;
-        let ky = (kz + 2 - neg) % 3;
+        // (kz + 1, kz + 2) mod 3, swapped where the ray runs down kz (keeps the winding); from
+        // a table, as the two remainders by 3 took ~20 instructions per ray.
+        const NEXT: [usize; 5] = [0, 1, 2, 0, 1];
+        let kx = NEXT[kz + 1 + neg];
+        let ky = NEXT[kz + 2 - neg];
         // One division: |d[kz]| ≥ |d| / √3, so the reciprocal is well conditioned.
         let sz = 1.0 / d[kz];
         RayShear {
@@ -151,12 +153,14 @@ pub struct Hits4 {
 
 impl Hits4 {
     /// The nearest hit lane, of equally near ones the one whose triangle index in `ids` is
-    /// lowest.
+    /// lowest: the first of them, as a block's triangles are in index order (`bvh_build.rs`; a
+    /// block of fewer than four repeats its last).
     #[inline(always)]
     pub fn nearest(&self, ids: &[u32; 4]) -> Option<usize> {
         if self.valid == 0 {
             return None;
         }
+        debug_assert!(ids.is_sorted());
         let inf = f32::INFINITY;
         let tv: [f32; 4] = std::array::from_fn(|i| {
             if self.valid & (1 << i) != 0 {
@@ -167,16 +171,7 @@ impl Hits4 {
         });
         let t_min = tv[0].min(tv[1]).min(tv[2].min(tv[3]));
         let at = f32x4::from(tv).cmp_eq(f32x4::splat(t_min)).move_mask() as u32 & self.valid;
-        // Of the lanes at t_min, the lowest index (the first such lane of equal ones): the
-        // least of (index, lane) keys, lanes not at t_min keyed beyond every index. Without
-        // branches: a block of fewer than four triangles repeats its last, so ties are common
-        // and a loop over them mispredicted.
-        let key = |j: usize| {
-            let off = u64::from((at >> j) & 1 ^ 1) << 40;
-            (u64::from(ids[j]) << 2 | j as u64) | off
-        };
-        let best = key(0).min(key(1)).min(key(2).min(key(3)));
-        Some((best & 3) as usize)
+        Some(at.trailing_zeros() as usize)
     }
 }
 
