@@ -358,22 +358,14 @@ impl Bvh {
     }
 }
 
-/// The ray, its six components read one float at a time. The path loop writes a lane's rays a
-/// float at a time from its eight-lane registers (`render::batch`), and the compiler would read
-/// them two or four at a time here; a load that spans several stores cannot be forwarded from
-/// the store buffer and waits until they reach the cache. `black_box` keeps the reads apart
-/// (it is an optimisation barrier only; the values are unchanged). Measured on figure6
-/// (1 thread, 16 spp, fastest of 15 runs in turns): 0.357 → 0.340 s. Writing the rays with
-/// wide stores instead (rows of eight-lane transposes) measured slower, 0.397 s: the copy into
-/// a `Ray` then split its direction across two stores.
+/// The ray, its six components read one float at a time (`math::read_apart`): the path loop
+/// writes lanes' rays a float at a time. Measured on figure6 (1 thread, 16 spp, fastest of 15
+/// runs in turns): 0.357 → 0.340 s. Writing the rays with wide stores instead (rows of
+/// eight-lane transposes) measured slower, 0.397 s: the copy into a `Ray` then split its
+/// direction across two stores.
 #[inline(always)]
 fn read_apart(ray: &Ray) -> Ray {
-    use std::hint::black_box;
-    let (o, d) = (&ray.o, &ray.d);
-    Ray::new(
-        Vec3::new(black_box(o.x), black_box(o.y), black_box(o.z)),
-        Vec3::new(black_box(d.x), black_box(d.y), black_box(d.z)),
-    )
+    Ray::new(crate::math::read_apart(&ray.o), crate::math::read_apart(&ray.d))
 }
 
 /// Boxes are culled against the closest hit so far only beyond `t_best × CULL_SLACK`: a box's
