@@ -208,10 +208,19 @@ impl Bvh {
     /// packet traversal of `packet.rs` gives the same hit to the bit.
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
         let mut best = None;
-        if !self.nodes.is_empty() {
-            self.intersect_subtree(0, ray, t_max, &mut best);
-        }
+        self.intersect_into(ray, t_max, &mut best);
         best
+    }
+
+    /// [`Bvh::intersect`], written into `best` where the caller keeps it: the traversal writes
+    /// the hit a field at a time, and a copy of it read as a whole right after could not be
+    /// forwarded from the store buffer (`read_apart`).
+    #[inline]
+    pub fn intersect_into(&self, ray: &Ray, t_max: f32, best: &mut Option<Hit>) {
+        *best = None;
+        if !self.nodes.is_empty() {
+            self.intersect_subtree(0, ray, t_max, best);
+        }
     }
 
     /// [`Bvh::intersect`] within the subtree under child reference `start` (a node, or a leaf

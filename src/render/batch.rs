@@ -116,7 +116,8 @@ pub fn trace_jobs(
         while mask != 0 {
             let lane = &mut lanes[mask.trailing_zeros() as usize];
             mask &= mask - 1;
-            lane.hit = pt.scene.intersect_hit(&lane.st.ray, f32::INFINITY);
+            pt.scene
+                .intersect_hit_into(&lane.st.ray, f32::INFINITY, &mut lane.hit);
         }
         known = 0;
         diffuse.n = 0;
@@ -125,7 +126,7 @@ pub fn trace_jobs(
             let i = mask.trailing_zeros() as usize;
             mask &= mask - 1;
             let lane = &mut lanes[i];
-            let alive = match (pt.arrive(&mut lane.st, lane.hit.as_ref()), lane.hit) {
+            let alive = match (pt.arrive(&mut lane.st, lane.hit.as_ref()), &lane.hit) {
                 (Some(obj), Some(hit)) => {
                     if let Some((ng, frame, rho_d)) = flat_lambert(pt, obj, &hit, lane.st.ray.d) {
                         let p = pt.scene.hit_point(&hit);

@@ -211,6 +211,12 @@ impl Scene {
         self.geometry.bvh.intersect(ray, t_max)
     }
 
+    /// [`Scene::intersect_hit`] into `hit` (`Bvh::intersect_into`).
+    #[inline]
+    pub fn intersect_hit_into(&self, ray: &Ray, t_max: f32, hit: &mut Option<Hit>) {
+        self.geometry.bvh.intersect_into(ray, t_max, hit)
+    }
+
     /// [`Scene::intersect_hit`] for up to eight rays at once (lanes in `active`; the others give
     /// `None`), traced as a packet (`geometry::packet`): the same hits to the bit.
     pub fn intersect8(&self, rays: [Ray; LANES], active: u32) -> [Option<Hit>; LANES] {
