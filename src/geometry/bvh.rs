@@ -374,7 +374,10 @@ impl Bvh {
 /// direction across two stores.
 #[inline(always)]
 fn read_apart(ray: &Ray) -> Ray {
-    Ray::new(crate::math::read_apart(&ray.o), crate::math::read_apart(&ray.d))
+    Ray::new(
+        crate::math::read_apart(&ray.o),
+        crate::math::read_apart(&ray.d),
+    )
 }
 
 /// Boxes are culled against the closest hit so far only beyond `t_best × CULL_SLACK`: a box's

@@ -222,9 +222,17 @@ fn lanes(mask: f32x8) -> u32 {
 impl Bvh {
     /// [`Bvh::intersect`] for each active lane of the packet (idle lanes: `None`).
     pub fn intersect8(&self, p: &Packet) -> [Option<Hit>; LANES] {
-        let mut best: [Option<Hit>; LANES] = [None; LANES];
+        let mut best = [None; LANES];
+        self.intersect8_into(p, &mut best);
+        best
+    }
+
+    /// [`Bvh::intersect8`], written into `best` where the caller keeps it (as
+    /// `Bvh::intersect_into`).
+    pub fn intersect8_into(&self, p: &Packet, best: &mut [Option<Hit>; LANES]) {
+        *best = [None; LANES];
         if self.nodes.is_empty() || p.active == 0 {
-            return best;
+            return;
         }
         let inf = f32x8::splat(f32::INFINITY);
         let mut t_best = p.t_far;
@@ -313,7 +321,6 @@ impl Bvh {
                 stack.push(e);
             }
         }
-        best
     }
 
     /// [`Bvh::occluded`] for each active lane of the packet: bit i set if lane i's ray is

@@ -254,7 +254,8 @@ pub fn render_pixels(
             for (k, ray) in pk.rays.iter_mut().enumerate() {
                 *ray = Ray::new(eye, Vec3::new(d[0][k], d[1][k], d[2][k]));
             }
-            pk.hits = pt.scene.intersect8(pk.rays, (1u32 << pk.n) - 1);
+            pt.scene
+                .intersect8_into(pk.rays, (1u32 << pk.n) - 1, &mut pk.hits);
         }
         let k = pk.k;
         pk.k += 1;

@@ -218,9 +218,16 @@ impl Scene {
     }
 
     /// [`Scene::intersect_hit`] for up to eight rays at once (lanes in `active`; the others give
-    /// `None`), traced as a packet (`geometry::packet`): the same hits to the bit.
-    pub fn intersect8(&self, rays: [Ray; LANES], active: u32) -> [Option<Hit>; LANES] {
-        (self.geometry.bvh).intersect8(&Packet::new(rays, [f32::INFINITY; LANES], active))
+    /// `None`), traced as a packet (`geometry::packet`): the same hits to the bit, written into
+    /// `hits` where the caller keeps them (`Bvh::intersect_into`).
+    pub fn intersect8_into(
+        &self,
+        rays: [Ray; LANES],
+        active: u32,
+        hits: &mut [Option<Hit>; LANES],
+    ) {
+        let packet = Packet::new(rays, [f32::INFINITY; LANES], active);
+        self.geometry.bvh.intersect8_into(&packet, hits)
     }
 
     /// The point of a hit, interpolated from the triangle's vertices (`SurfaceHit::p`).
