@@ -128,12 +128,12 @@ pub fn trace_jobs(
             let lane = &mut lanes[i];
             let alive = match (pt.arrive(&mut lane.st, lane.hit.as_ref()), &lane.hit) {
                 (Some(obj), Some(hit)) => {
-                    if let Some((ng, frame, rho_d)) = flat_lambert(pt, obj, &hit, lane.st.ray.d) {
-                        let p = pt.scene.hit_point(&hit);
+                    if let Some((ng, frame, rho_d)) = flat_lambert(pt, obj, hit, lane.st.ray.d) {
+                        let p = pt.scene.hit_point(hit);
                         diffuse.push(i, pt, p, ng, &frame, rho_d, lane);
                         true
                     } else {
-                        match pt.vertex(&lane.st, &hit, obj) {
+                        match pt.vertex(&lane.st, hit, obj) {
                             None => false,
                             Some(v) => match v.bsdf {
                                 Bsdf::Diffuse { rho_d }
