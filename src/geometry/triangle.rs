@@ -169,7 +169,10 @@ impl Hits4 {
                 inf
             }
         });
-        let t_min = tv[0].min(tv[1]).min(tv[2].min(tv[3]));
+        // `a < b ? a : b`, one `minss`: `f32::min` adds a NaN test, and no t is NaN (misses
+        // are +∞).
+        let min = |a: f32, b: f32| if a < b { a } else { b };
+        let t_min = min(min(tv[0], tv[1]), min(tv[2], tv[3]));
         let at = f32x4::from(tv).cmp_eq(f32x4::splat(t_min)).move_mask() as u32 & self.valid;
         Some(at.trailing_zeros() as usize)
     }
