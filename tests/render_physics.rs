@@ -311,13 +311,15 @@ fn eight_path_batches_give_the_one_path_integrators_pixels_to_the_bit() {
         dir.path().join("checker.png").display(),
         &cornell[end..]
     );
-    for (name, text) in [
-        ("figure6", quarter("figure6", "ward1992")),
-        ("glossy", quarter("glossy", "balanced")),
-        ("cornell, textured", (textured, cornell_path)),
+    // figure6 at 9 spp: a camera packet's slot then keeps its pixel's sampler from one packet
+    // to the next (`render_pixels`), which 3 spp never does.
+    for (name, text, spp) in [
+        ("figure6", quarter("figure6", "ward1992"), 9),
+        ("glossy", quarter("glossy", "balanced"), 3),
+        ("cornell, textured", (textured, cornell_path), 3),
     ] {
         let sc = parse_scene(&text.0, &text.1).unwrap();
-        let (spp, seed) = (3, 17);
+        let seed = 17;
         let opts = RenderOptions {
             spp,
             seed,

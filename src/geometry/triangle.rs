@@ -154,7 +154,7 @@ pub struct Hits4 {
 impl Hits4 {
     /// The nearest hit lane, of equally near ones the one whose triangle index in `ids` is
     /// lowest: the first of them, as a block's triangles are in index order (`bvh_build.rs`; a
-    /// block of fewer than four repeats its last).
+    /// block of fewer than four repeats its last). `ids` only checks that order in debug builds.
     #[inline(always)]
     pub fn nearest(&self, ids: &[u32; 4]) -> Option<usize> {
         if self.valid == 0 {

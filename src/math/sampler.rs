@@ -11,8 +11,8 @@
 //! from segment 5): with the Sobol dimensions computed eight at a time, the three more
 //! registers per sample cost less than the hashes they replace and than the mispredicted
 //! branch of lanes switching between Sobol and hash numbers at different depths (`next_n`):
-//! 1 thread, 16 spp, 0.409 → 0.388 s (fastest of 11; three or four bounces measured
-//! the same); RMSE against the bench's reference 1.5% lower at 64 spp (0.01301 → 0.01281,
+//! 1 thread, 16 spp, 0.409 → 0.388 s (fastest of 11, this change alone: the flat Lambert
+//! path of `render::batch` in both builds; three or four bounces measured the same); RMSE against the bench's reference 1.5% lower at 64 spp (0.01301 → 0.01281,
 //! mean of 4 seeds; 16 spp: 0.02987 → 0.02970).
 
 use super::Vec2;
@@ -23,7 +23,7 @@ use wide::{f32x8, u32x8};
 /// Dimensions served from Sobol points: 2 film + 5 bounces × 7 (light 3, BSDF 3, roulette 1),
 /// so that a bounce's seven numbers all come from Sobol points or all from the hash (`next_n`).
 const SOBOL_DIMS: u32 = 37;
-/// Registers of eight dimensions (one AVX register each) computed per sample: the last two
+/// Registers of eight dimensions (one AVX register each) computed per sample: the last three
 /// dimensions are computed and never drawn.
 const OCTETS: usize = SOBOL_DIMS.div_ceil(8) as usize;
 const _: () = assert!(8 * OCTETS as u32 <= sobol_burley::NUM_DIMENSIONS);

@@ -16,8 +16,10 @@
 //! pixel, whose samples are summed in sample order — is the scalar integrator's to the bit; a
 //! test holds the two to that. A flat-shaded Lambert triangle goes from the BVH's hit straight
 //! into the eight-lane arrays (`flat_lambert`), without the hit record and `Vertex` of the
-//! general route: 8% fewer instructions per sample on figure6 and, with the sampler's five
-//! Sobol bounces, 0.398 → 0.388 s (1 thread, 16 spp, fastest of 11).
+//! general route: 8% fewer instructions per sample on figure6 (cachegrind, 16 spp: 1.358 →
+//! 1.248 G), which alone measured no faster; with the roulette flag of `row::ROULETTE`, and
+//! the sampler's five Sobol bounces in both builds, 0.398 → 0.388 s (1 thread, 16 spp,
+//! fastest of 11).
 //!
 //! Lanes that finish a path take the next job at once, so the eight lanes stay busy until the
 //! jobs run out. Two callers: `render_pixels` (a film's pixels, job = one (pixel, sample)) and
@@ -284,7 +286,8 @@ struct DiffuseLanes {
     n: usize,
     lane: [usize; LANES],
     rows: [Row; LANES],
-    /// The chosen light triangle (`Lights::row`).
+    /// The chosen light triangle (`Lights::row`). Lanes past `n` keep an earlier one, or 0:
+    /// `scatter` reads their rows too, which exist as `n` > 0 means the scene has lights.
     light: [usize; LANES],
 }
 
@@ -306,20 +309,20 @@ mod row {
     pub const U_LIGHT: usize = 24;
     pub const U_BSDF: usize = 26;
     pub const U_RR: usize = 28;
-    /// The path's segments so far (roulette applies from `PathTracer::rr_depth` on), as a
-    /// float: a 0/1 flag computed at `push` compiled to a branch, which mispredicted often.
-    pub const SEGMENTS: usize = 29;
+    /// 1 where roulette applies (the path has `PathTracer::rr_depth` segments or more), else 0.
+    /// (`f32::from(u8::from(..))` of the comparison compiled to a branch, mispredicted a
+    /// quarter of the time; the comparison's `u32` made a float compiles to `setae`.)
+    pub const ROULETTE: usize = 29;
 }
 
 /// Rows of eight lanes as eight-lane registers: element k of the result is value k of every
 /// lane's row (`N` groups of eight values).
 #[inline(always)]
-fn transpose<const N: usize>(rows: [&[f32]; LANES]) -> [f32x8; N] {
+fn transpose<const N: usize>(rows: [&[f32; N]; LANES]) -> [f32x8; N] {
     let mut out = [f32x8::ZERO; N];
     for (g, chunk) in out.chunks_exact_mut(8).enumerate() {
         let t = f32x8::transpose(std::array::from_fn(|j| {
-            let r: [f32; 8] = rows[j][8 * g..8 * g + 8].try_into().unwrap_or_default();
-            f32x8::from(r)
+            f32x8::from(rows[j].as_chunks::<8>().0[g])
         }));
         chunk.copy_from_slice(&t);
     }
@@ -370,6 +373,7 @@ impl DiffuseLanes {
         // `Lights::sample`: the triangle, then the point on it; `Bsdf::sample` (Diffuse): the
         // lobe choice (unused), then the direction; roulette.
         let [uc, l0, l1, _, b0, b1, u_rr] = lane.sampler.next_n::<7>();
+        let roulette = u32::from(lane.st.segments >= pt.rr_depth);
         self.light[j] = pt.lights.pick_index(uc);
         let r = &mut self.rows[j];
         put(r, row::P, p);
@@ -380,13 +384,13 @@ impl DiffuseLanes {
         put(r, row::RHO, rho);
         put(r, row::BETA, lane.st.beta);
         put(r, row::L, lane.st.l);
-        r.0[row::U_LIGHT..row::SEGMENTS + 1].copy_from_slice(&[
+        r.0[row::U_LIGHT..row::ROULETTE + 1].copy_from_slice(&[
             l0,
             l1,
             b0,
             b1,
             u_rr,
-            lane.st.segments as f32,
+            roulette as f32,
         ]);
     }
 
@@ -411,7 +415,7 @@ impl DiffuseLanes {
             }
         }))
         .cmp_gt(zero);
-        let x: [f32x8; 32] = transpose(std::array::from_fn(|j| &self.rows[j].0[..]));
+        let x: [f32x8; 32] = transpose(std::array::from_fn(|j| &self.rows[j].0));
         let light: [f32x8; 16] = transpose(std::array::from_fn(|j| pt.lights.row(self.light[j])));
         let p = vec(&x, row::P);
         let ng = vec(&x, row::NG);
@@ -504,7 +508,7 @@ impl DiffuseLanes {
         go = finite & !beta_max.cmp_le(zero);
         // Russian roulette.
         let q = (one - beta_max).max(splat(0.05));
-        let rr = x[row::SEGMENTS].cmp_ge(splat(pt.rr_depth as f32));
+        let rr = x[row::ROULETTE].cmp_gt(zero);
         go &= !(rr & x[row::U_RR].cmp_lt(q));
         let keep = one - q;
         for c in beta.iter_mut() {

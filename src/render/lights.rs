@@ -131,10 +131,10 @@ impl Lights {
         })
     }
 
-    /// The light triangle chosen by `uc` ∈ [0, 1) (there must be one).
     /// [`Lights::pick`]'s triangle, by its index (for `row`).
     #[inline(always)]
     pub(super) fn pick_index(&self, uc: f32) -> usize {
+        debug_assert!(!self.tris.is_empty());
         self.cdf
             .partition_point(|&c| c <= uc)
             .min(self.tris.len() - 1)
@@ -143,7 +143,7 @@ impl Lights {
     /// Triangle `k` as sixteen floats: vertices (`V`), normal (`N`), radiance (`LE`), and
     /// selection pdf / area (`PDF_AREA`).
     #[inline(always)]
-    pub(super) fn row(&self, k: usize) -> &[f32] {
+    pub(super) fn row(&self, k: usize) -> &[f32; 16] {
         &self.rows[k]
     }
     pub(super) const V: usize = 0;
@@ -151,6 +151,7 @@ impl Lights {
     pub(super) const LE: usize = 12;
     pub(super) const PDF_AREA: usize = 15;
 
+    /// The light triangle chosen by `uc` ∈ [0, 1) (there must be one).
     #[inline(always)]
     pub(super) fn pick(&self, uc: f32) -> &LightTri {
         &self.tris[self.pick_index(uc)]
