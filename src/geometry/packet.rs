@@ -100,15 +100,14 @@ impl Packet {
         };
         let dz = kz.pick(&d);
         let neg = dz.cmp_lt(zero);
-        let kz2 = kz_is_z;
         // kx = (kz + 1 + neg) mod 3, ky = (kz + 2 − neg) mod 3.
         let kx = Select {
-            is0: (kz.is1 & neg) | (kz2 & !neg),
-            is1: (kz.is0 & !neg) | (kz2 & neg),
+            is0: (kz.is1 & neg) | (kz_is_z & !neg),
+            is1: (kz.is0 & !neg) | (kz_is_z & neg),
         };
         let ky = Select {
-            is0: (kz.is1 & !neg) | (kz2 & neg),
-            is1: (kz.is0 & neg) | (kz2 & !neg),
+            is0: (kz.is1 & !neg) | (kz_is_z & neg),
+            is1: (kz.is0 & neg) | (kz_is_z & !neg),
         };
         let sz = f32x8::ONE / dz;
         Packet {

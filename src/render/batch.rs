@@ -138,11 +138,7 @@ pub fn trace_jobs(
                         match pt.vertex(&lane.st, hit, obj) {
                             None => false,
                             Some(v) => match v.bsdf {
-                                Bsdf::Diffuse { rho_d }
-                                    if rho_d.max_element() > 0.0
-                                        && v.wo.z > 0.0
-                                        && !pt.lights.is_empty() =>
-                                {
+                                Bsdf::Diffuse { rho_d } if gathers(pt, rho_d, v.wo.z) => {
                                     diffuse.push(i, pt, v.p, v.ng, &v.frame, rho_d, lane);
                                     true
                                 }
@@ -178,9 +174,16 @@ fn flat_lambert(pt: &PathTracer, obj: &Object, hit: &Hit, d: Vec3) -> Option<(Ve
     let face = &pt.scene.geometry.faces[hit.prim as usize];
     let wo = -d;
     let (frame, ng) = facing(face.frame?, face.ng, wo);
-    // `wo.dot(frame.n)` is `frame.to_local(wo).z`, the general route's test.
-    (rho_d.max_element() > 0.0 && wo.dot(frame.n) > 0.0 && !pt.lights.is_empty())
-        .then_some((ng, frame, rho_d))
+    // `wo.dot(frame.n)` is `frame.to_local(wo).z`, the general route's `wo.z`.
+    gathers(pt, rho_d, wo.dot(frame.n)).then_some((ng, frame, rho_d))
+}
+
+/// Whether a Lambert vertex of reflectance `rho_d`, seen at `wo_z` (the outgoing direction's
+/// cosine in the shading frame), goes to the eight-lane `DiffuseLanes`: some reflectance, seen
+/// from above, in a scene with lights. Otherwise `PathTracer::scatter` handles it alone.
+#[inline(always)]
+fn gathers(pt: &PathTracer, rho_d: Rgb, wo_z: f32) -> bool {
+    rho_d.max_element() > 0.0 && wo_z > 0.0 && !pt.lights.is_empty()
 }
 
 /// The next camera packet's paths: eight samples of a pixel, their rays traced together.
