@@ -15,7 +15,6 @@
 //!
 //! Samples are split into two halves (even and odd sample index) to measure the noise floor.
 
-use super::objective::HalfVector;
 use crate::geometry::{offset_origin, Ray};
 use crate::math::{Rgb, Sampler, Vec2, Vec3, INV_PI};
 use crate::render::batch::{trace_jobs, Job};
@@ -55,20 +54,7 @@ impl Default for CacheOptions {
 
 /// One cached incident sample: the half vector of its directions in the local shading frame of
 /// its hit (unrotated by θ), as the lobe's evaluation needs it, and its radiance weight.
-#[derive(Clone, Copy, Debug)]
-pub struct Sample {
-    pub half: HalfVector,
-    pub c: Rgb,
-}
-
-impl Sample {
-    pub fn new(wo: Vec3, wi: Vec3, c: Rgb) -> Sample {
-        Sample {
-            half: HalfVector::new(wo, wi),
-            c,
-        }
-    }
-}
+pub use crate::render::bsdf::ward::LobeSample as Sample;
 
 /// A cache sample on its way: its half, directions in the local frame, and its weight.
 struct Entry {

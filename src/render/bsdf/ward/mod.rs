@@ -19,6 +19,15 @@
 //!   p(ĥ) = exp(−E) / (π αx αy cos³δ),   and   p(ωi) = p(ĥ) / (4 |ωo·ĥ|).
 //!
 //! All values here are per unit ρs: the caller multiplies by ρs (the fitter relies on that).
+//!
+//! The fitter evaluates the same lobe from precomputed half vectors, with its derivatives
+//! ([`half_vector`]), and sums it over its cached samples eight at a time ([`lanes`]).
+
+pub mod half_vector;
+pub mod lanes;
+
+pub use half_vector::{ward_at, HalfVector, LobeParams};
+pub use lanes::{lobe_sums, LobeSample};
 
 use crate::math::{exp_neg, Vec2, Vec3, PI};
 use crate::scene::WardVariant;
