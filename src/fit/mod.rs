@@ -2,6 +2,7 @@
 //! machine, and the global iterations that tie them together (§4 of the notes).
 
 pub mod cache;
+pub mod error;
 pub mod fitter;
 pub mod hierarchy;
 pub mod level;

@@ -1,15 +1,9 @@
 //! The objective of the fit, evaluated from a group's cache: the specular term per pixel for a
-//! trial lobe (with its analytic derivatives), the per-channel least-squares moments, and the
-//! error metric with its noise floor.
-//!
-//! **Error** (DESIGN.md): ε = Σ|L_syn − L_photo| / Σ L_photo over the usable pixels and the
-//! three channels. To keep Monte Carlo noise from deciding hypotheses, both images are first
-//! summed over small tiles of the group's pixels (`CacheOptions::tile`), which averages noise
-//! away while a wrong model's systematic error (a missing highlight) stays. The **noise floor**
-//! is the same metric between the two independent halves of the cache's samples, halved (each
-//! half has twice the variance of the whole; their difference four times).
+//! trial lobe (with its analytic derivatives, from `render::bsdf::ward`), the per-channel
+//! least-squares moments, and the error metric ([`super::error`]) on the cache's tiles.
 
 use super::cache::GroupCache;
+use super::error::{tiled_error, ErrorStats, PixelTerms};
 use crate::math::Rgb;
 use crate::render::bsdf::ward::{lobe_sums, LobeParams};
 use crate::scene::WardVariant;
@@ -97,55 +91,18 @@ pub fn moments(cache: &GroupCache, specs: &[PixelSpec]) -> [super::solve::Moment
     m
 }
 
-/// The error of a model on a cache: ε, the noise floor, and ε of each half of the samples
-/// alone (for paired comparisons of two models on the same samples).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ErrorStats {
-    pub error: f32,
-    pub noise_floor: f32,
-    pub halves: [f32; 2],
-}
-
 /// ε and the noise floor of the model ρd, ρs with the given specular terms.
 pub fn error(cache: &GroupCache, specs: &[PixelSpec], rho_d: Rgb, rho_s: Rgb) -> ErrorStats {
-    let n = cache.tiles.max(1);
-    let mut syn = vec![Rgb::ZERO; n];
-    let mut photo = vec![Rgb::ZERO; n];
-    let mut halves = [vec![Rgb::ZERO; n], vec![Rgb::ZERO; n]];
-    for (p, s) in cache.pixels.iter().zip(specs) {
-        let t = p.tile as usize;
-        syn[t] += rho_d * p.d + rho_s * s.s;
-        photo[t] += p.photo;
-        for h in 0..2 {
-            halves[h][t] += rho_d * p.d_half[h] + rho_s * s.s_half[h];
-        }
-    }
-    let total: f32 = photo.iter().map(|c| c.x + c.y + c.z).sum();
-    if !total.is_finite() {
-        // A NaN or infinite photo value (or a sum that overflowed) must not pass for ε = 0:
-        // the error is NaN, which `recover` reports as a diverged fit.
-        return ErrorStats {
-            error: f32::NAN,
-            noise_floor: f32::NAN,
-            halves: [f32::NAN; 2],
+    let pixels = cache.pixels.iter().zip(specs).map(|(p, s)| {
+        let terms = PixelTerms {
+            syn: rho_d * p.d + rho_s * s.s,
+            photo: p.photo,
+            halves: [
+                rho_d * p.d_half[0] + rho_s * s.s_half[0],
+                rho_d * p.d_half[1] + rho_s * s.s_half[1],
+            ],
         };
-    }
-    if !(total > 0.0) {
-        return ErrorStats::default();
-    }
-    let l1 = |a: &[Rgb], b: &[Rgb]| {
-        a.iter()
-            .zip(b)
-            .map(|(x, y)| (*x - *y).abs())
-            .map(|d| d.x + d.y + d.z)
-            .sum::<f32>()
-    };
-    ErrorStats {
-        error: l1(&syn, &photo) / total,
-        noise_floor: 0.5 * l1(&halves[0], &halves[1]) / total,
-        halves: [
-            l1(&halves[0], &photo) / total,
-            l1(&halves[1], &photo) / total,
-        ],
-    }
+        (p.tile as usize, terms)
+    });
+    tiled_error(cache.tiles.max(1), pixels).unwrap_or_default()
 }

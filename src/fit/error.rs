@@ -1,0 +1,135 @@
+//! The error metric, the one measure of how far a model is from the photo (docs/DESIGN.md,
+//! "Error"), used on a group's cache while fitting and on the final render.
+//!
+//! ε = Σ|L_syn − L_photo| / Σ L_photo over a group's usable pixels and the three channels. To keep
+//! Monte Carlo noise from deciding hypotheses, both images are first summed over small tiles of
+//! the group's pixels, which averages noise away while a wrong model's systematic error (a
+//! missing highlight) stays. The **noise floor** is the same metric between two independent
+//! halves of the synthetic image's samples, halved (each half has twice the variance of the
+//! whole; their difference four times). The tiling is the caller's: the cache's tiles grow with
+//! the group (`cache::choose_pixels`); the final render uses [`BLOCK`]-pixel squares.
+
+use crate::math::Rgb;
+
+/// The error of a model: ε, the noise floor, and ε of each half of the samples alone (for
+/// paired comparisons of two models on the same samples).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ErrorStats {
+    pub error: f32,
+    pub noise_floor: f32,
+    pub halves: [f32; 2],
+}
+
+/// What one pixel contributes: the synthetic value, the photo's, and the synthetic value from
+/// each half of the samples alone.
+#[derive(Clone, Copy, Debug)]
+pub struct PixelTerms {
+    pub syn: Rgb,
+    pub photo: Rgb,
+    pub halves: [Rgb; 2],
+}
+
+/// Side in pixels of the square tiles of an image-space error.
+pub const BLOCK: usize = 4;
+
+/// The tile of image pixel `i` among [`BLOCK`]-pixel squares of an image `width` wide, numbered
+/// row by row, and how many such tiles the image has.
+pub fn block_tile(i: usize, width: usize) -> usize {
+    (i / width / BLOCK) * width.div_ceil(BLOCK) + (i % width) / BLOCK
+}
+
+/// The number of [`block_tile`]s of a `width` × `height` image.
+pub fn block_tiles(width: usize, height: usize) -> usize {
+    width.div_ceil(BLOCK) * height.div_ceil(BLOCK)
+}
+
+/// ε, the noise floor and the halves' ε of `pixels` (each with its tile index, below `n_tiles`).
+/// None when the photo holds no light there (no pixels, or all black); all NaN when its sum is
+/// not finite (NaN or infinite values, or a sum that overflowed), which must not pass for ε = 0.
+pub fn tiled_error(
+    n_tiles: usize,
+    pixels: impl IntoIterator<Item = (usize, PixelTerms)>,
+) -> Option<ErrorStats> {
+    let mut syn = vec![Rgb::ZERO; n_tiles];
+    let mut photo = vec![Rgb::ZERO; n_tiles];
+    let mut halves = [vec![Rgb::ZERO; n_tiles], vec![Rgb::ZERO; n_tiles]];
+    for (t, p) in pixels {
+        syn[t] += p.syn;
+        photo[t] += p.photo;
+        for h in 0..2 {
+            halves[h][t] += p.halves[h];
+        }
+    }
+    let total: f32 = photo.iter().map(|c| c.x + c.y + c.z).sum();
+    if !total.is_finite() {
+        return Some(ErrorStats {
+            error: f32::NAN,
+            noise_floor: f32::NAN,
+            halves: [f32::NAN; 2],
+        });
+    }
+    if !(total > 0.0) {
+        return None;
+    }
+    let l1 = |a: &[Rgb], b: &[Rgb]| {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (*x - *y).abs())
+            .map(|d| d.x + d.y + d.z)
+            .sum::<f32>()
+    };
+    Some(ErrorStats {
+        error: l1(&syn, &photo) / total,
+        noise_floor: 0.5 * l1(&halves[0], &halves[1]) / total,
+        halves: [
+            l1(&halves[0], &photo) / total,
+            l1(&halves[1], &photo) / total,
+        ],
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn px(syn: f32, photo: f32, h0: f32, h1: f32) -> PixelTerms {
+        PixelTerms {
+            syn: Rgb::splat(syn),
+            photo: Rgb::splat(photo),
+            halves: [Rgb::splat(h0), Rgb::splat(h1)],
+        }
+    }
+
+    #[test]
+    fn tiles_cancel_noise_within_them_and_the_metric_matches_its_definition() {
+        // Two pixels of one tile over- and under-shoot by the same amount: ε = 0 on one tile,
+        // 2·0.1 / (2·0.5) = 0.2 on two.
+        let pixels = [(0, px(0.6, 0.5, 0.7, 0.5)), (0, px(0.4, 0.5, 0.3, 0.5))];
+        let one = tiled_error(1, pixels).unwrap();
+        assert_eq!(one.error, 0.0);
+        let two = tiled_error(2, [(0, pixels[0].1), (1, pixels[1].1)]).unwrap();
+        assert!((two.error - 0.2).abs() < 1e-6, "{two:?}");
+        // Noise floor: ½ Σ|h0 − h1| / Σ photo = ½ · 3·(0.2 + 0.2) / (3·1.0) = 0.2.
+        assert!((two.noise_floor - 0.2).abs() < 1e-6, "{two:?}");
+        assert!((two.halves[0] - 0.4).abs() < 1e-6 && two.halves[1] == 0.0);
+        assert_eq!(tiled_error(3, []), None);
+        assert_eq!(tiled_error(1, [(0, px(1.0, 0.0, 1.0, 1.0))]), None);
+        assert!(tiled_error(1, [(0, px(1.0, f32::INFINITY, 1.0, 1.0))])
+            .unwrap()
+            .error
+            .is_nan());
+    }
+
+    #[test]
+    fn block_tiles_number_every_square_once() {
+        let (w, h) = (10, 7);
+        let n = block_tiles(w, h);
+        assert_eq!(n, 3 * 2);
+        let mut seen = vec![0; n];
+        for i in 0..w * h {
+            seen[block_tile(i, w)] += 1;
+        }
+        // 4×4, 4×4, 2×4 on the first row of tiles; 4×3, 4×3, 2×3 on the second.
+        assert_eq!(seen, [16, 16, 8, 12, 12, 6]);
+    }
+}
