@@ -270,17 +270,9 @@ impl GroupState {
         )
     }
 
-    /// Whether this group wants to climb this iteration if allowed: analysing, fitted at its
-    /// level before, and above the level's threshold. Its priority is ε / threshold.
-    pub fn climb_priority(&self, opts: &HierarchyOptions) -> Option<f32> {
-        let thr = opts.thresholds.of(self.level);
-        (self.status == Status::Analysing && self.iterations_at_level >= 1 && self.error >= thr)
-            .then(|| self.error / thr)
-    }
-
     /// One global iteration for this group, given its freshly built cache. `may_climb`: whether
     /// the group may try the higher levels now (the rest of the scene has settled); `may_move`:
-    /// whether it may also move to one (one group at a time, the worst first; see `recover.rs`).
+    /// whether it may also move to one (one group at a time, the worst first; see `schedule.rs`).
     /// A try that finds no better level confirms the group; one that finds a better level
     /// without leave to move changes nothing and is tried again later.
     pub fn step(
@@ -358,8 +350,9 @@ impl GroupState {
             });
             return events;
         }
-        if self.iterations_at_level < 2 || !may_climb {
-            return events; // let the interreflections of this level settle first
+        // The count includes this iteration's fit; the rule is on those before it.
+        if !may_climb || !super::schedule::has_settled_at_level(self.iterations_at_level - 1) {
+            return events;
         }
         // Climb on the same cache.
         let mut best = fit.clone();

@@ -2,6 +2,7 @@
 //! machine, and the global iterations that tie them together (§4 of the notes).
 
 pub mod cache;
+pub mod checkpoint;
 pub mod error;
 pub mod fitter;
 pub mod hierarchy;
@@ -10,6 +11,8 @@ pub mod mixture;
 pub mod objective;
 pub mod params;
 pub mod recover;
+pub mod recovery;
+pub mod schedule;
 pub mod solve;
 
 pub use level::Level;

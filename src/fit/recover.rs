@@ -1,28 +1,16 @@
-//! The global loop of the recovery (§4.1, Figure 1 of the notes): every global iteration
-//! re-renders what each fitted group sees with *all* current parameters (so light bounced off a
-//! surface whose BRDF changed reaches the others), refits each group on its fresh cache and lets
-//! the hierarchy decide its level; then one final render gives the synthetic image.
-//!
-//! Groups are visited in turn and each one's new parameters enter the scene at once
-//! (Gauss–Seidel), so a group's cache already sees the groups refitted before it in the same
-//! iteration. Measured against updating all groups at the end of the iteration (Jacobi) on the
-//! bench's diffuse figure6 (Mitsuba photo): worst ρ error after iterations 0, 1, 2 went from
-//! 0.23, 0.11, 0.024 to 0.12, 0.017, 0.006 (≤ 0.01 at 0.62 s instead of 1.11 s), 9 → 8
-//! iterations; the demo 15 → 12 iterations, recovery 31.5 → 27.7 s, same accuracy.
+//! The recovery's entry points and what they take and give: [`RecoverOptions`], the log's
+//! [`LogLine`], the [`Recovery`]; [`recover`] and [`recover_resumable`] run a
+//! [`RecoveryLoop`](super::recovery::RecoveryLoop) to the end.
 
-use super::cache::{build, choose_pixels, CacheOptions};
-use super::error::{block_tile, block_tiles, tiled_error, PixelTerms};
-use super::hierarchy::{Event, GroupState, HierarchyOptions, Status};
-use super::params::GroupParams;
+use super::cache::CacheOptions;
+pub use super::checkpoint::{fingerprint, Checkpoint, CHECKPOINT_VERSION};
+use super::hierarchy::{Event, GroupState, HierarchyOptions};
+use super::recovery::RecoveryLoop;
 use crate::io::image::Image;
-use crate::math::sampler::hash_seed;
-use crate::math::Rgb;
 use crate::photo::{GroupPixelStats, Photo, UsableMask};
-use crate::render::film::{progress_bar, render, RenderOptions};
-use crate::render::PathTracer;
+use crate::render::film::progress_bar;
 use crate::scene::Scene;
 use serde::{Deserialize, Serialize};
-use std::time::Instant;
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct RecoverOptions {
@@ -95,56 +83,6 @@ pub struct LogLine {
     pub elapsed: f64,
 }
 
-/// The state of a recovery after a global iteration: enough to continue it exactly (the caches'
-/// seeds derive from the iteration number, so a resumed run draws the same samples).
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct Checkpoint {
-    pub version: u32,
-    /// A hash of the scene file, the photo and the options: a checkpoint only resumes the run
-    /// that wrote it.
-    pub fingerprint: u64,
-    pub next_iteration: u32,
-    pub states: Vec<GroupState>,
-    pub settled: bool,
-    pub cache_builds: u32,
-    pub objective_evals: u64,
-    /// Length of log.jsonl when the checkpoint was taken (the caller truncates to it).
-    pub log_bytes: u64,
-    /// The log's `elapsed` when the checkpoint was taken.
-    #[serde(default)]
-    pub elapsed: f64,
-}
-
-pub const CHECKPOINT_VERSION: u32 = 2;
-
-/// A hash identifying a run: scene text, photo pixels, mask and options.
-pub fn fingerprint(
-    scene_text: &str,
-    photo: &Photo,
-    mask: &UsableMask,
-    opts: &RecoverOptions,
-) -> u64 {
-    use crate::math::sampler::mix64;
-    let mut h = hash_seed(&[CHECKPOINT_VERSION as u64]);
-    for b in scene_text.bytes() {
-        h = mix64(h ^ b as u64);
-    }
-    for c in &photo.image.data {
-        h = mix64(
-            h ^ ((c.x.to_bits() as u64) << 32 | c.y.to_bits() as u64)
-                ^ (c.z.to_bits() as u64).rotate_left(17),
-        );
-    }
-    for &g in &mask.group {
-        h = mix64(h ^ g as u64);
-    }
-    let o = serde_json::to_string(opts).expect("options serialise");
-    for b in o.bytes() {
-        h = mix64(h ^ b as u64);
-    }
-    h
-}
-
 /// Everything a recovery produced.
 pub struct Recovery {
     pub groups: Vec<GroupState>,
@@ -160,19 +98,6 @@ pub struct Recovery {
     pub objective_evals: u64,
     pub total_s: f64,
     pub final_render_s: f64,
-}
-
-/// Applies each group's current parameters to its objects.
-fn apply(scene: &mut Scene, states: &[GroupState]) {
-    for obj in scene.objects.iter_mut() {
-        let st = &states[obj.group];
-        if matches!(
-            st.status,
-            Status::Analysing | Status::Confirmed | Status::Default
-        ) {
-            obj.material = st.params.material(st.level);
-        }
-    }
 }
 
 /// Recovers the materials of `scene`'s non-fixed groups from `photo`, using the usable pixels
@@ -206,317 +131,28 @@ pub fn recover_resumable(
     mut log: impl FnMut(&LogLine),
     mut checkpoint: impl FnMut(&Checkpoint),
 ) -> Result<Recovery, String> {
-    let t0 = Instant::now();
-    let variant = scene.render.ward_variant;
-    let mask = mask.clone();
-
-    let mut states: Vec<GroupState> = scene
-        .groups
-        .iter()
-        .enumerate()
-        .map(|(g, grp)| {
-            let objs: Vec<_> = grp.objects.iter().map(|&o| &scene.objects[o]).collect();
-            if objs.iter().all(|o| o.is_emitter()) {
-                GroupState::new(
-                    &grp.name,
-                    Status::Light,
-                    GroupParams::from_material(&objs[0].material),
-                )
-            } else if grp.fixed {
-                GroupState::new(
-                    &grp.name,
-                    Status::Fixed,
-                    GroupParams::from_material(&objs[0].material),
-                )
-            } else if mask.stats[g].usable == 0 {
-                let mut s = GroupState::new(
-                    &grp.name,
-                    Status::Default,
-                    GroupParams {
-                        rho_d: Rgb::splat(opts.default_rho_d),
-                        ..Default::default()
-                    },
-                );
-                s.note = Some(format!(
-                    "no usable pixels ({} visible): given the default diffuse reflectance {}",
-                    mask.stats[g].visible, opts.default_rho_d
-                ));
-                tracing::warn!("group '{}': {}", grp.name, s.note.as_ref().unwrap());
-                s
-            } else {
-                GroupState::new(&grp.name, Status::Analysing, GroupParams::default())
-            }
-        })
-        .collect();
-
-    let (mut iterations, mut cache_builds, mut evals) = (0u32, 0u32, 0u64);
-    // Whether the previous iteration left the scene nearly unchanged (see `GroupState::step`).
-    let mut settled = false;
-    let mut start = 0;
-    // Time before this call: that of the interrupted run, when resuming.
-    let mut elapsed_before = 0.0;
-    if let Some(c) = resume {
-        elapsed_before = c.elapsed;
-        // A checkpoint is the run's own, but it was read from disk: refuse, rather than carry
-        // on with, parameters a fit could not have produced.
-        if let Some(s) = c
-            .states
-            .iter()
-            .find(|s| s.is_fitted() && (!s.params.in_bounds() || !s.error.is_finite()))
-        {
-            return Err(format!(
-                "cannot resume: the checkpoint holds parameters outside their physical bounds \
-                 for group '{}' ({:?})",
-                s.name, s.params
-            ));
-        }
-        states = c.states.clone();
-        settled = c.settled;
-        cache_builds = c.cache_builds;
-        evals = c.objective_evals;
-        start = c.next_iteration;
-        iterations = c.next_iteration;
-    }
-    let mut current = scene.clone();
-    apply(&mut current, &states);
-    let photo_px = &photo.image.data;
-    let w = scene.camera.width as usize;
-    // The pixels of every group's cache at a given pixel budget.
-    let choose_all = |cap: usize| -> Vec<_> {
-        let cache_opts = CacheOptions {
-            max_pixels: cap,
-            ..opts.cache.clone()
-        };
-        (0..scene.groups.len())
-            .map(|g| choose_pixels(&mask.pixels_of(g), w, &cache_opts))
-            .collect()
+    let mut run = match resume {
+        Some(c) => RecoveryLoop::resume(scene, photo, mask, opts, c)?,
+        None => RecoveryLoop::start(scene, photo, mask, opts),
     };
-    let mut cap = pixel_budget(opts, start);
-    let mut pixel_lists = choose_all(cap);
-
     let pb = progress_bar(opts.max_iterations as u64, "recover", opts.progress);
-    pb.inc(start as u64);
-    let mut finished = resume.is_some_and(|c| c.next_iteration >= opts.max_iterations);
-    for it in start..opts.max_iterations {
-        if finished {
-            break;
-        }
-        let budget = pixel_budget(opts, it);
-        if budget != cap {
-            cap = budget;
-            pixel_lists = choose_all(cap);
-        }
-        let levels_before: Vec<_> = states.iter().map(|s| s.level).collect();
-        iterations = it + 1;
-        let before: Vec<GroupParams> = states.iter().map(|s| s.params).collect();
-        // Groups try higher levels only once the previous iteration changed no level and moved
-        // no parameter much; at most one moves per iteration: the one furthest above its
-        // threshold.
-        let climber = if settled {
-            (0..states.len())
-                .filter_map(|g| states[g].climb_priority(&opts.hierarchy).map(|p| (g, p)))
-                .max_by(|a, b| a.1.total_cmp(&b.1))
-                .map(|(g, _)| g)
-        } else {
-            None
-        };
-        for g in 0..states.len() {
-            if !states[g].is_fitted() {
-                continue;
-            }
-            let tg = Instant::now();
-            let (px, tiles, n_tiles) = &pixel_lists[g];
-            // Gauss–Seidel: each group's cache sees the groups fitted before it in this
-            // iteration with their new parameters (`apply` below), not last iteration's.
-            let pt = PathTracer::new(&current);
-            let cache = build(
-                &current,
-                &pt,
-                g,
-                px,
-                tiles,
-                *n_tiles,
-                photo_px,
-                states[g].cache_needs(settled),
-                &opts.cache,
-                hash_seed(&[opts.seed, it as u64, g as u64]),
-            );
-            cache_builds += 1;
-            let events = states[g].step(
-                &cache,
-                variant,
-                &opts.hierarchy,
-                settled,
-                climber == Some(g),
-            );
-            let secs = tg.elapsed().as_secs_f64();
-            for e in events {
-                if let Event::Fit { evals: n, .. } = e {
-                    evals += n as u64;
-                }
-                log(&LogLine {
-                    iteration: it,
-                    group: states[g].name.clone(),
-                    params: states[g]
-                        .params
-                        .named(states[g].level)
-                        .into_iter()
-                        .collect(),
-                    event: e,
-                    seconds: secs,
-                    elapsed: elapsed_before + t0.elapsed().as_secs_f64(),
-                });
-            }
-            if let Some(what) = states[g].non_finite() {
-                return Err(format!(
-                    "group '{}': the fit diverged in global iteration {it} ({what}); recovery \
-                     stopped{}. Check the photo for extreme values and the scene for \
-                     degenerate geometry near this group",
-                    states[g].name,
-                    if it > 0 {
-                        format!(", the checkpoint of iteration {} is intact", it - 1)
-                    } else {
-                        String::new()
-                    }
-                ));
-            }
-            apply(&mut current, &states);
-        }
+    pb.inc(run.next_iteration() as u64);
+    while !run.converged() {
+        run.iterate(&mut log)?;
         pb.inc(1);
-        let moved = states
-            .iter()
-            .zip(&before)
-            .filter(|(s, _)| s.is_fitted())
-            .map(|(s, b)| {
-                let dr = (s.params.rho_d - b.rho_d)
-                    .abs()
-                    .max_element()
-                    .max((s.params.rho_s - b.rho_s).abs().max_element());
-                let da = ((s.params.alpha_x - b.alpha_x) / b.alpha_x)
-                    .abs()
-                    .max(((s.params.alpha_y - b.alpha_y) / b.alpha_y).abs());
-                if s.level.is_ward() {
-                    dr.max(da)
-                } else {
-                    dr
-                }
-            })
-            .fold(0.0f32, f32::max);
-        let level_changed = states
-            .iter()
-            .zip(&levels_before)
-            .any(|(s, l)| s.level != *l);
-        if level_changed {
-            // Fits made before a group changed its model saw a different scene: start every
-            // group's average afresh.
-            for s in states.iter_mut() {
-                s.average = None;
-            }
-        }
-        settled = !level_changed && moved < opts.settle;
-        let all_confirmed = states.iter().all(|s| {
-            s.status != Status::Analysing
-                && (s.status != Status::Confirmed
-                    || s.average.is_some_and(|a| a.1 >= opts.min_average))
-        });
-        finished = all_confirmed && moved < opts.tolerance && cap >= opts.cache.max_pixels;
-        checkpoint(&Checkpoint {
-            version: CHECKPOINT_VERSION,
-            fingerprint: 0,
-            // A finished run resumes straight to its final render.
-            next_iteration: if finished {
-                opts.max_iterations
-            } else {
-                it + 1
-            },
-            states: states.clone(),
-            settled,
-            cache_builds,
-            objective_evals: evals,
-            log_bytes: 0,
-            elapsed: elapsed_before + t0.elapsed().as_secs_f64(),
-        });
+        checkpoint(&run.checkpoint());
     }
     pb.finish_and_clear();
-
-    // The final render, as two half-sample images with different seeds: their mean is the
-    // synthetic image, their difference the noise floor.
-    let tf = Instant::now();
-    let half = (opts.final_spp / 2).max(1);
-    let a = render(
-        &current,
-        &current.camera,
-        &RenderOptions {
-            spp: half,
-            seed: hash_seed(&[opts.seed, 101]),
-            progress: opts.progress,
-        },
-    );
-    let b = render(
-        &current,
-        &current.camera,
-        &RenderOptions {
-            spp: half,
-            seed: hash_seed(&[opts.seed, 202]),
-            progress: opts.progress,
-        },
-    );
-    let final_render_s = tf.elapsed().as_secs_f64();
-    let mut synthetic = a.clone();
-    for (s, bb) in synthetic.data.iter_mut().zip(&b.data) {
-        *s = 0.5 * (*s + *bb);
-    }
-    let final_error = (0..states.len())
-        .map(|g| image_error(&mask, g, &synthetic, &a, &b, &photo.image))
-        .collect();
-    Ok(Recovery {
-        groups: states,
-        pixel_stats: mask.stats.clone(),
-        scene: current,
-        synthetic,
-        final_error,
-        mask,
-        iterations,
-        cache_builds,
-        objective_evals: evals,
-        total_s: t0.elapsed().as_secs_f64(),
-        final_render_s,
-    })
-}
-
-/// ε of group `g` between a rendered image and the photo over its usable pixels, on
-/// `error::BLOCK`-pixel tiles, and the noise floor from the two half renders `a`, `b`.
-pub fn image_error(
-    mask: &UsableMask,
-    g: usize,
-    syn: &Image,
-    a: &Image,
-    b: &Image,
-    photo: &Image,
-) -> Option<(f32, f32)> {
-    let w = mask.width;
-    let pixels = mask
-        .group
-        .iter()
-        .enumerate()
-        .filter(|&(_, &grp)| grp == g as i32)
-        .map(|(i, _)| {
-            let terms = PixelTerms {
-                syn: syn.data[i],
-                photo: photo.data[i],
-                halves: [a.data[i], b.data[i]],
-            };
-            (block_tile(i, w), terms)
-        });
-    let n = block_tiles(w, mask.height);
-    tiled_error(n, pixels).map(|e| (e.error, e.noise_floor))
+    Ok(run.finish())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::fit::cache::{CacheOptions, CachePixel, GroupCache};
-    use crate::fit::hierarchy::HierarchyOptions;
+    use crate::fit::hierarchy::{HierarchyOptions, Status};
+    use crate::fit::params::GroupParams;
+    use crate::math::Rgb;
     use crate::fit::level::Level;
     use crate::photo::usable_pixels;
     use crate::render::aov::index_buffers;

@@ -1,0 +1,427 @@
+//! The recovery loop as a value: [`RecoveryLoop::start`] or [`RecoveryLoop::resume`], then
+//! [`RecoveryLoop::iterate`] (one global iteration) until [`RecoveryLoop::converged`], then
+//! [`RecoveryLoop::finish`] (the final render). Between iterations,
+//! [`RecoveryLoop::checkpoint`] is the whole state needed to continue.
+//!
+//! Every global iteration re-renders what each fitted group sees with *all* current parameters
+//! (so light bounced off a surface whose BRDF changed reaches the others), refits each group on
+//! its fresh cache and lets the hierarchy decide its level (§4.1, Figure 1 of the notes). Groups
+//! are visited in turn and each one's new parameters enter the scene at once (Gauss–Seidel), so
+//! a group's cache already sees the groups refitted before it in the same iteration: this
+//! converges in fewer iterations than updating all groups at the end (bench/README.md).
+
+use super::cache::{build, choose_pixels, CacheOptions};
+use super::checkpoint::{Checkpoint, CHECKPOINT_VERSION};
+use super::error::{block_tile, block_tiles, tiled_error, PixelTerms};
+use super::hierarchy::{Event, GroupState, Status};
+use super::params::GroupParams;
+use super::recover::{pixel_budget, LogLine, RecoverOptions, Recovery};
+use super::schedule;
+use crate::io::image::Image;
+use crate::math::sampler::hash_seed;
+use crate::math::Rgb;
+use crate::photo::{Photo, UsableMask};
+use crate::render::film::{render, RenderOptions};
+use crate::render::PathTracer;
+use crate::scene::Scene;
+use std::time::Instant;
+
+/// The cached pixels of every group at one pixel budget: (pixels, their tiles, tile count).
+type PixelLists = Vec<(Vec<usize>, Vec<u32>, usize)>;
+
+/// A recovery in progress.
+pub struct RecoveryLoop<'a> {
+    scene: &'a Scene,
+    photo: &'a Photo,
+    mask: UsableMask,
+    opts: &'a RecoverOptions,
+    states: Vec<GroupState>,
+    /// The scene with every group's current parameters.
+    current: Scene,
+    /// Whether the previous iteration left the scene nearly unchanged ([`schedule::settled`]).
+    settled: bool,
+    /// The next global iteration to run.
+    next: u32,
+    /// Global iterations run, in this call and before the checkpoint resumed from.
+    iterations: u32,
+    cache_builds: u32,
+    evals: u64,
+    converged: bool,
+    t0: Instant,
+    /// Time before this run: that of the interrupted run, when resuming.
+    elapsed_before: f64,
+    cap: usize,
+    pixel_lists: PixelLists,
+}
+
+impl<'a> RecoveryLoop<'a> {
+    /// A fresh recovery: every fitted group starts at level 1 with grey parameters.
+    pub fn start(
+        scene: &'a Scene,
+        photo: &'a Photo,
+        mask: &UsableMask,
+        opts: &'a RecoverOptions,
+    ) -> RecoveryLoop<'a> {
+        let states = initial_states(scene, mask, opts);
+        Self::with_states(scene, photo, mask, opts, states, 0)
+    }
+
+    /// The recovery that wrote `c`, continued after its last iteration. Fails if the checkpoint
+    /// holds parameters no fit could have produced.
+    pub fn resume(
+        scene: &'a Scene,
+        photo: &'a Photo,
+        mask: &UsableMask,
+        opts: &'a RecoverOptions,
+        c: &Checkpoint,
+    ) -> Result<RecoveryLoop<'a>, String> {
+        if let Some(s) = c.implausible_group() {
+            return Err(format!(
+                "cannot resume: the checkpoint holds parameters outside their physical bounds \
+                 for group '{}' ({:?})",
+                s.name, s.params
+            ));
+        }
+        let mut r = Self::with_states(scene, photo, mask, opts, c.states.clone(), c.next_iteration);
+        r.elapsed_before = c.elapsed;
+        r.settled = c.settled;
+        r.cache_builds = c.cache_builds;
+        r.evals = c.objective_evals;
+        r.iterations = c.next_iteration;
+        r.converged = c.next_iteration >= opts.max_iterations;
+        Ok(r)
+    }
+
+    fn with_states(
+        scene: &'a Scene,
+        photo: &'a Photo,
+        mask: &UsableMask,
+        opts: &'a RecoverOptions,
+        states: Vec<GroupState>,
+        next: u32,
+    ) -> RecoveryLoop<'a> {
+        let mut current = scene.clone();
+        apply(&mut current, &states);
+        let cap = pixel_budget(opts, next);
+        let mut r = RecoveryLoop {
+            scene,
+            photo,
+            mask: mask.clone(),
+            opts,
+            states,
+            current,
+            settled: false,
+            next,
+            iterations: 0,
+            cache_builds: 0,
+            evals: 0,
+            converged: false,
+            t0: Instant::now(),
+            elapsed_before: 0.0,
+            cap,
+            pixel_lists: Vec::new(),
+        };
+        r.pixel_lists = r.choose_all(cap);
+        r
+    }
+
+    /// The next global iteration to run.
+    pub fn next_iteration(&self) -> u32 {
+        self.next
+    }
+
+    /// Whether the loop is done: every group's level decided and averaged, nothing moving, the
+    /// full pixel budget reached; or the iteration limit reached.
+    pub fn converged(&self) -> bool {
+        self.converged || self.next >= self.opts.max_iterations
+    }
+
+    /// Seconds since the recovery started (across a resume, the interrupted run's included).
+    fn elapsed(&self) -> f64 {
+        self.elapsed_before + self.t0.elapsed().as_secs_f64()
+    }
+
+    /// The pixels of every group's cache at a given pixel budget.
+    fn choose_all(&self, cap: usize) -> PixelLists {
+        let cache_opts = CacheOptions {
+            max_pixels: cap,
+            ..self.opts.cache.clone()
+        };
+        let w = self.scene.camera.width as usize;
+        (0..self.scene.groups.len())
+            .map(|g| choose_pixels(&self.mask.pixels_of(g), w, &cache_opts))
+            .collect()
+    }
+
+    /// One global iteration: every fitted group's cache rebuilt and refitted in turn, `log`
+    /// receiving each event as it happens. A fit whose error or parameters are not finite stops
+    /// the recovery with an error naming the group and the iteration (the state is then that of
+    /// the failed iteration; the last checkpoint is the one to resume from).
+    pub fn iterate(&mut self, log: &mut dyn FnMut(&LogLine)) -> Result<(), String> {
+        let (opts, it) = (self.opts, self.next);
+        let budget = pixel_budget(opts, it);
+        if budget != self.cap {
+            self.cap = budget;
+            self.pixel_lists = self.choose_all(budget);
+        }
+        let levels_before: Vec<_> = self.states.iter().map(|s| s.level).collect();
+        self.iterations = it + 1;
+        let before: Vec<GroupParams> = self.states.iter().map(|s| s.params).collect();
+        let climber = schedule::climb_turn(&self.states, self.settled, &opts.hierarchy);
+        let variant = self.scene.render.ward_variant;
+        for g in 0..self.states.len() {
+            if !self.states[g].is_fitted() {
+                continue;
+            }
+            let tg = Instant::now();
+            let (px, tiles, n_tiles) = &self.pixel_lists[g];
+            let pt = PathTracer::new(&self.current);
+            let cache = build(
+                &self.current,
+                &pt,
+                g,
+                px,
+                tiles,
+                *n_tiles,
+                &self.photo.image.data,
+                self.states[g].cache_needs(self.settled),
+                &opts.cache,
+                hash_seed(&[opts.seed, it as u64, g as u64]),
+            );
+            self.cache_builds += 1;
+            let st = &mut self.states[g];
+            let events = st.step(
+                &cache,
+                variant,
+                &opts.hierarchy,
+                self.settled,
+                climber == Some(g),
+            );
+            let secs = tg.elapsed().as_secs_f64();
+            for e in events {
+                if let Event::Fit { evals: n, .. } = e {
+                    self.evals += n as u64;
+                }
+                let st = &self.states[g];
+                log(&LogLine {
+                    iteration: it,
+                    group: st.name.clone(),
+                    params: st.params.named(st.level).into_iter().collect(),
+                    event: e,
+                    seconds: secs,
+                    elapsed: self.elapsed(),
+                });
+            }
+            if let Some(what) = self.states[g].non_finite() {
+                return Err(format!(
+                    "group '{}': the fit diverged in global iteration {it} ({what}); recovery \
+                     stopped{}. Check the photo for extreme values and the scene for \
+                     degenerate geometry near this group",
+                    self.states[g].name,
+                    if it > 0 {
+                        format!(", the checkpoint of iteration {} is intact", it - 1)
+                    } else {
+                        String::new()
+                    }
+                ));
+            }
+            // Gauss–Seidel: the next groups' caches see this group's new parameters.
+            apply(&mut self.current, &self.states);
+        }
+        let moved = largest_move(&self.states, &before);
+        let level_changed = self
+            .states
+            .iter()
+            .zip(&levels_before)
+            .any(|(s, l)| s.level != *l);
+        if level_changed {
+            // Fits made before a group changed its model saw a different scene: start every
+            // group's average afresh.
+            for s in self.states.iter_mut() {
+                s.average = None;
+            }
+        }
+        self.settled = schedule::settled(level_changed, moved, opts.settle);
+        let all_confirmed = self.states.iter().all(|s| {
+            s.status != Status::Analysing
+                && (s.status != Status::Confirmed
+                    || s.average.is_some_and(|a| a.1 >= opts.min_average))
+        });
+        self.converged =
+            all_confirmed && moved < opts.tolerance && self.cap >= opts.cache.max_pixels;
+        self.next = it + 1;
+        Ok(())
+    }
+
+    /// The state after the last iteration (its `fingerprint` and `log_bytes` are the caller's
+    /// to fill).
+    pub fn checkpoint(&self) -> Checkpoint {
+        Checkpoint {
+            version: CHECKPOINT_VERSION,
+            fingerprint: 0,
+            // A converged run resumes straight to its final render.
+            next_iteration: if self.converged {
+                self.opts.max_iterations
+            } else {
+                self.next
+            },
+            states: self.states.clone(),
+            settled: self.settled,
+            cache_builds: self.cache_builds,
+            objective_evals: self.evals,
+            log_bytes: 0,
+            elapsed: self.elapsed(),
+        }
+    }
+
+    /// The final render, as two half-sample images with different seeds (their mean is the
+    /// synthetic image, their difference the noise floor), and each group's error on it.
+    pub fn finish(self) -> Recovery {
+        let opts = self.opts;
+        let tf = Instant::now();
+        let half = (opts.final_spp / 2).max(1);
+        let render_half = |seed: u64| {
+            render(
+                &self.current,
+                &self.current.camera,
+                &RenderOptions {
+                    spp: half,
+                    seed: hash_seed(&[opts.seed, seed]),
+                    progress: opts.progress,
+                },
+            )
+        };
+        let a = render_half(101);
+        let b = render_half(202);
+        let final_render_s = tf.elapsed().as_secs_f64();
+        let mut synthetic = a.clone();
+        for (s, bb) in synthetic.data.iter_mut().zip(&b.data) {
+            *s = 0.5 * (*s + *bb);
+        }
+        let final_error = (0..self.states.len())
+            .map(|g| image_error(&self.mask, g, &synthetic, &a, &b, &self.photo.image))
+            .collect();
+        let total_s = self.t0.elapsed().as_secs_f64();
+        Recovery {
+            groups: self.states,
+            pixel_stats: self.mask.stats.clone(),
+            scene: self.current,
+            synthetic,
+            final_error,
+            mask: self.mask,
+            iterations: self.iterations,
+            cache_builds: self.cache_builds,
+            objective_evals: self.evals,
+            total_s,
+            final_render_s,
+        }
+    }
+}
+
+/// Every group's state before the first iteration: lights and fixed groups keep their
+/// materials, groups with no usable pixels get the default diffuse reflectance, the rest are
+/// analysed from grey.
+fn initial_states(scene: &Scene, mask: &UsableMask, opts: &RecoverOptions) -> Vec<GroupState> {
+    scene
+        .groups
+        .iter()
+        .enumerate()
+        .map(|(g, grp)| {
+            let objs: Vec<_> = grp.objects.iter().map(|&o| &scene.objects[o]).collect();
+            if objs.iter().all(|o| o.is_emitter()) {
+                GroupState::new(
+                    &grp.name,
+                    Status::Light,
+                    GroupParams::from_material(&objs[0].material),
+                )
+            } else if grp.fixed {
+                GroupState::new(
+                    &grp.name,
+                    Status::Fixed,
+                    GroupParams::from_material(&objs[0].material),
+                )
+            } else if mask.stats[g].usable == 0 {
+                let mut s = GroupState::new(
+                    &grp.name,
+                    Status::Default,
+                    GroupParams {
+                        rho_d: Rgb::splat(opts.default_rho_d),
+                        ..Default::default()
+                    },
+                );
+                s.note = Some(format!(
+                    "no usable pixels ({} visible): given the default diffuse reflectance {}",
+                    mask.stats[g].visible, opts.default_rho_d
+                ));
+                tracing::warn!("group '{}': {}", grp.name, s.note.as_ref().unwrap());
+                s
+            } else {
+                GroupState::new(&grp.name, Status::Analysing, GroupParams::default())
+            }
+        })
+        .collect()
+}
+
+/// The largest change of a fitted group's parameters over an iteration: ρ absolute, α relative
+/// (and α only where the level has a lobe).
+fn largest_move(states: &[GroupState], before: &[GroupParams]) -> f32 {
+    states
+        .iter()
+        .zip(before)
+        .filter(|(s, _)| s.is_fitted())
+        .map(|(s, b)| {
+            let dr = (s.params.rho_d - b.rho_d)
+                .abs()
+                .max_element()
+                .max((s.params.rho_s - b.rho_s).abs().max_element());
+            let da = ((s.params.alpha_x - b.alpha_x) / b.alpha_x)
+                .abs()
+                .max(((s.params.alpha_y - b.alpha_y) / b.alpha_y).abs());
+            if s.level.is_ward() {
+                dr.max(da)
+            } else {
+                dr
+            }
+        })
+        .fold(0.0f32, f32::max)
+}
+
+/// Applies each group's current parameters to its objects.
+fn apply(scene: &mut Scene, states: &[GroupState]) {
+    for obj in scene.objects.iter_mut() {
+        let st = &states[obj.group];
+        if matches!(
+            st.status,
+            Status::Analysing | Status::Confirmed | Status::Default
+        ) {
+            obj.material = st.params.material(st.level);
+        }
+    }
+}
+
+/// ε of group `g` between a rendered image and the photo over its usable pixels, on
+/// `error::BLOCK`-pixel tiles, and the noise floor from the two half renders `a`, `b`.
+pub fn image_error(
+    mask: &UsableMask,
+    g: usize,
+    syn: &Image,
+    a: &Image,
+    b: &Image,
+    photo: &Image,
+) -> Option<(f32, f32)> {
+    let w = mask.width;
+    let pixels = mask
+        .group
+        .iter()
+        .enumerate()
+        .filter(|&(_, &grp)| grp == g as i32)
+        .map(|(i, _)| {
+            let terms = PixelTerms {
+                syn: syn.data[i],
+                photo: photo.data[i],
+                halves: [a.data[i], b.data[i]],
+            };
+            (block_tile(i, w), terms)
+        });
+    tiled_error(block_tiles(w, mask.height), pixels).map(|e| (e.error, e.noise_floor))
+}
