@@ -17,4 +17,4 @@ pub mod solve;
 
 pub use level::Level;
 pub use params::GroupParams;
-pub use recover::{recover, recover_resumable, Checkpoint, RecoverOptions, Recovery};
+pub use recover::{recover, recover_resumable, Checkpoint, RecoverError, RecoverOptions, Recovery};

@@ -5,12 +5,53 @@
 use super::cache::CacheOptions;
 pub use super::checkpoint::{fingerprint, Checkpoint, CHECKPOINT_VERSION};
 use super::hierarchy::{Event, GroupState, HierarchyOptions};
+use super::params::GroupParams;
 use super::recovery::RecoveryLoop;
 use crate::io::image::Image;
 use crate::photo::{GroupPixelStats, Photo, UsableMask};
 use crate::render::film::progress_bar;
 use crate::scene::Scene;
 use serde::{Deserialize, Serialize};
+
+/// Why a recovery stopped without a result.
+#[derive(Debug, thiserror::Error)]
+pub enum RecoverError {
+    /// A fit's error or parameters were not finite (NaN or infinite values reached it).
+    #[error(
+        "group '{group}': the fit diverged in global iteration {iteration} ({what}); recovery \
+         stopped{}. Check the photo for extreme values and the scene for degenerate geometry \
+         near this group",
+        intact_checkpoint(.iteration)
+    )]
+    Diverged {
+        group: String,
+        iteration: u32,
+        /// What was not finite, with the values.
+        what: String,
+    },
+    /// The checkpoint to resume from holds parameters no fit could have produced.
+    #[error(
+        "cannot resume: the checkpoint holds parameters outside their physical bounds for group \
+         '{group}' ({params:?})"
+    )]
+    ImplausibleCheckpoint { group: String, params: GroupParams },
+}
+
+/// The note of a divergence message on the last good checkpoint.
+fn intact_checkpoint(iteration: &u32) -> String {
+    if *iteration > 0 {
+        format!(", the checkpoint of iteration {} is intact", iteration - 1)
+    } else {
+        String::new()
+    }
+}
+
+/// For callers that report errors as text (the command line).
+impl From<RecoverError> for String {
+    fn from(e: RecoverError) -> String {
+        e.to_string()
+    }
+}
 
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct RecoverOptions {
@@ -110,7 +151,7 @@ pub fn recover(
     mask: &UsableMask,
     opts: &RecoverOptions,
     log: impl FnMut(&LogLine),
-) -> Result<Recovery, String> {
+) -> Result<Recovery, RecoverError> {
     recover_resumable(scene, photo, mask, opts, None, log, |_| {})
 }
 
@@ -130,7 +171,7 @@ pub fn recover_resumable(
     resume: Option<&Checkpoint>,
     mut log: impl FnMut(&LogLine),
     mut checkpoint: impl FnMut(&Checkpoint),
-) -> Result<Recovery, String> {
+) -> Result<Recovery, RecoverError> {
     let mut run = match resume {
         Some(c) => RecoveryLoop::resume(scene, photo, mask, opts, c)?,
         None => RecoveryLoop::start(scene, photo, mask, opts),
@@ -151,9 +192,8 @@ mod tests {
     use super::*;
     use crate::fit::cache::{CacheOptions, CachePixel, GroupCache};
     use crate::fit::hierarchy::{HierarchyOptions, Status};
-    use crate::fit::params::GroupParams;
-    use crate::math::Rgb;
     use crate::fit::level::Level;
+    use crate::math::Rgb;
     use crate::photo::usable_pixels;
     use crate::render::aov::index_buffers;
     use crate::scene::WardVariant;
@@ -228,6 +268,8 @@ emission = 5.0
         )
         .err()
         .expect("the recovery must fail");
+        assert!(matches!(e, RecoverError::Diverged { iteration: 0, .. }));
+        let e = e.to_string();
         assert!(e.contains("group 'floor'") && e.contains("diverged"), "{e}");
         assert!(e.contains("iteration 0") && e.contains("ε"), "{e}");
         assert_eq!(checkpoints, 0, "no checkpoint of the diverged iteration");

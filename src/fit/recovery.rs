@@ -15,7 +15,7 @@ use super::checkpoint::{Checkpoint, CHECKPOINT_VERSION};
 use super::error::{block_tile, block_tiles, tiled_error, PixelTerms};
 use super::hierarchy::{Event, GroupState, Status};
 use super::params::GroupParams;
-use super::recover::{pixel_budget, LogLine, RecoverOptions, Recovery};
+use super::recover::{pixel_budget, LogLine, RecoverError, RecoverOptions, Recovery};
 use super::schedule;
 use crate::io::image::Image;
 use crate::math::sampler::hash_seed;
@@ -74,13 +74,12 @@ impl<'a> RecoveryLoop<'a> {
         mask: &UsableMask,
         opts: &'a RecoverOptions,
         c: &Checkpoint,
-    ) -> Result<RecoveryLoop<'a>, String> {
+    ) -> Result<RecoveryLoop<'a>, RecoverError> {
         if let Some(s) = c.implausible_group() {
-            return Err(format!(
-                "cannot resume: the checkpoint holds parameters outside their physical bounds \
-                 for group '{}' ({:?})",
-                s.name, s.params
-            ));
+            return Err(RecoverError::ImplausibleCheckpoint {
+                group: s.name.clone(),
+                params: s.params,
+            });
         }
         let mut r = Self::with_states(scene, photo, mask, opts, c.states.clone(), c.next_iteration);
         r.elapsed_before = c.elapsed;
@@ -157,7 +156,7 @@ impl<'a> RecoveryLoop<'a> {
     /// receiving each event as it happens. A fit whose error or parameters are not finite stops
     /// the recovery with an error naming the group and the iteration (the state is then that of
     /// the failed iteration; the last checkpoint is the one to resume from).
-    pub fn iterate(&mut self, log: &mut dyn FnMut(&LogLine)) -> Result<(), String> {
+    pub fn iterate(&mut self, log: &mut dyn FnMut(&LogLine)) -> Result<(), RecoverError> {
         let (opts, it) = (self.opts, self.next);
         let budget = pixel_budget(opts, it);
         if budget != self.cap {
@@ -213,17 +212,11 @@ impl<'a> RecoveryLoop<'a> {
                 });
             }
             if let Some(what) = self.states[g].non_finite() {
-                return Err(format!(
-                    "group '{}': the fit diverged in global iteration {it} ({what}); recovery \
-                     stopped{}. Check the photo for extreme values and the scene for \
-                     degenerate geometry near this group",
-                    self.states[g].name,
-                    if it > 0 {
-                        format!(", the checkpoint of iteration {} is intact", it - 1)
-                    } else {
-                        String::new()
-                    }
-                ));
+                return Err(RecoverError::Diverged {
+                    group: self.states[g].name.clone(),
+                    iteration: it,
+                    what,
+                });
             }
             // Gauss–Seidel: the next groups' caches see this group's new parameters.
             apply(&mut self.current, &self.states);
