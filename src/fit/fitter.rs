@@ -6,7 +6,7 @@
 use super::cache::GroupCache;
 use super::level::Level;
 use super::objective::{error, moments, pixel_specs, PixelSpec, Spec};
-use super::params::{GroupParams, ALPHA_MAX, ALPHA_MIN};
+use super::params::{param, GroupParams};
 use super::solve::{levenberg_marquardt, solve_rho, Free, Linearisation};
 use crate::math::Rgb;
 use crate::scene::WardVariant;
@@ -151,8 +151,8 @@ pub fn fit_level(
     start: &GroupParams,
     variant: WardVariant,
 ) -> LevelFit {
-    let ln_lo = (ALPHA_MIN as f64).ln();
-    let ln_hi = (ALPHA_MAX as f64).ln();
+    let alpha = param("alpha_x");
+    let (ln_lo, ln_hi) = alpha.solver_bounds();
     match level {
         Level::Diffuse | Level::Textured => {
             finish(cache, level, Spec::None, Free::Diffuse, *start, variant, 0)
@@ -181,9 +181,9 @@ pub fn fit_level(
         Level::Isotropic => {
             // Coarse scan of α (plus the warm start), then LM in ln α.
             let mut evals = 0;
-            let mut best = (f64::INFINITY, start.alpha_x.clamp(ALPHA_MIN, ALPHA_MAX));
+            let mut best = (f64::INFINITY, start.alpha_x.clamp(alpha.min, alpha.max));
             for a in [start.alpha_x, 0.01, 0.02, 0.04, 0.07, 0.12, 0.2, 0.35, 0.6] {
-                let a = a.clamp(ALPHA_MIN, ALPHA_MAX);
+                let a = a.clamp(alpha.min, alpha.max);
                 let specs = pixel_specs(
                     cache,
                     Spec::Lobe {
@@ -238,7 +238,7 @@ pub fn fit_level(
             // quarter turns), plus the warm start; keep the best.
             let a = (start.alpha_x * start.alpha_y)
                 .sqrt()
-                .clamp(ALPHA_MIN, ALPHA_MAX) as f64;
+                .clamp(alpha.min, alpha.max) as f64;
             let r = 1.3f64;
             let mut starts = vec![[
                 (start.alpha_x as f64).ln(),

@@ -148,34 +148,12 @@ impl GroupState {
     /// mean.
     fn accumulate(&mut self, weight: f32) {
         let p = self.params;
-        let (sum, n, wsum) = self.average.get_or_insert((
-            GroupParams {
-                rho_d: crate::math::Rgb::ZERO,
-                rho_s: crate::math::Rgb::ZERO,
-                alpha_x: 0.0,
-                alpha_y: 0.0,
-                theta: 0.0,
-            },
-            0,
-            0.0,
-        ));
-        sum.rho_d += p.rho_d * weight;
-        sum.rho_s += p.rho_s * weight;
-        sum.alpha_x += p.alpha_x.ln() * weight;
-        sum.alpha_y += p.alpha_y.ln() * weight;
-        sum.theta += p.theta * weight;
+        let (sums, n, total) = self
+            .average
+            .get_or_insert((GroupParams::zero_sums(), 0, 0.0));
         *n += 1;
-        *wsum += weight;
-        let k = *wsum;
-        // Roughness is averaged in the log domain (it is fitted in ln α).
-        self.params = GroupParams {
-            rho_d: sum.rho_d / k,
-            rho_s: sum.rho_s / k,
-            alpha_x: (sum.alpha_x / k).exp(),
-            alpha_y: (sum.alpha_y / k).exp(),
-            theta: sum.theta / k,
-        }
-        .clamped();
+        *total += weight;
+        self.params = p.add_to_mean(sums, weight, *total);
     }
 
     /// What is not finite about the group's last fit (its error, noise floor or a parameter),

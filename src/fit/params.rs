@@ -1,6 +1,9 @@
-//! The parameter registry: every fitted parameter with its name, bounds and the levels that
-//! use it. The fitter, the log, results.json and the exporters all read parameters through
-//! [`GroupParams::named`] rather than knowing the fields (after Mitsuba 3's `traverse`).
+//! The parameter registry: one row per fitted parameter with its name, bounds, scale, the
+//! levels whose model has it free, and its accessor (after Mitsuba 3's `traverse`). Clamping,
+//! the bounds check, the solver's bounds for the lobe shape, the convergence test
+//! ([`largest_move`]), the averaging of independent fits, the log, results.json and the report
+//! read parameters through these rows rather than knowing the fields: a new parameter is a field
+//! of [`GroupParams`] and a row of [`REGISTRY`].
 
 use super::level::Level;
 use crate::math::Rgb;
@@ -11,57 +14,173 @@ use serde::{Deserialize, Serialize};
 pub const ALPHA_MIN: f32 = 0.005;
 pub const ALPHA_MAX: f32 = 1.0;
 
+/// How a parameter is fitted and compared: its own value, or its logarithm (a scale parameter
+/// such as roughness, whose changes are relative).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Scale {
+    Linear,
+    Log,
+}
+
 /// One registered parameter.
 pub struct ParamInfo {
+    /// Its key in the log, results.json and the report.
     pub name: &'static str,
+    /// Bounds of every channel, in fitting units (radians for angles).
     pub min: f32,
     pub max: f32,
+    /// Where a non-finite value is reset to by clamping.
+    pub fallback: f32,
+    pub scale: Scale,
     /// Levels whose model has this parameter free.
     pub levels: &'static [Level],
+    /// Whether its change between global iterations counts in the convergence test.
+    pub watched: bool,
+    /// Its channels (three for a colour, one for a number), in fitting units.
+    pub get: fn(&GroupParams) -> &[f32],
+    pub get_mut: fn(&mut GroupParams) -> &mut [f32],
+    /// Fitting units to the units it is reported in.
+    pub shown: fn(f32) -> f32,
 }
+
+impl ParamInfo {
+    /// The bounds in the units the solver works in (the logarithm for [`Scale::Log`]).
+    pub fn solver_bounds(&self) -> (f64, f64) {
+        match self.scale {
+            Scale::Linear => (self.min as f64, self.max as f64),
+            Scale::Log => ((self.min as f64).ln(), (self.max as f64).ln()),
+        }
+    }
+
+    /// Whether `level`'s model has this parameter free.
+    pub fn free_at(&self, level: Level) -> bool {
+        self.levels.contains(&level)
+    }
+
+    /// A channel value brought inside the bounds, or the fallback if it is not finite.
+    pub fn clamp(&self, v: f32) -> f32 {
+        if v.is_finite() {
+            v.clamp(self.min, self.max)
+        } else {
+            self.fallback
+        }
+    }
+
+    /// Whether a channel value is finite and inside the bounds.
+    pub fn contains(&self, v: f32) -> bool {
+        v.is_finite() && (self.min..=self.max).contains(&v)
+    }
+}
+
+fn same(v: f32) -> f32 {
+    v
+}
+
+const WARD_LEVELS: &[Level] = &[Level::Isotropic, Level::Anisotropic];
 
 pub const REGISTRY: [ParamInfo; 5] = [
     ParamInfo {
         name: "rho_d",
         min: 0.0,
         max: 1.0,
+        fallback: 0.0,
+        scale: Scale::Linear,
         levels: &[
             Level::Diffuse,
             Level::DiffuseSpecular,
             Level::Isotropic,
             Level::Anisotropic,
         ],
+        watched: true,
+        get: |p| p.rho_d.as_ref(),
+        get_mut: |p| p.rho_d.as_mut(),
+        shown: same,
     },
     ParamInfo {
         name: "rho_s",
         min: 0.0,
         max: 1.0,
+        fallback: 0.0,
+        scale: Scale::Linear,
         levels: &[
             Level::Specular,
             Level::DiffuseSpecular,
             Level::Isotropic,
             Level::Anisotropic,
         ],
+        watched: true,
+        get: |p| p.rho_s.as_ref(),
+        get_mut: |p| p.rho_s.as_mut(),
+        shown: same,
     },
     ParamInfo {
         name: "alpha_x",
         min: ALPHA_MIN,
         max: ALPHA_MAX,
-        levels: &[Level::Isotropic, Level::Anisotropic],
+        fallback: 0.1,
+        scale: Scale::Log,
+        levels: WARD_LEVELS,
+        watched: true,
+        get: |p| std::slice::from_ref(&p.alpha_x),
+        get_mut: |p| std::slice::from_mut(&mut p.alpha_x),
+        shown: same,
     },
     ParamInfo {
         name: "alpha_y",
         min: ALPHA_MIN,
         max: ALPHA_MAX,
+        fallback: 0.1,
+        scale: Scale::Log,
         levels: &[Level::Anisotropic],
+        watched: true,
+        get: |p| std::slice::from_ref(&p.alpha_y),
+        get_mut: |p| std::slice::from_mut(&mut p.alpha_y),
+        shown: same,
     },
+    // Any angle: `GroupParams::canonical` folds it into (−45°, 45°]. Not watched: a nearly
+    // isotropic lobe leaves it free to wander without changing the image.
     ParamInfo {
         name: "theta_deg",
-        min: -90.0,
-        max: 90.0,
+        min: f32::NEG_INFINITY,
+        max: f32::INFINITY,
+        fallback: 0.0,
+        scale: Scale::Linear,
         levels: &[Level::Anisotropic],
+        watched: false,
+        get: |p| std::slice::from_ref(&p.theta),
+        get_mut: |p| std::slice::from_mut(&mut p.theta),
+        shown: f32::to_degrees,
     },
 ];
+
+/// The registry row named `name`.
+pub fn param(name: &str) -> &'static ParamInfo {
+    REGISTRY
+        .iter()
+        .find(|p| p.name == name)
+        .expect("a registered parameter")
+}
+
+/// The largest change of a watched parameter free at the level, over groups and channels,
+/// between `before` and `after`: absolute for a linear parameter, relative for a logarithmic
+/// one. `params` pairs each group's level with its parameters after and before.
+pub fn largest_move<'a>(
+    params: impl IntoIterator<Item = (Level, &'a GroupParams, &'a GroupParams)>,
+) -> f32 {
+    let mut moved = 0.0f32;
+    for (level, after, before) in params {
+        for row in REGISTRY.iter().filter(|r| r.watched && r.free_at(level)) {
+            for (a, b) in (row.get)(after).iter().zip((row.get)(before)) {
+                let d = match row.scale {
+                    Scale::Linear => (a - b).abs(),
+                    Scale::Log => ((a - b) / b).abs(),
+                };
+                moved = moved.max(d);
+            }
+        }
+    }
+    moved
+}
 
 /// The reflectance parameters of one group. Which of them mean anything depends on the level.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -95,22 +214,53 @@ pub enum Value {
 }
 
 impl GroupParams {
-    /// The free parameters of `level`, by registry name (θ in degrees).
+    /// The free parameters of `level`, by registry name, in the units they are reported in.
     pub fn named(&self, level: Level) -> Vec<(&'static str, Value)> {
         REGISTRY
             .iter()
-            .filter(|p| p.levels.contains(&level))
+            .filter(|p| p.free_at(level))
             .map(|p| {
-                let v = match p.name {
-                    "rho_d" => Value::Rgb(self.rho_d.to_array()),
-                    "rho_s" => Value::Rgb(self.rho_s.to_array()),
-                    "alpha_x" => Value::Scalar(self.alpha_x),
-                    "alpha_y" => Value::Scalar(self.alpha_y),
-                    _ => Value::Scalar(self.theta.to_degrees()),
+                let v = match (p.get)(self) {
+                    &[r, g, b] => Value::Rgb([(p.shown)(r), (p.shown)(g), (p.shown)(b)]),
+                    channels => Value::Scalar((p.shown)(channels[0])),
                 };
                 (p.name, v)
             })
             .collect()
+    }
+
+    /// The running sums of [`GroupParams::add_to_mean`] before the first fit.
+    pub fn zero_sums() -> GroupParams {
+        GroupParams {
+            rho_d: Rgb::ZERO,
+            rho_s: Rgb::ZERO,
+            alpha_x: 0.0,
+            alpha_y: 0.0,
+            theta: 0.0,
+        }
+    }
+
+    /// Adds these parameters, with weight `weight`, to the weighted running `sums` (each
+    /// parameter on its scale: roughness in the log domain, as it is fitted), and returns the
+    /// mean of the sums over the total weight `total` (this weight included), clamped.
+    pub fn add_to_mean(&self, sums: &mut GroupParams, weight: f32, total: f32) -> GroupParams {
+        let mut mean = *sums;
+        for row in &REGISTRY {
+            let sum = (row.get_mut)(sums);
+            for (s, &v) in sum.iter_mut().zip((row.get)(self)) {
+                *s += match row.scale {
+                    Scale::Linear => v * weight,
+                    Scale::Log => v.ln() * weight,
+                };
+            }
+            for (m, &s) in (row.get_mut)(&mut mean).iter_mut().zip(&*sum) {
+                *m = match row.scale {
+                    Scale::Linear => s / total,
+                    Scale::Log => (s / total).exp(),
+                };
+            }
+        }
+        mean.clamped()
     }
 
     /// The parameters equivalent to a scene material (θ in radians; α left at the default where
@@ -162,18 +312,14 @@ impl GroupParams {
         }
     }
 
-    /// Brings the parameters inside their physical bounds: 0 ≤ ρd, ρs; ρd + ρs ≤ 1 per channel;
-    /// α in [ALPHA_MIN, ALPHA_MAX]; θ in (−90°, 90°]. NaNs become the bounds' safe values.
+    /// Brings the parameters inside their physical bounds: every channel inside its registry
+    /// row's bounds (a non-finite one to the row's fallback), then ρd + ρs ≤ 1 per channel.
     pub fn clamped(mut self) -> GroupParams {
-        let fix = |v: f32| {
-            if v.is_finite() {
-                v.clamp(0.0, 1.0)
-            } else {
-                0.0
+        for row in &REGISTRY {
+            for v in (row.get_mut)(&mut self) {
+                *v = row.clamp(*v);
             }
-        };
-        self.rho_d = Rgb::new(fix(self.rho_d.x), fix(self.rho_d.y), fix(self.rho_d.z));
-        self.rho_s = Rgb::new(fix(self.rho_s.x), fix(self.rho_s.y), fix(self.rho_s.z));
+        }
         for c in 0..3 {
             let sum = self.rho_d[c] + self.rho_s[c];
             if sum > 1.0 {
@@ -181,32 +327,16 @@ impl GroupParams {
                 self.rho_s[c] /= sum;
             }
         }
-        let fa = |a: f32| {
-            if a.is_finite() {
-                a.clamp(ALPHA_MIN, ALPHA_MAX)
-            } else {
-                0.1
-            }
-        };
-        self.alpha_x = fa(self.alpha_x);
-        self.alpha_y = fa(self.alpha_y);
-        if !self.theta.is_finite() {
-            self.theta = 0.0;
-        }
         self
     }
 
     /// Whether the parameters are inside the bounds [`GroupParams::clamped`] enforces (with a
     /// rounding slack of 1e-5 on ρd + ρs ≤ 1), all finite.
     pub fn in_bounds(&self) -> bool {
-        let unit = |v: f32| (0.0..=1.0).contains(&v);
-        (0..3).all(|c| {
-            unit(self.rho_d[c])
-                && unit(self.rho_s[c])
-                && self.rho_d[c] + self.rho_s[c] <= 1.0 + 1e-5
-        }) && (ALPHA_MIN..=ALPHA_MAX).contains(&self.alpha_x)
-            && (ALPHA_MIN..=ALPHA_MAX).contains(&self.alpha_y)
-            && self.theta.is_finite()
+        REGISTRY
+            .iter()
+            .all(|row| (row.get)(self).iter().all(|&v| row.contains(v)))
+            && (0..3).all(|c| self.rho_d[c] + self.rho_s[c] <= 1.0 + 1e-5)
     }
 
     /// The canonical form of an anisotropic lobe: (αx, αy, θ) and (αy, αx, θ + 90°) are the
@@ -271,5 +401,44 @@ mod tests {
             "{}",
             q.theta.to_degrees()
         );
+    }
+
+    #[test]
+    fn the_registry_averages_moves_and_names_each_parameter_on_its_scale() {
+        let a = GroupParams {
+            rho_d: Rgb::new(0.2, 0.4, 0.6),
+            rho_s: Rgb::splat(0.1),
+            alpha_x: 0.04,
+            alpha_y: 0.1,
+            theta: 0.3,
+        };
+        let b = GroupParams {
+            rho_d: Rgb::new(0.4, 0.4, 0.2),
+            alpha_x: 0.16,
+            theta: 0.1,
+            ..a
+        };
+        // Equal weights: ρ and θ arithmetic means, α the geometric mean.
+        let mut sums = GroupParams::zero_sums();
+        a.add_to_mean(&mut sums, 2.0, 2.0);
+        let m = b.add_to_mean(&mut sums, 2.0, 4.0);
+        assert!((m.rho_d - Rgb::new(0.3, 0.4, 0.4)).abs().max_element() < 1e-6);
+        assert!((m.alpha_x - 0.08).abs() < 1e-6 && (m.alpha_y - 0.1).abs() < 1e-6);
+        assert!((m.theta - 0.2).abs() < 1e-6);
+        // Moves: ρ absolute (0.4), α relative (3.0) only where the level has a lobe, θ never.
+        let moved = |level| largest_move([(level, &b, &a)]);
+        assert!((moved(Level::Diffuse) - 0.4).abs() < 1e-6);
+        assert!((moved(Level::Isotropic) - 3.0).abs() < 1e-6);
+        let turned = GroupParams { theta: 1.0, ..a };
+        assert_eq!(largest_move([(Level::Anisotropic, &turned, &a)]), 0.0);
+        // Names: the level's free parameters, θ in degrees.
+        let names: Vec<_> = a.named(Level::Anisotropic);
+        assert_eq!(
+            names.iter().map(|n| n.0).collect::<Vec<_>>(),
+            ["rho_d", "rho_s", "alpha_x", "alpha_y", "theta_deg"]
+        );
+        assert_eq!(names[4].1, Value::Scalar(0.3f32.to_degrees()));
+        assert_eq!(a.named(Level::Specular).len(), 1);
+        assert_eq!(param("alpha_x").solver_bounds().1, 0.0);
     }
 }

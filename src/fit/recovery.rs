@@ -14,7 +14,7 @@ use super::cache::{build, choose_pixels, CacheOptions};
 use super::checkpoint::{Checkpoint, CHECKPOINT_VERSION};
 use super::error::{block_tile, block_tiles, tiled_error, PixelTerms};
 use super::hierarchy::{Event, GroupState, Status};
-use super::params::GroupParams;
+use super::params::{largest_move, GroupParams};
 use super::recover::{pixel_budget, LogLine, RecoverError, RecoverOptions, Recovery};
 use super::schedule;
 use crate::io::image::Image;
@@ -221,7 +221,13 @@ impl<'a> RecoveryLoop<'a> {
             // Gauss–Seidel: the next groups' caches see this group's new parameters.
             apply(&mut self.current, &self.states);
         }
-        let moved = largest_move(&self.states, &before);
+        let moved = largest_move(
+            self.states
+                .iter()
+                .zip(&before)
+                .filter(|(s, _)| s.is_fitted())
+                .map(|(s, b)| (s.level, &s.params, b)),
+        );
         let level_changed = self
             .states
             .iter()
@@ -353,30 +359,6 @@ fn initial_states(scene: &Scene, mask: &UsableMask, opts: &RecoverOptions) -> Ve
             }
         })
         .collect()
-}
-
-/// The largest change of a fitted group's parameters over an iteration: ρ absolute, α relative
-/// (and α only where the level has a lobe).
-fn largest_move(states: &[GroupState], before: &[GroupParams]) -> f32 {
-    states
-        .iter()
-        .zip(before)
-        .filter(|(s, _)| s.is_fitted())
-        .map(|(s, b)| {
-            let dr = (s.params.rho_d - b.rho_d)
-                .abs()
-                .max_element()
-                .max((s.params.rho_s - b.rho_s).abs().max_element());
-            let da = ((s.params.alpha_x - b.alpha_x) / b.alpha_x)
-                .abs()
-                .max(((s.params.alpha_y - b.alpha_y) / b.alpha_y).abs());
-            if s.level.is_ward() {
-                dr.max(da)
-            } else {
-                dr
-            }
-        })
-        .fold(0.0f32, f32::max)
 }
 
 /// Applies each group's current parameters to its objects.
