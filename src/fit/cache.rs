@@ -17,9 +17,8 @@
 
 use crate::geometry::{offset_origin, Ray};
 use crate::math::{Rgb, Sampler, Vec2, Vec3, INV_PI};
-use crate::render::batch::{trace_jobs, Job};
+use crate::render::incident::{indirect_radiance, IndirectRay};
 use crate::render::integrator::facing;
-use crate::render::integrator::PathState;
 use crate::render::PathTracer;
 use crate::scene::Scene;
 use rayon::prelude::*;
@@ -67,7 +66,7 @@ struct Entry {
 /// A cache sample's weight: known (next-event estimation), or waiting for its indirect path.
 enum Weight {
     Known(Rgb),
-    /// The index of the path among the pixel's jobs, the emission seen at the path's first hit
+    /// The index of the path among the pixel's indirect rays, the emission seen at the path's first hit
     /// (MIS-weighted), and the factor cos θi / (pdf · n) of the path's radiance.
     Path {
         job: usize,
@@ -199,7 +198,7 @@ pub fn build(
             // Every sample up to its indirect path; the paths, eight at a time; then the
             // samples in their order (so the sums are the same to the bit as one by one).
             let mut entries: Vec<Entry> = Vec::new();
-            let mut jobs: Vec<Job> = Vec::new();
+            let mut rays: Vec<IndirectRay> = Vec::new();
             for (half, k) in (0..2usize).flat_map(|h| (0..hl + hi).map(move |k| (h, k))) {
                 let mut sampler = Sampler::new(seed ^ (0x9E37_79B9 * (half as u64 + 1)), p as u64);
                 sampler.start_sample(k);
@@ -266,23 +265,19 @@ pub fn build(
                         wo,
                         wi: frame.to_local(wi_world),
                         weight: Weight::Path {
-                            job: jobs.len(),
+                            job: rays.len(),
                             emitted,
                             scale: wi.z / (pm * ni as f32),
                         },
                     });
-                    jobs.push(Job {
-                        st: PathState::new(r, 1, false),
+                    rays.push(IndirectRay {
+                        ray: r,
                         hit: h2,
-                        traced: true,
                         sampler,
                     });
                 }
             }
-            let mut traced = vec![Rgb::ZERO; jobs.len()];
-            let mut jobs = jobs.into_iter();
-            let next = |lane: &mut Job| jobs.next().map(|job| *lane = job).is_some();
-            trace_jobs(pt, next, |i, l| traced[i] = l);
+            let traced = indirect_radiance(pt, rays);
             for e in entries {
                 let c = match e.weight {
                     Weight::Known(c) => c,

@@ -4,6 +4,7 @@ pub mod aov;
 pub mod batch;
 pub mod bsdf;
 pub mod film;
+pub mod incident;
 pub mod integrator;
 pub mod lights;
 
