@@ -1,4 +1,4 @@
-//! The incident-radiance cache (DESIGN.md, "Making it fast" 1).
+//! The incident-radiance cache (docs/DESIGN.md, "Making it fast" 1).
 //!
 //! For the usable pixels of a group, each pixel's samples are drawn once: a jittered primary ray
 //! (box filter, as the renderer does), then either a light sample (next-event estimation) or an

@@ -6,6 +6,7 @@
 //!   ε < threshold(ℓ) ──────────────────────────────► Confirmed at ℓ (keeps being refined)
 //!                 │ no
 //!   first iteration at ℓ, the rest of the scene still moving, or another group's turn?
+//!   (those rules across groups: `schedule.rs`)
 //!       ── yes ──► wait (a group must not climb to explain light that a neighbour's stale
 //!       model is missing: one group climbs at a time, the worst ε / threshold first)
 //!                 │ no
@@ -204,10 +205,8 @@ impl GroupState {
     /// glossy floor reflecting it) can make the fixed-point iteration of the notes alternate
     /// around its limit: ρ(t+1) − ρ(t) ≈ r (ρ(t) − ρ(t−1)) with r < 0. Where a channel's step
     /// reverses, take the secant (Aitken) estimate of the limit, ρ(t) + Δ / (1 − r), with r
-    /// kept in [−0.9, 0]. Monotone steps are left alone: extrapolating them too (r ≤ 0.7, for
-    /// steps > 0.01) sped up the diffuse figure6 of `bench/` (worst ρ error after 4 iterations
-    /// 0.0094 → 0.0056) but made the glossy figure6 diverge, where caustic noise moves the
-    /// blocks by more than that.
+    /// kept in [−0.9, 0]. Monotone steps are left alone: extrapolating them too makes a noisy
+    /// scene (the glossy figure6's caustics) diverge.
     fn damp(&mut self, old: &GroupParams) {
         use crate::math::Rgb;
         let step = (self.params.rho_d - old.rho_d, self.params.rho_s - old.rho_s);

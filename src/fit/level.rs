@@ -1,5 +1,5 @@
-//! The hierarchy of reflectance models (DESIGN.md, "The hierarchy"): every group starts at
-//! level 1 and climbs while its error stays above the level's threshold.
+//! The hierarchy of reflectance models (docs/DESIGN.md, "The hierarchy"): every group starts
+//! at level 1 and climbs while its error stays above the level's threshold.
 
 use serde::{Deserialize, Serialize};
 

@@ -1,5 +1,5 @@
-//! The defensive mixture from which the cache draws its indirect directions (DESIGN.md, "Making
-//! it fast" 1): a cosine lobe plus isotropic Ward lobes of several widths around the mirror
+//! The defensive mixture from which the cache draws its indirect directions (docs/DESIGN.md,
+//! "Making it fast" 1): a cosine lobe plus isotropic Ward lobes of several widths around the mirror
 //! direction. It does not depend on the parameters being fitted, so the same samples serve every
 //! trial (common random numbers) and its pdf is known exactly for the MIS weights.
 

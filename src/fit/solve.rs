@@ -1,5 +1,5 @@
 //! Solvers of the fit: the per-channel bounded least squares that gives ρd and ρs for a fixed
-//! lobe shape (variable projection, DESIGN.md "Making it fast" 2), and a small
+//! lobe shape (variable projection, docs/DESIGN.md, "Making it fast" 2), and a small
 //! Levenberg–Marquardt loop for the lobe shape itself.
 
 /// Sufficient statistics of one channel's least-squares problem

@@ -5,9 +5,7 @@
 //! variants vectorise their whole path loop the same way). Ray traversal stays one ray at a
 //! time, but for camera rays: `render_pixels` traces them ahead, eight samples of a pixel as
 //! one packet (`geometry::packet`), which walk the same nodes. Rays of different paths rarely
-//! share nodes: packets of the lanes' secondary and shadow rays measured slower (figure6,
-//! 1 thread, 16 spp: 0.638 → 0.753 s; shadow rays alone 0.681 s; git branch
-//! `packet-experiment`), and first-bounce shadow packets no better (within ±2%).
+//! share nodes, so their packets are slower (bench/README.md, "Design measurements").
 //!
 //! Each lane runs the scalar integrator's state machine (`PathTracer::arrive`, `vertex`, then
 //! `scatter` or its eight-lane copy here for Lambert surfaces) and draws its random numbers
@@ -16,32 +14,18 @@
 //! pixel, whose samples are summed in sample order — is the scalar integrator's to the bit; a
 //! test holds the two to that. A flat-shaded Lambert triangle goes from the BVH's hit straight
 //! into the eight-lane arrays (`flat_lambert`), without the hit record and `Vertex` of the
-//! general route: 8% fewer instructions per sample on figure6 (cachegrind, 16 spp: 1.358 →
-//! 1.248 G), which alone measured no faster; with the roulette flag of `row::ROULETTE`, and
-//! the sampler's five Sobol bounces in both builds, 0.398 → 0.388 s (1 thread, 16 spp,
-//! fastest of 11).
+//! general route, which saves instructions.
 //!
 //! Lanes that finish a path take the next job at once, so the eight lanes stay busy until the
 //! jobs run out. Two callers: `render_pixels` (a film's pixels, job = one (pixel, sample)) and
-//! the recovery's cache builds (`fit/cache.rs`, job = an indirect sample's path; the recovered
-//! figure6 is the same to the bit as with one path at a time, and 5% faster).
-//!
-//! Measured (figure6 with a diffuse floor, 256×192, 16 spp, 1 thread, medians of 15 runs taken
-//! in turns): 0.663 s → 0.586 s. Ray traversal, untouched, is now two thirds of the time. With
-//! figure6's glossy floor (scalar on the first bounce) the gain is a few percent. Sending fewer
-//! than three Lambert lanes through the scalar code instead measured no better. Camera-ray
-//! packets: 0.632 → 0.602 s (7 runs each, in turns); per camera sample at max_depth 1 (the
-//! camera ray and what it sees; `bench/depth.py`) about 140 → 108 ns.
+//! the recovery's cache builds (`render::incident`, job = an indirect sample's path).
 //!
 //! Branches: lanes at different depths, paths that end at random and rays in random
 //! directions make per-lane tests unpredictable, and a mispredicted branch costs about as much
 //! as a slab test. So lanes are walked by bitmask (free lanes, lanes whose hit is unknown,
 //! ended paths) rather than tested one by one, a lane's state is written back whether or not
 //! its path goes on, and its seven random numbers come with one branch (`Sampler::next_n`).
-//! With the same in the sampler and the triangle test (cachegrind's branch model: 32 → 25
-//! mispredictions per sample), figure6 16 spp on 1 thread went 0.616 → 0.463 s, and
-//! `bench/depth.py`'s max_depth-8 sample 785 → 614 ns. Still tracing the lanes' rays before
-//! any of them arrives: tracing and arriving lane by lane measured 7% slower.
+//! All the lanes' rays are traced before any of them arrives (lane by lane is slower).
 
 use super::bsdf::Bsdf;
 use super::integrator::{facing, PathState, PathTracer};
@@ -280,10 +264,8 @@ pub fn render_pixels(
 /// Eight lanes of Lambert vertices: what `PathTracer::scatter` reads for each, and the seven
 /// random numbers it would draw (light: 3, BSDF: 3, roulette: 1). A lane's values are one row
 /// (`row::*` gives the layout), written with a few wide copies and turned into eight-lane
-/// registers by 8×8 transposes in `scatter`. Scattering them straight into structure-of-arrays
-/// form took a store per float: cachegrind (x86-64-v3) counts 155 → 91 instructions per
-/// `push`, the transposes adding most of the difference back; 1 thread, figure6 16 spp,
-/// fastest of 15 runs taken in turns, 0.386 → 0.373 s (AVX-512's 32 registers hold them).
+/// registers by 8×8 transposes in `scatter`, because scattering them straight into
+/// structure-of-arrays form takes a store per float.
 #[derive(Default)]
 struct DiffuseLanes {
     n: usize,

@@ -290,9 +290,8 @@ impl<'a> PathTracer<'a> {
             return false;
         }
         // Russian roulette from segment `rr_depth` on, as Mitsuba 3 plays it: continue with
-        // probability min(max β, 0.95). From segment 5 by default: measured on figure6
-        // (diffuse floor, 4 seeds × 32 spp against the bench's reference), efficiency
-        // 1 / (RMSE² × time) is 9% higher than from segment 3, flat from 4 to 6.
+        // probability min(max β, 0.95). From segment 5 by default, the most efficient start
+        // on figure6 (bench/README.md, "Design measurements").
         let u_rr = sampler.next_1d();
         if st.segments >= self.rr_depth {
             let q = (1.0 - st.beta.max_element()).max(0.05);
