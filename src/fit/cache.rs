@@ -16,6 +16,8 @@
 //! Samples are split into two halves (even and odd sample index) to measure the noise floor.
 
 use crate::geometry::{offset_origin, Ray};
+#[cfg(test)]
+use crate::math::PI;
 use crate::math::{Rgb, Sampler, Vec2, Vec3, INV_PI};
 use crate::render::incident::{indirect_radiance, IndirectRay};
 use crate::render::integrator::facing;
@@ -104,6 +106,32 @@ pub struct GroupCache {
     pub tiles: usize,
     /// Jittered primary rays that left the group (counted, dropped).
     pub stray: usize,
+}
+
+impl GroupCache {
+    /// The pixels of the even and of the odd tiles as two caches (their samples copied, tiles
+    /// renumbered). Tiles are numbered in scan order, so the two interleave over the group: a
+    /// model fitted on one half is judged on pixels it has not seen but that see the same
+    /// lights (see `hierarchy::predicts`).
+    pub fn split_tiles(&self) -> [GroupCache; 2] {
+        let mut out: [GroupCache; 2] = Default::default();
+        for p in &self.pixels {
+            let c = &mut out[(p.tile % 2) as usize];
+            let base = c.samples.len() as u32;
+            c.samples
+                .extend_from_slice(&self.samples[p.start as usize..p.end as usize]);
+            c.pixels.push(CachePixel {
+                start: base,
+                mid: base + (p.mid - p.start),
+                end: base + (p.end - p.start),
+                tile: p.tile / 2,
+                ..p.clone()
+            });
+        }
+        out[0].tiles = self.tiles.div_ceil(2);
+        out[1].tiles = self.tiles / 2;
+        out
+    }
 }
 
 /// Which parts a cache needs: D alone suffices for a group confirmed at level 1.
@@ -355,6 +383,65 @@ pub fn build(
         px.end = cache.samples.len() as u32;
         cache.pixels.push(px);
         cache.stray += stray;
+    }
+    cache
+}
+
+/// A cache built without a scene, for tests of the fit: `n` pixels of `per_half` samples in
+/// each half, each pixel seen from a random direction under a sky with a bright region (so
+/// that lobes matter), directions cosine-sampled with weight c = π L / N, `tiles` tiles. The
+/// photo is `photo(pixel, reference)`, where `reference` are 64 times as many samples of the
+/// same sky drawn independently of the cached ones (a photo's noise is independent of the
+/// cache's), each `(ωo, ωi, c)`: a material's radiance is Σ f(ωo, ωi) c.
+#[cfg(test)]
+pub(crate) fn synthetic_cache(
+    n: usize,
+    per_half: usize,
+    tiles: usize,
+    seed: u64,
+    photo: impl Fn(&CachePixel, &[(Vec3, Vec3, Rgb)]) -> Rgb,
+) -> GroupCache {
+    use crate::math::sampler::TestRng;
+    let mut rng = TestRng(seed);
+    let mut cache = GroupCache {
+        tiles,
+        ..Default::default()
+    };
+    let sun = Vec3::new(0.3, -0.2, 0.9).normalize();
+    let draw = |rng: &mut TestRng, wo: Vec3, count: usize| -> Vec<(Vec3, Vec3, Rgb)> {
+        (0..count)
+            .map(|_| {
+                let wi = crate::math::warp::cosine_hemisphere(Vec2::new(rng.f32(), rng.f32()));
+                let l = 0.3 + 3.0 * wi.dot(sun).max(0.0).powi(8);
+                (wo, wi, Rgb::new(l, 0.8 * l, 0.6 * l) * (PI / count as f32))
+            })
+            .collect()
+    };
+    for i in 0..n {
+        let wo = Vec3::new(rng.f32() - 0.5, rng.f32() - 0.5, 0.4 + rng.f32()).normalize();
+        let start = cache.samples.len() as u32;
+        let raw = draw(&mut rng, wo, 2 * per_half);
+        let mut d_half = [Rgb::ZERO; 2];
+        for (k, &(wo, wi, c)) in raw.iter().enumerate() {
+            cache.samples.push(Sample::new(wo, wi, c));
+            d_half[k / per_half] += c * INV_PI;
+        }
+        let m = Rgb::splat(0.5 + rng.f32());
+        let mut p = CachePixel {
+            pixel: i as u32,
+            photo: Rgb::ZERO,
+            d: d_half[0] + d_half[1],
+            d_half: [d_half[0] * 2.0, d_half[1] * 2.0],
+            mirror: m,
+            mirror_half: [m * 0.98, m * 1.02],
+            start,
+            mid: start + per_half as u32,
+            end: start + 2 * per_half as u32,
+            tile: (i * tiles / n) as u32,
+        };
+        let reference = draw(&mut rng, wo, 128 * per_half);
+        p.photo = photo(&p, &reference);
+        cache.pixels.push(p);
     }
     cache
 }

@@ -104,14 +104,16 @@ fn finish(
     evals: u32,
 ) -> LevelFit {
     let specs = pixel_specs(cache, spec, variant, false);
-    let (rd, rs, _) = match level {
-        Level::PerfectSpecular => (Rgb::ZERO, Rgb::ONE, 0.0),
-        _ => project_rho(cache, &specs, free),
+    let (rho_d, rho_s) = match level {
+        Level::PerfectSpecular => (Rgb::ZERO, Rgb::ONE),
+        _ => {
+            let (rd, rs, _) = project_rho(cache, &specs, free);
+            (rd, rs)
+        }
     };
-    let m = moments(cache, &specs);
     let mut params = GroupParams {
-        rho_d: rd,
-        rho_s: rs,
+        rho_d,
+        rho_s,
         ..base
     };
     if let Spec::Lobe {
@@ -129,19 +131,102 @@ fn finish(
     } else {
         params.clamped()
     };
-    let st = error(cache, &specs, params.rho_d, params.rho_s);
+    assess_with(cache, level, &params, &specs, evals + 1)
+}
+
+/// The specular term a level's parameters stand for on the cache.
+fn spec_of(level: Level, p: &GroupParams) -> Spec {
+    if level.is_ward() {
+        Spec::Lobe {
+            alpha_x: p.alpha_x,
+            alpha_y: p.alpha_y,
+            theta: p.theta,
+        }
+    } else if level.is_mirror() {
+        Spec::Mirror
+    } else {
+        Spec::None
+    }
+}
+
+/// ε, noise floor, halves and least-squares cost of `params` at `level` on the cache, nothing
+/// refitted: how well a given model explains (or predicts) these pixels.
+pub fn assess(
+    cache: &GroupCache,
+    level: Level,
+    params: &GroupParams,
+    variant: WardVariant,
+    evals: u32,
+) -> LevelFit {
+    let specs = pixel_specs(cache, spec_of(level, params), variant, false);
+    assess_with(cache, level, params, &specs, evals)
+}
+
+fn assess_with(
+    cache: &GroupCache,
+    level: Level,
+    params: &GroupParams,
+    specs: &[PixelSpec],
+    evals: u32,
+) -> LevelFit {
+    let m = moments(cache, specs);
+    let st = error(cache, specs, params.rho_d, params.rho_s);
     let cost = (0..3)
         .map(|c| m[c].cost(params.rho_d[c] as f64, params.rho_s[c] as f64))
         .sum();
     LevelFit {
         level,
-        params,
+        params: *params,
         error: st.error,
         noise_floor: st.noise_floor,
         halves: st.halves,
         cost,
-        evals: evals + 1,
+        evals,
     }
+}
+
+/// The parameters of `higher` that reproduce `lower`'s model exactly, where `higher` contains
+/// `lower`: Lambert is any level with ρs = 0, an ideal mirror is diffuse + mirror with ρd = 0,
+/// the perfect mirror is the mirror with ρs = 1, isotropic Ward is anisotropic Ward with
+/// αx = αy. (A mirror is only the α → 0 limit of a Ward lobe, not one of its members.)
+pub fn embed(lower: Level, p: &GroupParams, higher: Level) -> Option<GroupParams> {
+    use Level::*;
+    let zero = crate::math::Rgb::ZERO;
+    let q = match (lower, higher) {
+        (Diffuse, DiffuseSpecular | Isotropic | Anisotropic) => GroupParams { rho_s: zero, ..*p },
+        (PerfectSpecular | Specular, DiffuseSpecular) => GroupParams { rho_d: zero, ..*p },
+        (PerfectSpecular, Specular) => *p,
+        (Isotropic, Anisotropic) => GroupParams {
+            alpha_y: p.alpha_x,
+            ..*p
+        },
+        _ => return None,
+    };
+    Some(q.clamped())
+}
+
+/// [`fit_level`] for a climb, where the lower levels' fits on the same cache are known: a
+/// level that contains one of them can never come out worse than it (its search may end in a
+/// worse local optimum than the embedded lower optimum; then the embedded one is the fit).
+pub fn fit_level_above(
+    cache: &GroupCache,
+    level: Level,
+    start: &GroupParams,
+    lower: &[LevelFit],
+    variant: WardVariant,
+) -> LevelFit {
+    let mut best = fit_level(cache, level, start, variant);
+    for l in lower {
+        if let Some(p) = embed(l.level, &l.params, level) {
+            let e = assess(cache, level, &p, variant, best.evals + 1);
+            if e.error < best.error {
+                best = e;
+            } else {
+                best.evals = e.evals;
+            }
+        }
+    }
+    best
 }
 
 /// Fits `level` to the cache, starting from `start` where the level has a nonlinear part.
@@ -278,6 +363,90 @@ pub fn fit_level(
                 theta: x[2] as f32,
             };
             finish(cache, level, spec, Free::Both, *start, variant, evals)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::cache::{synthetic_cache, CachePixel};
+    use crate::math::{Vec3, PI};
+
+    /// An anisotropic Trowbridge–Reitz (GGX) distribution term per unit ρs, D / (4 cos θi cos θo)
+    /// (no Fresnel or shadowing): a glossy material that no Ward lobe reproduces.
+    fn ggx(wo: Vec3, wi: Vec3, ax: f32, ay: f32) -> f32 {
+        let h = (wo + wi).normalize();
+        let t = h.x * h.x / (ax * ax) + h.y * h.y / (ay * ay) + h.z * h.z;
+        1.0 / (PI * ax * ay * t * t) / (4.0 * wo.z * wi.z)
+    }
+
+    /// Photo of a plastic-like GGX material with 2% multiplicative noise per pixel.
+    pub(crate) fn ggx_cache(seed: u64) -> GroupCache {
+        let noise = std::cell::Cell::new(seed);
+        synthetic_cache(
+            400,
+            48,
+            24,
+            seed,
+            |_p: &CachePixel, s: &[(Vec3, Vec3, Rgb)]| {
+                let spec: Rgb = s
+                    .iter()
+                    .map(|&(wo, wi, c)| c * ggx(wo, wi, 0.12, 0.3))
+                    .fold(Rgb::ZERO, |a, b| a + b);
+                noise.set(noise.get().wrapping_add(1));
+                let n = crate::math::sampler::unit_f32(crate::math::sampler::mix64(noise.get()));
+                (Rgb::new(0.35, 0.25, 0.15) * diffuse(s) + 0.2 * spec) * (1.0 + 0.04 * (n - 0.5))
+            },
+        )
+    }
+
+    /// Every pair of nested levels: the lower level's optimum written as the higher level's
+    /// parameters (`embed`) is the same model (same ε to rounding), and a climb's fit of the
+    /// higher level (`fit_level_above`) is never worse than the lower level's, on a material
+    /// neither is exact for.
+    /// D of the cache's model (Σ c / π) for the reference samples of a synthetic photo.
+    fn diffuse(s: &[(Vec3, Vec3, Rgb)]) -> Rgb {
+        s.iter().fold(Rgb::ZERO, |a, x| a + x.2) * crate::math::INV_PI
+    }
+
+    #[test]
+    fn a_climb_never_fits_worse_than_a_level_it_contains() {
+        use Level::*;
+        let pairs = [
+            (Diffuse, DiffuseSpecular),
+            (Diffuse, Isotropic),
+            (Diffuse, Anisotropic),
+            (PerfectSpecular, Specular),
+            (PerfectSpecular, DiffuseSpecular),
+            (Specular, DiffuseSpecular),
+            (Isotropic, Anisotropic),
+        ];
+        for seed in [1, 2, 3] {
+            let cache = ggx_cache(seed);
+            let v = WardVariant::Ward1992;
+            for (lo, hi) in pairs {
+                let f = fit_level(&cache, lo, &GroupParams::default(), v);
+                let p = embed(lo, &f.params, hi).expect("nested");
+                let same = assess(&cache, hi, &p, v, 0);
+                assert!(
+                    (same.error - f.error).abs() <= 1e-6 * f.error.max(1e-3),
+                    "{lo:?} in {hi:?}: {} vs {}",
+                    same.error,
+                    f.error
+                );
+                let g = fit_level_above(&cache, hi, &f.params, std::slice::from_ref(&f), v);
+                assert_eq!(g.level, hi);
+                assert!(
+                    g.error <= f.error,
+                    "seed {seed}: {hi:?} {} worse than the {lo:?} it contains {}",
+                    g.error,
+                    f.error
+                );
+            }
+            // Levels that do not contain each other have no embedding.
+            assert!(embed(DiffuseSpecular, &GroupParams::default(), Isotropic).is_none());
+            assert!(embed(Anisotropic, &GroupParams::default(), Isotropic).is_none());
         }
     }
 }

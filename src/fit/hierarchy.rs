@@ -24,7 +24,7 @@
 //! Every fit and every level tried becomes an [`Event`] for the log.
 
 use super::cache::{CacheNeeds, GroupCache};
-use super::fitter::{fit_level, LevelFit};
+use super::fitter::{assess, fit_level, fit_level_above, LevelFit};
 use super::level::{Level, Thresholds};
 use super::params::GroupParams;
 use crate::scene::WardVariant;
@@ -64,6 +64,14 @@ impl Default for HierarchyOptions {
     }
 }
 
+/// How a group's parameters moved in a global iteration (see [`GroupState::record_move`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Motion {
+    Steady,
+    Jittering,
+    Converging,
+}
+
 /// The state of one group.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct GroupState {
@@ -87,6 +95,18 @@ pub struct GroupState {
     /// Running sum of confirmed fits, each weighted by its cache's pixel count (its precision),
     /// with the number of fits and the total weight.
     pub average: Option<(GroupParams, u32, f32)>,
+    /// Global iterations since this group last found a higher level that earned its place
+    /// but had to wait for another group's turn (0: not waiting). The longest waiting group
+    /// climbs first, so no group holds the turn (see `recover::climber`).
+    #[serde(default)]
+    pub waiting: u32,
+    /// The higher level it is waiting for.
+    #[serde(default)]
+    pub pending: Option<Level>,
+    /// How far its parameters moved in each global iteration at its current level (largest
+    /// ρ change or relative α change): whether it is still converging or only jittering.
+    #[serde(default)]
+    pub moves: Vec<f32>,
 }
 
 /// What happened to a group in one global iteration.
@@ -107,12 +127,27 @@ pub enum Event {
         error_after: f32,
         noise_floor: f32,
         gain_noise: f32,
+        /// ε of the lower and of the tried level on held-back pixels (each fitted on the other
+        /// half of the group's tiles), when the in-sample gain earned a look at them.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        held_out: Option<[f32; 2]>,
         kept: bool,
     },
     /// The group moved to a new level.
     Moved { from: Level, to: Level },
     /// A higher level earned its place, but another group moves first this iteration.
     Deferred { to: Level },
+    /// The run ended while the group was still analysing: it is confirmed at the best level
+    /// it had found, and `reason` says why it had not decided earlier.
+    Decided {
+        level: Level,
+        error: f32,
+        reason: String,
+    },
+    /// The group's parameters still move by more than the settle tolerance, but no longer
+    /// converge (their steps stopped shrinking): they move within their own noise and no
+    /// longer hold the other groups back from climbing.
+    Jitter { moved: f32 },
     /// The group's level is decided.
     Confirmed {
         level: Level,
@@ -142,6 +177,9 @@ impl GroupState {
             note: None,
             last_step: None,
             average: None,
+            waiting: 0,
+            pending: None,
+            moves: Vec::new(),
         }
     }
 
@@ -247,6 +285,100 @@ impl GroupState {
         )
     }
 
+    /// Whether `better` (a higher level that earned its place on the whole cache) also predicts
+    /// pixels it was not fitted to, so that a wall cannot turn glossy to absorb a neighbour's
+    /// error: both levels are fitted on the even tiles and judged on the odd ones, then the
+    /// other way round, and at least half of the in-sample gain must remain on the held-back
+    /// pixels. Returns the verdict and the held-out ε of `base` and `better`. A group too small
+    /// to split (a half with no pixel) is not judged.
+    fn predicts(
+        cache: &GroupCache,
+        base: &LevelFit,
+        better: &LevelFit,
+        variant: WardVariant,
+    ) -> (bool, [f32; 2]) {
+        let halves = cache.split_tiles();
+        if halves.iter().any(|h| h.pixels.is_empty()) {
+            return (true, [base.error, better.error]);
+        }
+        let mut held = [0.0f32; 2];
+        for k in 0..2 {
+            let (fit_on, judge_on) = (&halves[k], &halves[1 - k]);
+            let fb = fit_level(fit_on, base.level, &base.params, variant);
+            let fh = fit_level_above(
+                fit_on,
+                better.level,
+                &better.params,
+                std::slice::from_ref(&fb),
+                variant,
+            );
+            held[0] += 0.5 * assess(judge_on, base.level, &fb.params, variant, 0).error;
+            held[1] += 0.5 * assess(judge_on, better.level, &fh.params, variant, 0).error;
+        }
+        let gain = base.error - better.error;
+        (held[0] - held[1] >= 0.5 * gain, held)
+    }
+
+    /// Records how far the group's parameters moved in this global iteration (largest ρ change,
+    /// or relative α change at the Ward levels) and says whether that holds the scene back.
+    /// A group is `Steady` once its move is below `settle`. One whose moves stopped shrinking
+    /// (three or more at its level, this one at least 0.7 of the smaller of the two before it,
+    /// or eight iterations at the level) is `Jittering`: it moves within its own noise (a lobe
+    /// the photo hardly determines) and waiting would not settle it, so it must not block the
+    /// other groups' climbs either. Otherwise it is still `Converging`.
+    pub fn record_move(&mut self, moved: f32, settle: f32) -> Motion {
+        let n = self.moves.len();
+        let motion = if moved < settle {
+            Motion::Steady
+        } else if n >= 2 && moved >= 0.7 * self.moves[n - 1].min(self.moves[n - 2])
+            || self.iterations_at_level >= 8
+        {
+            Motion::Jittering
+        } else {
+            Motion::Converging
+        };
+        self.moves.push(moved);
+        motion
+    }
+
+    /// Ends the analysis of a group the run left undecided (the iterations ran out): it is
+    /// confirmed at its current level, the best one it kept, and the event says why it had not
+    /// decided. `None` if the group was not analysing.
+    pub fn decide_at_end(&mut self, opts: &HierarchyOptions, iterations: u32) -> Option<Event> {
+        if self.status != Status::Analysing {
+            return None;
+        }
+        let thr = opts.thresholds.of(self.level);
+        let reason = match self.pending {
+            Some(l) => format!(
+                "{} earned its place but was still waiting for its turn to climb after {iterations} \
+                 iterations; more iterations (--max-iterations) would let it move",
+                l.name()
+            ),
+            None if self.iterations_at_level < 2 => format!(
+                "it reached {} only {} iteration(s) before the end; more iterations \
+                 (--max-iterations) would let it confirm or climb",
+                self.level.name(),
+                self.iterations_at_level
+            ),
+            None => "the rest of the scene never settled long enough for it to try the higher \
+                 levels"
+                .to_string(),
+        };
+        self.status = Status::Confirmed;
+        self.note = Some(format!(
+            "decided at the end of the run: kept {} with ε {:.4} (threshold {:.4}): {reason}",
+            self.level.name(),
+            self.error,
+            thr
+        ));
+        Some(Event::Decided {
+            level: self.level,
+            error: self.error,
+            reason,
+        })
+    }
+
     /// One global iteration for this group, given its freshly built cache. `may_climb`: whether
     /// the group may try the higher levels now (the rest of the scene has settled); `may_move`:
     /// whether it may also move to one (one group at a time, the worst first; see `schedule.rs`).
@@ -306,6 +438,7 @@ impl GroupState {
                     self.level = lower;
                     self.take(&f);
                     self.iterations_at_level = 0;
+                    self.moves.clear();
                     self.last_step = None;
                     self.average = None;
                     self.status = Status::Analysing;
@@ -333,23 +466,31 @@ impl GroupState {
         }
         // Climb on the same cache.
         let mut best = fit.clone();
-        let mut last = fit;
+        let mut tried = vec![fit];
         let mut level = self.level;
         while let Some(next) = level.next() {
+            let last = tried.last().expect("the current level's fit");
             let start = GroupParams {
                 alpha_x: last.params.alpha_x,
                 alpha_y: last.params.alpha_y,
                 theta: last.params.theta,
                 ..best.params
             };
-            let f = fit_level(cache, next, &start, variant);
-            let (kept, gain_noise) = Self::earns(&best, &f, opts);
+            let f = fit_level_above(cache, next, &start, &tried, variant);
+            let (earned, gain_noise) = Self::earns(&best, &f, opts);
+            let (kept, held_out) = if earned {
+                let (ok, held) = Self::predicts(cache, &best, &f, variant);
+                (ok, Some(held))
+            } else {
+                (false, None)
+            };
             events.push(Event::Tried {
                 level: next,
                 error_before: best.error,
                 error_after: f.error,
                 noise_floor: f.noise_floor,
                 gain_noise,
+                held_out,
                 kept,
             });
             level = next;
@@ -359,11 +500,15 @@ impl GroupState {
                     break;
                 }
             }
-            last = f;
+            tried.push(f);
         }
         if best.level != self.level && !may_move {
+            self.waiting += 1;
+            self.pending = Some(best.level);
             events.push(Event::Deferred { to: best.level });
         } else if best.level != self.level {
+            self.waiting = 0;
+            self.pending = None;
             events.push(Event::Moved {
                 from: self.level,
                 to: best.level,
@@ -371,9 +516,12 @@ impl GroupState {
             self.level = best.level;
             self.take(&best);
             self.iterations_at_level = 0;
+            self.moves.clear();
             self.last_step = None;
         } else {
             self.status = Status::Confirmed;
+            self.waiting = 0;
+            self.pending = None;
             self.note = Some(format!(
                 "no higher level lowered the error by a clear margin; kept {} with ε {:.4} above its threshold {:.4}",
                 self.level.name(),
@@ -387,5 +535,144 @@ impl GroupState {
             });
         }
         events
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::cache::{synthetic_cache, CachePixel};
+    use crate::math::{Rgb, Vec3};
+
+    /// Ward lobe per unit ρs for the synthetic photos (the renderer's own lobe).
+    fn ward(wo: Vec3, wi: Vec3, a: f32) -> f32 {
+        let lobe = crate::render::bsdf::WardLobe {
+            alpha_x: a,
+            alpha_y: a,
+            variant: WardVariant::Ward1992,
+        };
+        lobe.eval(wo, wi)
+    }
+
+    /// D of the cache's model (Σ c / π) for the reference samples of a synthetic photo.
+    fn diffuse(s: &[(Vec3, Vec3, Rgb)]) -> Rgb {
+        s.iter().fold(Rgb::ZERO, |a, x| a + x.2) * crate::math::INV_PI
+    }
+
+    /// The held-out test (`predicts`): a Ward lobe on every tile of a group (a property of its
+    /// material) predicts the tiles it was not fitted to and is kept; gloss on alternate tiles
+    /// only (light a stale neighbour misses on part of a wall, not the wall's material) does
+    /// not: fitted on the glossy tiles the lobe predicts the others worse than Lambert does.
+    #[test]
+    fn a_level_is_kept_only_if_it_predicts_held_back_pixels() {
+        let v = WardVariant::Ward1992;
+        let make = |all_tiles: bool| {
+            synthetic_cache(
+                480,
+                48,
+                24,
+                7,
+                move |p: &CachePixel, s: &[(Vec3, Vec3, Rgb)]| {
+                    let lobe: Rgb = s
+                        .iter()
+                        .map(|&(wo, wi, c)| c * ward(wo, wi, 0.2))
+                        .fold(Rgb::ZERO, |a, b| a + b);
+                    if all_tiles {
+                        0.5 * diffuse(s) + 0.3 * lobe
+                    } else if p.tile % 2 == 0 {
+                        0.1 * diffuse(s) + 0.8 * lobe
+                    } else {
+                        0.1 * diffuse(s)
+                    }
+                },
+            )
+        };
+        let fits = |c: &GroupCache| {
+            let f0 = fit_level(c, Level::Diffuse, &GroupParams::default(), v);
+            let f1 = fit_level_above(
+                c,
+                Level::Isotropic,
+                &GroupParams::default(),
+                std::slice::from_ref(&f0),
+                v,
+            );
+            (f0, f1)
+        };
+        let (c, opts) = (make(true), HierarchyOptions::default());
+        let (f0, f1) = fits(&c);
+        let (ok, held) = GroupState::predicts(&c, &f0, &f1, v);
+        assert!(
+            ok && held[0] - held[1] >= 0.5 * (f0.error - f1.error),
+            "{held:?} {} {}",
+            f0.error,
+            f1.error
+        );
+        let mut st = GroupState::new("sphere", Status::Analysing, GroupParams::default());
+        st.iterations_at_level = 2;
+        let events = st.step(&c, v, &opts, true, true);
+        assert_eq!(st.level, Level::Isotropic, "{events:?}");
+        assert!(events.iter().any(|e| matches!(
+            e,
+            Event::Tried {
+                level: Level::Isotropic,
+                held_out: Some(_),
+                kept: true,
+                ..
+            }
+        )));
+        let c = make(false);
+        let (f0, f1) = fits(&c);
+        assert!(f1.error < f0.error);
+        let (ok, held) = GroupState::predicts(&c, &f0, &f1, v);
+        assert!(!ok && held[1] > held[0], "{held:?}");
+    }
+
+    /// Parameters that keep moving by the same amount (a lobe the photo does not determine)
+    /// stop holding the scene back after three iterations; shrinking moves do not.
+    #[test]
+    fn jittering_parameters_count_as_settled_converging_ones_do_not() {
+        let mut st = GroupState::new("block", Status::Analysing, GroupParams::default());
+        let m: Vec<Motion> = [0.5, 0.4, 0.45, 0.6, 0.5]
+            .iter()
+            .map(|&x| st.record_move(x, 0.03))
+            .collect();
+        assert_eq!(m[..2], [Motion::Converging, Motion::Converging]);
+        assert!(m[2..].iter().all(|&x| x == Motion::Jittering), "{m:?}");
+        let mut st = GroupState::new("wall", Status::Analysing, GroupParams::default());
+        let m: Vec<Motion> = [0.4, 0.2, 0.1, 0.05, 0.02]
+            .iter()
+            .map(|&x| st.record_move(x, 0.03))
+            .collect();
+        assert_eq!(
+            m,
+            [
+                Motion::Converging,
+                Motion::Converging,
+                Motion::Converging,
+                Motion::Converging,
+                Motion::Steady
+            ]
+        );
+    }
+
+    /// A group still analysing when the iterations run out is confirmed at its level, and the
+    /// event says which better level was still waiting.
+    #[test]
+    fn a_run_ends_with_every_group_decided() {
+        let opts = HierarchyOptions::default();
+        let mut st = GroupState::new("block", Status::Analysing, GroupParams::default());
+        st.iterations_at_level = 5;
+        st.pending = Some(Level::Isotropic);
+        st.error = 0.09;
+        match st.decide_at_end(&opts, 16) {
+            Some(Event::Decided { level, reason, .. }) => {
+                assert_eq!(level, Level::Diffuse);
+                assert!(reason.contains("isotropic") && reason.contains("max-iterations"));
+            }
+            e => panic!("{e:?}"),
+        }
+        assert_eq!(st.status, Status::Confirmed);
+        assert!(st.note.as_ref().unwrap().contains("decided at the end"));
+        assert!(st.decide_at_end(&opts, 16).is_none());
     }
 }

@@ -183,6 +183,7 @@ pub fn recover_resumable(
         pb.inc(1);
         checkpoint(&run.checkpoint());
     }
+    run.decide_the_undecided(&mut log);
     pb.finish_and_clear();
     Ok(run.finish())
 }

@@ -13,7 +13,7 @@
 use super::cache::{build, choose_pixels, CacheOptions};
 use super::checkpoint::{Checkpoint, CHECKPOINT_VERSION};
 use super::error::{block_tile, block_tiles, tiled_error, PixelTerms};
-use super::hierarchy::{Event, GroupState, Status};
+use super::hierarchy::{Event, GroupState, Motion, Status};
 use super::params::{largest_move, GroupParams};
 use super::recover::{pixel_budget, LogLine, RecoverError, RecoverOptions, Recovery};
 use super::schedule;
@@ -221,13 +221,33 @@ impl<'a> RecoveryLoop<'a> {
             // Gauss–Seidel: the next groups' caches see this group's new parameters.
             apply(&mut self.current, &self.states);
         }
-        let moved = largest_move(
-            self.states
-                .iter()
-                .zip(&before)
-                .filter(|(s, _)| s.is_fitted())
-                .map(|(s, b)| (s.level, &s.params, b)),
-        );
+        let moves: Vec<Option<f32>> = self
+            .states
+            .iter()
+            .zip(&before)
+            .map(|(s, b)| {
+                s.is_fitted()
+                    .then(|| largest_move([(s.level, &s.params, b)]))
+            })
+            .collect();
+        let moved = moves.iter().flatten().fold(0.0f32, |a, &b| a.max(b));
+        let mut motions = Vec::new();
+        for (g, m) in moves.iter().enumerate() {
+            let Some(m) = *m else { continue };
+            let motion = self.states[g].record_move(m, opts.settle);
+            if motion == Motion::Jittering {
+                let st = &self.states[g];
+                log(&LogLine {
+                    iteration: it,
+                    group: st.name.clone(),
+                    params: st.params.named(st.level).into_iter().collect(),
+                    event: Event::Jitter { moved: m },
+                    seconds: 0.0,
+                    elapsed: self.elapsed(),
+                });
+            }
+            motions.push(motion);
+        }
         let level_changed = self
             .states
             .iter()
@@ -235,12 +255,13 @@ impl<'a> RecoveryLoop<'a> {
             .any(|(s, l)| s.level != *l);
         if level_changed {
             // Fits made before a group changed its model saw a different scene: start every
-            // group's average afresh.
+            // group's average, and the record of how its parameters converge, afresh.
             for s in self.states.iter_mut() {
                 s.average = None;
+                s.moves.clear();
             }
         }
-        self.settled = schedule::settled(level_changed, moved, opts.settle);
+        self.settled = schedule::settled(level_changed, &motions);
         let all_confirmed = self.states.iter().all(|s| {
             s.status != Status::Analysing
                 && (s.status != Status::Confirmed
@@ -250,6 +271,26 @@ impl<'a> RecoveryLoop<'a> {
             all_confirmed && moved < opts.tolerance && self.cap >= opts.cache.max_pixels;
         self.next = it + 1;
         Ok(())
+    }
+
+    /// Ends the analysis of every group still analysing once the iterations are over: each keeps
+    /// the best level it found, and `log` receives a `decided` event saying why it had not
+    /// decided earlier (`GroupState::decide_at_end`). A run always ends with every group decided.
+    pub fn decide_the_undecided(&mut self, log: &mut dyn FnMut(&LogLine)) {
+        let (opts, iterations) = (self.opts, self.iterations);
+        for g in 0..self.states.len() {
+            if let Some(event) = self.states[g].decide_at_end(&opts.hierarchy, iterations) {
+                let st = &self.states[g];
+                log(&LogLine {
+                    iteration: iterations.saturating_sub(1),
+                    group: st.name.clone(),
+                    params: st.params.named(st.level).into_iter().collect(),
+                    event,
+                    seconds: 0.0,
+                    elapsed: self.elapsed(),
+                });
+            }
+        }
     }
 
     /// The state after the last iteration (its `fingerprint` and `log_bytes` are the caller's

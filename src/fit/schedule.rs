@@ -3,15 +3,20 @@
 //! state machine that obeys them is `hierarchy.rs`; the loop that asks them is `recovery.rs`.
 //!
 //! A group must not climb to explain light that a neighbour's stale model is missing, so groups
-//! try higher levels only after an iteration that changed no level and moved no parameter much,
-//! and at most one group moves per iteration: the one furthest above its level's threshold.
+//! try higher levels only after an iteration that changed no level and in which every group's
+//! parameters either stopped moving or move only within their own noise, and at most one group
+//! moves per iteration: the one that has waited longest for its turn, then the one furthest
+//! above its level's threshold. Turns rotate, so no group holds them; and when the iterations
+//! run out, every group still analysing is decided (`GroupState::decide_at_end`).
 
-use super::hierarchy::{GroupState, HierarchyOptions, Status};
+use super::hierarchy::{GroupState, HierarchyOptions, Motion, Status};
 
-/// Whether the scene has settled after a global iteration: no group changed level and no
-/// fitted parameter moved by more than `settle` (`moved` as `params::largest_move` measures it).
-pub fn settled(level_changed: bool, moved: f32, settle: f32) -> bool {
-    !level_changed && moved < settle
+/// Whether the scene has settled after a global iteration: no group changed level, and every
+/// fitted group's parameters are steady (moved less than the settle tolerance) or jittering
+/// (their moves stopped shrinking: a weakly determined group must not block the others; see
+/// [`GroupState::record_move`]).
+pub fn settled(level_changed: bool, motions: &[Motion]) -> bool {
+    !level_changed && motions.iter().all(|&m| m != Motion::Converging)
 }
 
 /// Whether a group, fitted `iterations_at_level` times at its current level before this
@@ -31,15 +36,18 @@ pub fn climb_priority(state: &GroupState, opts: &HierarchyOptions) -> Option<f32
 }
 
 /// The group that may move to a higher level this iteration, if any: none until the scene has
-/// settled, then the one with the highest [`climb_priority`] (the first such on ties).
+/// settled, then among those with a [`climb_priority`] the one that has waited longest since it
+/// found a better level (`GroupState::waiting`), then the highest priority (the first such on
+/// ties). The waiting count makes turns rotate: one group that keeps finding better levels
+/// cannot hold the turn while another waits.
 pub fn climb_turn(states: &[GroupState], settled: bool, opts: &HierarchyOptions) -> Option<usize> {
     if !settled {
         return None;
     }
     (0..states.len())
-        .filter_map(|g| climb_priority(&states[g], opts).map(|p| (g, p)))
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(g, _)| g)
+        .filter_map(|g| climb_priority(&states[g], opts).map(|p| (g, states[g].waiting, p)))
+        .max_by(|a, b| a.1.cmp(&b.1).then(a.2.total_cmp(&b.2)))
+        .map(|(g, _, _)| g)
 }
 
 #[cfg(test)]
@@ -71,7 +79,28 @@ mod tests {
         assert_eq!(climb_priority(&states[2], &opts), None);
         assert_eq!(climb_priority(&states[3], &opts), None);
         assert_eq!(climb_priority(&states[4], &opts), None);
-        assert!(settled(false, 0.01, 0.03));
-        assert!(!settled(true, 0.0, 0.03) && !settled(false, 0.03, 0.03));
+        use Motion::*;
+        assert!(settled(false, &[Steady, Jittering, Steady]));
+        assert!(!settled(true, &[Steady]) && !settled(false, &[Steady, Converging]));
+    }
+
+    /// Two groups that keep finding a better level: the worse one (higher ε / threshold) climbs
+    /// first, then the one that waited, then turns alternate; no group holds the turn.
+    #[test]
+    fn climbing_turns_rotate_between_waiting_groups() {
+        let opts = HierarchyOptions::default();
+        let mut states = [
+            group(Status::Analysing, Level::Diffuse, 0.3, 3), // 15 thresholds above
+            group(Status::Analysing, Level::Diffuse, 0.05, 3), // 2.5 thresholds above
+        ];
+        let mut turns = Vec::new();
+        for _ in 0..4 {
+            let g = climb_turn(&states, true, &opts).expect("a climber");
+            turns.push(g);
+            // The chosen group moves (its wait ends), the other is deferred.
+            states[g].waiting = 0;
+            states[1 - g].waiting += 1;
+        }
+        assert_eq!(turns, [0, 1, 0, 1]);
     }
 }

@@ -16,6 +16,8 @@ pub struct Moments {
     pub dd: f64,
     pub ds: f64,
     pub ss: f64,
+    /// Σ ½(s₀² + s₁²): the lobe's energy as each half sees it alone (see [`Moments::ss_eff`]).
+    pub ss_self: f64,
     pub dp: f64,
     pub sp: f64,
     pub pp: f64,
@@ -30,6 +32,7 @@ impl Moments {
         self.dd += d0 * d1;
         self.ds += 0.5 * (d0 * s1 + d1 * s0);
         self.ss += s0 * s1;
+        self.ss_self += 0.5 * (s0 * s0 + s1 * s1);
         self.dp += dm * p;
         self.sp += sm * p;
         self.pp += p * p;
@@ -41,12 +44,24 @@ impl Moments {
         self.add([d, d], [s, s], p);
     }
 
+    /// The quadratic specular moment the solve uses: the cross-half Σ s₀ s₁, but never below
+    /// half of Σ ½(s₀² + s₁²). A lobe much narrower than the spacing of the cache's directions
+    /// is seen by one half's samples and not the other's, so Σ s₀ s₁ ≈ 0 while the lobe's
+    /// energy is not: with the cross product alone the cost would fall without bound as ρs
+    /// grows, and the narrowest lobe would win every fit (α jumping to its lower bound from one
+    /// iteration to the next). A lobe the halves agree on (Σ s₀ s₁ close to the self products)
+    /// is unaffected, so the errors-in-variables correction stands where the cache resolves the
+    /// lobe.
+    pub fn ss_eff(&self) -> f64 {
+        self.ss.max(0.5 * self.ss_self)
+    }
+
     /// Σ (ρd d + ρs s − p)², noise-free estimate.
     pub fn cost(&self, rd: f64, rs: f64) -> f64 {
         self.pp - 2.0 * (rd * self.dp + rs * self.sp)
             + rd * rd * self.dd
             + 2.0 * rd * rs * self.ds
-            + rs * rs * self.ss
+            + rs * rs * self.ss_eff()
     }
 }
 
@@ -65,6 +80,7 @@ pub enum Free {
 /// a convex quadratic in two variables: the optimum is the unconstrained one if feasible, else
 /// the best of the optima on the three edges of the feasible triangle.
 pub fn solve_rho(m: &Moments, free: Free) -> (f64, f64) {
+    let ss = m.ss_eff();
     let edge_d = || {
         if m.dd > 0.0 {
             (m.dp / m.dd).clamp(0.0, 1.0)
@@ -73,8 +89,8 @@ pub fn solve_rho(m: &Moments, free: Free) -> (f64, f64) {
         }
     };
     let edge_s = || {
-        if m.ss > 0.0 {
-            (m.sp / m.ss).clamp(0.0, 1.0)
+        if ss > 0.0 {
+            (m.sp / ss).clamp(0.0, 1.0)
         } else {
             0.0
         }
@@ -83,9 +99,9 @@ pub fn solve_rho(m: &Moments, free: Free) -> (f64, f64) {
         Free::Diffuse => (edge_d(), 0.0),
         Free::Specular => (0.0, edge_s()),
         Free::Both => {
-            let det = m.dd * m.ss - m.ds * m.ds;
-            if det > 1e-12 * (m.dd * m.ss).max(1e-300) {
-                let rd = (m.dp * m.ss - m.sp * m.ds) / det;
+            let det = m.dd * ss - m.ds * m.ds;
+            if det > 1e-12 * (m.dd * ss).max(1e-300) {
+                let rd = (m.dp * ss - m.sp * m.ds) / det;
                 let rs = (m.sp * m.dd - m.dp * m.ds) / det;
                 if rd >= 0.0 && rs >= 0.0 && rd + rs <= 1.0 {
                     return (rd, rs);
@@ -94,9 +110,9 @@ pub fn solve_rho(m: &Moments, free: Free) -> (f64, f64) {
             // Edges: ρs = 0, ρd = 0, ρd + ρs = 1 (ρd = t, ρs = 1 − t).
             let a = (edge_d(), 0.0);
             let b = (0.0, edge_s());
-            let den = m.dd - 2.0 * m.ds + m.ss;
+            let den = m.dd - 2.0 * m.ds + ss;
             let t = if den > 0.0 {
-                ((m.dp - m.sp - m.ds + m.ss) / den).clamp(0.0, 1.0)
+                ((m.dp - m.sp - m.ds + ss) / den).clamp(0.0, 1.0)
             } else {
                 0.0
             };
