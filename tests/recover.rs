@@ -32,6 +32,15 @@ fn scaled(path: &str, scale: f32) -> Scene {
 
 /// Renders the photo with the true materials, recovers, returns the recovery and the log.
 fn run(scene: &Scene, photo_spp: u32) -> (Recovery, Vec<(String, Event)>) {
+    run_with(scene, photo_spp, RecoverOptions::default())
+}
+
+/// [`run`] with other recovery options (progress, seed and final spp as `run`'s).
+fn run_with(
+    scene: &Scene,
+    photo_spp: u32,
+    opts: RecoverOptions,
+) -> (Recovery, Vec<(String, Event)>) {
     let img = render(
         scene,
         &scene.camera,
@@ -52,7 +61,7 @@ fn run(scene: &Scene, photo_spp: u32) -> (Recovery, Vec<(String, Event)>) {
         progress: false,
         seed: 5,
         final_spp: 16,
-        ..Default::default()
+        ..opts
     };
     let mut log = Vec::new();
     let rec = recover(scene, &photo, &mask, &opts, |l| {
@@ -213,38 +222,36 @@ fn glossy_scene_groups_are_confirmed_at_their_own_levels() {
     assert!((a / 0.15 - 1.0).abs() < 0.05, "α {a}");
 }
 
-/// The stall of issue 26: a group whose lobe the photo hardly determines (a sphere with a faint,
-/// broad Ward lobe: its α moves from fit to fit) next to a group that must climb (the mirror).
-/// Under the old rule ("climb only after an iteration in which nothing moved by more than
-/// 0.03") the sphere's jitter kept the scene from ever settling and the mirror stayed diffuse;
-/// now the jittering sphere stops holding the others back, the mirror climbs and is recovered,
-/// and every group ends decided.
+/// The stall of issue 26: a group whose parameters keep moving by more than the settle
+/// tolerance (here built by a tolerance below the Monte Carlo jitter of every fit, 0.002, as a
+/// weakly determined lobe does at the default one) kept the scene from ever "settling", so no
+/// group could climb after the first ones: on the glossy scene the groups stayed diffuse and
+/// the run ended with them analysing. Now parameters that stopped converging count as settled,
+/// every group reaches its own level, and every group ends decided.
 #[test]
-fn a_weakly_determined_lobe_does_not_stall_the_hierarchy() {
-    let path = root().join("scenes/glossy/scene.toml");
-    let text = std::fs::read_to_string(&path).unwrap().replace(
-        r#"material = { type = "ward", rho_d = 0.2, rho_s = 0.3, alpha = 0.15 }"#,
-        r#"material = { type = "ward", rho_d = 0.45, rho_s = 0.03, alpha = 0.45 }"#,
+fn jitter_above_the_settle_tolerance_does_not_stall_the_hierarchy() {
+    let scene = scaled("scenes/glossy/scene.toml", 0.5);
+    let (rec, log) = run_with(
+        &scene,
+        256,
+        RecoverOptions {
+            settle: 0.002,
+            ..Default::default()
+        },
     );
-    assert!(text.contains("rho_s = 0.03, alpha = 0.45"));
-    let text = text
-        .replace("width = 400\n", "width = 200\n")
-        .replace("height = 300\n", "height = 150\n");
-    let scene = parse_scene(&text, &path).unwrap();
-    let (rec, log) = run(&scene, 256);
     eprintln!("{}", table(&scene, &rec));
     for g in &rec.groups {
         assert_ne!(g.status, Status::Analysing, "{} undecided", g.name);
     }
-    let mirror = state(&rec, "mirror");
-    assert_eq!(mirror.level, Level::Specular, "{log:?}");
-    let ds = (mirror.params.rho_s - truth(&scene, "mirror").rho_s())
-        .abs()
-        .max_element();
-    assert!(ds < 0.03, "mirror ρs {}", mirror.params.rho_s);
-    let sphere = state(&rec, "glossy_sphere");
-    let dd = (sphere.params.rho_d - truth(&scene, "glossy_sphere").rho_d())
-        .abs()
-        .max_element();
-    assert!(dd < 0.03, "sphere ρd {}", sphere.params.rho_d);
+    for (name, level) in [
+        ("mirror", Level::Specular),
+        ("glossy_sphere", Level::Isotropic),
+        ("lacquer_box", Level::DiffuseSpecular),
+    ] {
+        assert_eq!(state(&rec, name).level, level, "{name}");
+    }
+    assert!(
+        log.iter().any(|(_, e)| matches!(e, Event::Jitter { .. })),
+        "the jitter is logged"
+    );
 }
