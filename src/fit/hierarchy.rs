@@ -579,7 +579,7 @@ mod tests {
                         .fold(Rgb::ZERO, |a, b| a + b);
                     if all_tiles {
                         0.5 * diffuse(s) + 0.3 * lobe
-                    } else if p.tile % 2 == 0 {
+                    } else if p.tile.is_multiple_of(2) {
                         0.1 * diffuse(s) + 0.8 * lobe
                     } else {
                         0.1 * diffuse(s)
