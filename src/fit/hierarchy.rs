@@ -405,7 +405,7 @@ impl GroupState {
         } else {
             self.status = Status::Confirmed;
             self.note = Some(format!(
-                "no higher level lowered the error by a clear margin; kept {} with ε {:.4} above its threshold {:.4}",
+                "no higher level lowered the error by a clear margin; kept {} with fit ε {:.4} above its threshold {:.4}",
                 self.level.name(),
                 self.error,
                 thr
