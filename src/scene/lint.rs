@@ -92,8 +92,8 @@ pub fn group_name_warnings(scene: &Scene) -> Vec<String> {
             }
             let d = strsim::damerau_levenshtein(&ga.name, &gb.name);
             let (na, nb) = (ga.objects.len(), gb.objects.len());
-            // The suspect is the smaller group (the earlier one on a tie, so each pair warns once).
-            let suspect = na < nb || (na == nb && a < b);
+            // The suspect is the smaller group (the later one on a tie, so each pair warns once).
+            let suspect = na < nb || (na == nb && a > b);
             let close = d == 1
                 || (na == 1 && d == 2 && ga.name.chars().count().min(gb.name.chars().count()) >= 5);
             if !(suspect && close) {

@@ -224,7 +224,7 @@ emission = 5.0
         assert_eq!(changed.len(), 1, "{out}");
         assert_eq!(
             changed[0].1,
-            "material = { type = \"ward\", rho_d = [0.25, 0.5, 0.125], rho_s = [0.25, 0.25, 0.25], alpha = 0.125 } # a guess"
+            "material = { type = \"ward\", rho_d = [0.25, 0.5, 0.125], rho_s = 0.25, alpha = 0.125 } # a guess"
         );
         // And it loads again, with the new material.
         let back = crate::scene::load::parse_scene(&out, &d.path().join("recovered.toml")).unwrap();
