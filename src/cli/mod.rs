@@ -397,7 +397,6 @@ pub fn run(cmd: Command) -> Result<()> {
             let (mut sc, lighting) = load(&scene)?;
             checks::require_light(&sc, &lighting)?;
             let photo_args = PhotoArgs::from(photo_args);
-            checks::exposure_warning(&photo, &photo_args, &lighting);
             // Before any work: the output folder must be usable.
             if !resume {
                 checks::output_folder(&output, force)?;
@@ -405,6 +404,8 @@ pub fn run(cmd: Command) -> Result<()> {
             prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
             let prepared =
                 matfit::photo::prepare(&sc, &photo, &photo_args).map_err(anyhow::Error::msg)?;
+            // Once the photo is known to be readable (an unreadable one gets only its error).
+            checks::exposure_warning(&photo, &photo_args, &lighting);
             checks::exposure_report(&sc, &photo, &photo_args, &prepared);
             // Render through the camera registered to the photo.
             sc.camera = prepared.camera.clone();
@@ -469,12 +470,12 @@ pub fn run(cmd: Command) -> Result<()> {
         } => {
             let (sc, lighting) = load(&scene)?;
             let photo_args = PhotoArgs::from(photo_args);
-            checks::exposure_warning(&photo, &photo_args, &lighting);
             checks::output_folder(&output, force)?;
             prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
             let report = matfit::photo::inspect::inspect(&sc, &photo, &photo_args, &output)
                 .map_err(anyhow::Error::msg)?;
             out::print(format_args!("{report}"));
+            checks::exposure_warning(&photo, &photo_args, &lighting);
             Ok(())
         }
         Command::Export {
