@@ -10,9 +10,6 @@
 // Numeric kernels index several parallel arrays by channel or axis; iterator chains would hide it.
 #![allow(clippy::needless_range_loop)]
 
-pub mod bench;
-pub mod cli_recover;
-pub mod demo;
 pub mod export;
 pub mod fit;
 #[doc(hidden)]

@@ -125,7 +125,7 @@ fn cases() -> Vec<Case> {
                 "fx = 50.0\nfy = 50.0\ncx = 32.0\ncy = 24.0\nrotation = [[2.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\ntranslation = [0.0, 0.0, 0.0]",
             ),
             vec![],
-            vec!["scene.toml", "rotation matrix"],
+            vec!["scene.toml:9", "rotation is not a rotation matrix", "determinant +1 (it is 2"],
         ),
         (
             "ward without alpha",
@@ -294,6 +294,42 @@ fn cases() -> Vec<Case> {
             format!("[render]\nspp = 0\n{s}"),
             vec![],
             vec!["scene.toml", "spp must be at least 1"],
+        ),
+        (
+            "shape named by another word",
+            s.replacen("shape = \"quad\"", "shape = \"cube\"", 1),
+            vec![],
+            vec!["scene.toml", "cube", "did you mean `box`?"],
+        ),
+        (
+            "camera key named by another word",
+            s.replace("fov_y_deg = 45.0", "fov = 45.0"),
+            vec![],
+            vec!["scene.toml", "line 7", "did you mean `fov_y_deg`?"],
+        ),
+        (
+            "camera eye at its target",
+            s.replace("target = [0.0, 0.0, 0.0]", "target = [0.0, 2.0, 2.0]"),
+            vec![],
+            vec!["scene.toml:6", "eye and target are the same point"],
+        ),
+        (
+            "camera field of view out of range",
+            s.replace("fov_y_deg = 45.0", "fov_y_deg = 200.0"),
+            vec![],
+            vec!["scene.toml:7", "fov_y_deg", "(0, 180), got 200"],
+        ),
+        (
+            "camera looking straight down with the default up",
+            s.replace("eye = [0.0, 2.0, 2.0]", "eye = [0.0, 2.0, 0.0]"),
+            vec![],
+            vec!["scene.toml:6", "parallel to the default up", "give `up`"],
+        ),
+        (
+            "camera up along the view",
+            s.replace("fov_y_deg = 45.0", "fov_y_deg = 45.0\nup = [0.0, -1.0, -1.0]"),
+            vec![],
+            vec!["scene.toml:8", "up [0.0, -1.0, -1.0] is parallel to the view direction"],
         ),
         (
             "object with an empty name",

@@ -4,7 +4,7 @@
 pub mod mitsuba;
 
 /// The formats `matfit export` writes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
     /// Mitsuba 3 scene (XML, version 3.0.0) with one binary PLY per object.
     Mitsuba,

@@ -523,7 +523,7 @@ impl GroupState {
             self.waiting = 0;
             self.pending = None;
             self.note = Some(format!(
-                "no higher level lowered the error by a clear margin; kept {} with ε {:.4} above its threshold {:.4}",
+                "no higher level lowered the error by a clear margin; kept {} with fit ε {:.4} above its threshold {:.4}",
                 self.level.name(),
                 self.error,
                 thr

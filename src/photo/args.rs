@@ -1,5 +1,5 @@
-//! The photo's command-line options, shared by `inspect` and `recover` (flatten [`PhotoArgs`]
-//! into a clap subcommand), and [`prepare`]: photo file + scene → linear photo with its
+//! How to read a photo ([`PhotoArgs`], what the `inspect` and `recover` commands' options
+//! fill in), and [`prepare`]: photo file + scene → linear photo with its
 //! exposure divided out, index buffers and usable-pixel mask.
 
 use crate::math::Rgb;
@@ -11,39 +11,29 @@ use crate::scene::{Camera, Scene};
 use std::path::Path;
 
 /// How to read a photograph and choose its usable pixels.
-#[derive(clap::Args, Clone, Debug)]
+#[derive(Clone, Debug)]
 pub struct PhotoArgs {
     /// Response curve of 8/16-bit photos: srgb, linear, gamma:G (linear = code^G) or
-    /// table:FILE (see `photo::response` for the table format). Float photos are linear.
-    #[arg(long, default_value = "srgb", value_parser = Response::parse)]
+    /// table:FILE (the table format: `photo::response`). Float photos are linear.
     pub response: Response,
     /// Exposure factor k: the photo's linear values are k × radiance.
-    #[arg(long, value_name = "K", conflicts_with_all = ["grey_card", "exposure_from_lights"])]
     pub exposure: Option<f32>,
     /// Calibrate the exposure from a group of known diffuse reflectance: GROUP=RHO or
     /// GROUP=R,G,B (e.g. a grey card: --grey-card card=0.18).
-    #[arg(long, value_name = "GROUP=RHO", value_parser = parse_grey_card,
-          conflicts_with = "exposure_from_lights")]
     pub grey_card: Option<(String, Rgb)>,
     /// Calibrate the exposure from the light sources seen in the photo (known radiance).
-    #[arg(long)]
     pub exposure_from_lights: bool,
     /// Half-width in pixels of the band removed around every boundary between objects.
-    #[arg(long, default_value_t = 2)]
     pub band: usize,
     /// Edge-detector threshold on |∇ ln luminance| per pixel; 0 turns the detector off.
-    #[arg(long, default_value_t = 0.12)]
     pub edge_threshold: f32,
     /// Reject pixels of planar groups far from a plane fitted to their intensity (unmodelled
     /// objects on diffuse walls; do not use it on glossy groups, it would drop highlights).
-    #[arg(long)]
     pub planar_outliers: bool,
-    /// Do not correct the camera by the translation that aligns the model's outlines with the
-    /// photo's edges (see `photo::register`).
-    #[arg(long = "no-register", action = clap::ArgAction::SetFalse)]
+    /// Correct the camera by the translation that aligns the model's outlines with the photo's
+    /// edges (`photo::register`).
     pub register: bool,
     /// Largest misregistration searched, in pixels.
-    #[arg(long, default_value_t = 4)]
     pub max_shift: i32,
 }
 

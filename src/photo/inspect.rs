@@ -124,7 +124,8 @@ pub fn inspect(
                 "{:.6} calibrated from {} (per channel {:.6}, {:.6}, {:.6})",
                 c.factor, c.source, c.per_channel[0], c.per_channel[1], c.per_channel[2]
             ),
-            None => format!("{} (given)", ph.exposure),
+            None if args.exposure.is_some() => format!("{} (given)", ph.exposure),
+            None => format!("{} (default, not given)", ph.exposure),
         }
     );
     if let Some(g) = &p.registration {

@@ -25,7 +25,7 @@ pub struct IndexBuffers {
     pub normal: Vec<Vec3>,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Aov {
     Beauty,
     Group,

@@ -5,11 +5,12 @@ pub mod html;
 
 use crate::fit::hierarchy::Status;
 use crate::fit::params::Value;
-use crate::fit::Recovery;
+use crate::fit::{GroupParams, Level, Recovery};
 use crate::io::atomic::write_atomic;
 use crate::io::image::Image;
 use crate::math::Rgb;
 use crate::photo::Photo;
+use crate::scene::Material;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -52,6 +53,29 @@ pub struct Results {
     pub ward_variant: &'static str,
 }
 
+/// The material of group `g`'s first object in the recovered scene.
+fn fixed_material(rec: &Recovery, g: usize) -> Option<&Material> {
+    let o = *rec.scene.groups.get(g)?.objects.first()?;
+    Some(&rec.scene.objects[o].material)
+}
+
+/// The hierarchy level whose model a material is.
+fn level_of(m: &Material) -> Level {
+    match m {
+        Material::Mirror { .. } => Level::Specular,
+        Material::DiffuseMirror { .. } => Level::DiffuseSpecular,
+        Material::Ward {
+            alpha_x,
+            alpha_y,
+            theta,
+            ..
+        } if alpha_x == alpha_y && *theta == 0.0 => Level::Isotropic,
+        Material::Ward { .. } => Level::Anisotropic,
+        Material::Textured { .. } => Level::Textured,
+        Material::Diffuse { .. } | Material::Black => Level::Diffuse,
+    }
+}
+
 pub fn results(rec: &Recovery) -> Results {
     let groups = rec
         .groups
@@ -60,10 +84,15 @@ pub fn results(rec: &Recovery) -> Results {
         .map(|(g, s)| {
             let fe = rec.final_error[g];
             let st = &rec.pixel_stats[g];
+            // A fixed group keeps the scene's material: report that, not the unused fit state.
+            let (level, params) = match (s.status, fixed_material(rec, g)) {
+                (Status::Fixed, Some(m)) => (level_of(m), GroupParams::from_material(m)),
+                _ => (s.level, s.params),
+            };
             GroupResult {
                 name: s.name.clone(),
-                level: s.level.name(),
-                level_number: s.level.number(),
+                level: level.name(),
+                level_number: level.number(),
                 status: s.status,
                 error: fe.map(|e| e.0),
                 noise_floor: fe.map(|e| e.1),
@@ -72,7 +101,7 @@ pub fn results(rec: &Recovery) -> Results {
                 visible_pixels: st.visible,
                 usable_pixels: st.usable,
                 rejected_pixels: st.rejected,
-                params: s.params.named(s.level).into_iter().collect(),
+                params: params.named(level).into_iter().collect(),
                 note: s.note.clone(),
             }
         })

@@ -5,10 +5,11 @@ use std::path::PathBuf;
 
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("cannot read scene file {path}: {source}")]
+    // The io error is part of the message, not a `source`: a chain printer would repeat it.
+    #[error("cannot read scene file {path}: {error}")]
     Io {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// A TOML syntax or schema error, with toml's own line/column excerpt.
     #[error("{path}: {message}")]

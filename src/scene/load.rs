@@ -14,9 +14,9 @@ use std::sync::Arc;
 
 /// Reads and checks a scene file. Relative paths inside it are relative to its folder.
 pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+    let text = std::fs::read_to_string(path).map_err(|error| SceneError::Io {
         path: path.to_owned(),
-        source,
+        error,
     })?;
     parse_scene(&text, path)
 }
@@ -30,6 +30,29 @@ pub fn parse_scene(text: &str, path: &Path) -> Result<Scene, SceneError> {
     build_scene(file, text, path)
 }
 
+/// 1-based line of `key = ...` inside the `[camera]` table, else of the `[camera]` header.
+fn camera_key_line(text: &str, key: &str) -> Option<usize> {
+    let mut header = None;
+    for (i, line) in text.lines().enumerate() {
+        let l = line.trim();
+        if header.is_none() {
+            if l.starts_with("[camera]") {
+                header = Some(i + 1);
+            }
+            continue;
+        }
+        if l.starts_with('[') {
+            break;
+        }
+        if let Some(rest) = l.strip_prefix(key) {
+            if rest.trim_start().starts_with('=') {
+                return Some(i + 1);
+            }
+        }
+    }
+    header
+}
+
 /// 1-based line of a byte offset.
 fn line_of(text: &str, offset: usize) -> usize {
     text.as_bytes()[..offset.min(text.len())]
@@ -38,6 +61,39 @@ fn line_of(text: &str, offset: usize) -> usize {
         .count()
         + 1
 }
+
+/// Words users write for a key or value of the schema, with the schema's word.
+const SYNONYMS: &[(&str, &str)] = &[
+    ("cube", "box"),
+    ("cuboid", "box"),
+    ("aabb", "box"),
+    ("plane", "quad"),
+    ("rectangle", "quad"),
+    ("rect", "quad"),
+    ("ball", "sphere"),
+    ("obj", "mesh"),
+    ("ply", "mesh"),
+    ("fov", "fov_y_deg"),
+    ("fovy", "fov_y_deg"),
+    ("fov_y", "fov_y_deg"),
+    ("position", "eye"),
+    ("origin", "eye"),
+    ("look_at", "target"),
+    ("lookat", "target"),
+    ("center_of_interest", "target"),
+    ("lambert", "diffuse"),
+    ("lambertian", "diffuse"),
+    ("specular", "mirror"),
+    ("glossy", "ward"),
+    ("albedo", "rho_d"),
+    ("color", "rho_d"),
+    ("colour", "rho_d"),
+    ("roughness", "alpha"),
+    ("radiance", "emission"),
+    ("emit", "emission"),
+    ("samples", "spp"),
+    ("size", "radius"),
+];
 
 /// Adds "did you mean `x`?" to serde's "unknown field `y`, expected one of `a`, `b`" messages.
 fn with_suggestion(msg: &str) -> String {
@@ -58,10 +114,17 @@ fn with_suggestion(msg: &str) -> String {
         .skip(1)
         .step_by(2)
         .collect();
-    let best = candidates
+    // A word of the same meaning first (cube → box), then the nearest spelling.
+    let by_meaning = SYNONYMS
         .iter()
-        .map(|c| (strsim::damerau_levenshtein(bad, c), *c))
-        .min();
+        .find(|(w, to)| w.eq_ignore_ascii_case(bad) && candidates.contains(to))
+        .map(|(_, to)| (0, *to));
+    let best = by_meaning.or_else(|| {
+        candidates
+            .iter()
+            .map(|c| (strsim::damerau_levenshtein(bad, c), *c))
+            .min()
+    });
     match best {
         Some((d, c)) if d <= 3.max(bad.len() / 3) => {
             format!("{}\n(did you mean `{c}`?)", msg.trim_end())
@@ -82,6 +145,18 @@ impl Ctx<'_> {
             path: self.path.to_owned(),
             line: line_of(self.text, offset),
             message,
+        }
+    }
+    /// An error at the line of `key` in the [camera] table (camera keys carry no span), or of
+    /// the table itself, or of the file as a whole.
+    fn camera_at(&self, key: &str, message: String) -> SceneError {
+        match camera_key_line(self.text, key) {
+            Some(line) => SceneError::At {
+                path: self.path.to_owned(),
+                line,
+                message,
+            },
+            None => self.whole(message),
         }
     }
     fn whole(&self, message: String) -> SceneError {
@@ -324,7 +399,26 @@ fn build_camera(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {
             return Err(cx.whole("[camera] has a NaN or infinite value".into()));
         }
         Camera::calibrated(c.width, c.height, fx, fy, ccx, ccy, r, Vec3::from(t)).ok_or_else(|| {
-            cx.whole("[camera] rotation must be a rotation matrix (orthonormal rows, determinant +1) and fx, fy > 0".into())
+            if !(fx > 0.0) {
+                cx.camera_at("fx", format!("[camera] fx must be > 0, got {fx}"))
+            } else if !(fy > 0.0) {
+                cx.camera_at("fy", format!("[camera] fy must be > 0, got {fy}"))
+            } else {
+                let rows = r.transpose();
+                let off = (rows * rows.transpose() - Mat3::IDENTITY)
+                    .to_cols_array()
+                    .iter()
+                    .fold(0.0f32, |m, x| m.max(x.abs()));
+                cx.camera_at(
+                    "rotation",
+                    format!(
+                        "[camera] rotation is not a rotation matrix: its rows must be orthonormal \
+                         (largest deviation of R Rᵀ from I: {off:.2e}) and its determinant +1 \
+                         (it is {:.4})",
+                        r.determinant()
+                    ),
+                )
+            }
         })
     } else {
         let names = ["eye", "target", "fov_y_deg"];
@@ -348,8 +442,30 @@ fn build_camera(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {
         if !finite(&eye) || !finite(&target) || !finite(&up) || !c.fov_y_deg.unwrap().is_finite() {
             return Err(cx.whole("[camera] has a NaN or infinite value".into()));
         }
-        Camera::look_at(c.width, c.height, eye.into(), target.into(), up.into(), c.fov_y_deg.unwrap()).ok_or_else(|| {
-            cx.whole("[camera] eye and target must differ, up must not be parallel to the view direction, and fov_y_deg must be in (0, 180)".into())
+        let fov = c.fov_y_deg.unwrap();
+        Camera::look_at(c.width, c.height, eye.into(), target.into(), up.into(), fov).ok_or_else(|| {
+            let view = Vec3::from(target) - Vec3::from(eye);
+            if !(fov > 0.0 && fov < 180.0) {
+                cx.camera_at(
+                    "fov_y_deg",
+                    format!("[camera] fov_y_deg (vertical field of view, degrees) must be in (0, 180), got {fov}"),
+                )
+            } else if view.length() < 1e-6 {
+                cx.camera_at(
+                    "target",
+                    format!("[camera] eye and target are the same point {eye:?}: the camera has no view direction"),
+                )
+            } else if c.up.is_some() {
+                cx.camera_at(
+                    "up",
+                    format!("[camera] up {up:?} is parallel to the view direction (target − eye): give an up that is not"),
+                )
+            } else {
+                cx.camera_at(
+                    "target",
+                    "[camera] the view direction (target − eye) is vertical, parallel to the default up [0, 1, 0]: give `up`".into(),
+                )
+            }
         })
     }
 }

@@ -3,6 +3,7 @@
 
 pub mod camera;
 pub mod error;
+pub mod lint;
 pub mod load;
 pub mod material;
 pub mod meshio;

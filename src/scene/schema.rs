@@ -35,6 +35,14 @@
 //! tangent = [1, 0, 0]           # optional reference axis of the anisotropy angle
 //! material = { type = "ward", rho_d = 0.1, rho_s = 0.9, alpha_x = 0.07, alpha_y = 0.11, theta_deg = 0 }
 //! # emission = [10, 10, 10]     # makes the object an area light (front side, along edge_u × edge_v)
+//!
+//! [[object]]
+//! name = "ball"
+//! group = "ball"
+//! shape = "sphere"
+//! center = [0, 0.5, 0]
+//! radius = 0.5
+//! segments = 64                 # optional: triangles around (8-1024), half as many pole to pole
 //! ```
 
 use serde::{Deserialize, Serialize};

@@ -1,6 +1,8 @@
 //! Writes a scene back out as TOML: how `recover` saves the recovered scene so that
 //! `matfit render` can use it. Materials come from the scene's objects; mesh and texture paths
-//! are rewritten so that they still resolve from the new file's folder.
+//! are rewritten so that they still resolve from the new file's folder. When the scene's file
+//! is still what was loaded, it is edited in place (toml_edit: comments, key order and inline
+//! arrays kept, only materials and paths changed), so that the two files can be diffed.
 
 use super::schema::{Color, MaterialSpec, SceneFile};
 use super::{Material, Scene};
@@ -69,10 +71,81 @@ fn relative(path: &Path, base: &Path) -> Option<PathBuf> {
     Some(out)
 }
 
-/// The scene as a TOML document to be saved at `dest` (paths are rewritten for `dest`'s folder).
+/// The scene as a TOML document to be saved at `dest` (paths are rewritten for `dest`'s folder):
+/// the scene's own file with its materials replaced where it can, else written anew.
 pub fn scene_to_toml(scene: &Scene, dest: &Path) -> String {
     let from_dir = scene.path.parent().unwrap_or(Path::new("."));
     let to_dir = dest.parent().unwrap_or(Path::new("."));
+    std::fs::read_to_string(&scene.path)
+        .ok()
+        .and_then(|text| edit_source(scene, &text, from_dir, to_dir))
+        .unwrap_or_else(|| fresh_toml(scene, from_dir, to_dir))
+}
+
+/// A material as an inline table: `{ type = "ward", rho_d = [0.1, 0.1, 0.1], ... }`.
+fn inline_material(m: &MaterialSpec) -> Option<toml_edit::Value> {
+    #[derive(serde::Serialize)]
+    struct Wrap<'a> {
+        material: &'a MaterialSpec,
+    }
+    let text = toml::to_string(&Wrap { material: m }).ok()?;
+    let doc: toml_edit::DocumentMut = text.parse().ok()?;
+    let mut v = doc.get("material")?.clone().into_value().ok()?;
+    if let Some(t) = v.as_inline_table_mut() {
+        t.fmt();
+    }
+    Some(v)
+}
+
+/// `text` (the scene's file) with each object's material set to the scene's and its paths
+/// rebased; None when the file no longer matches the scene or has a layout this does not edit.
+fn edit_source(scene: &Scene, text: &str, from_dir: &Path, to_dir: &Path) -> Option<String> {
+    let file: SceneFile = toml::from_str(text).ok()?;
+    // The file changed since it was loaded: it does not describe this scene.
+    if toml::to_string(&file).ok()? != toml::to_string(&scene.source).ok()? {
+        return None;
+    }
+    let mut doc: toml_edit::DocumentMut = text.parse().ok()?;
+    let objects = doc.get_mut("object")?.as_array_of_tables_mut()?;
+    if objects.len() != scene.objects.len() {
+        return None;
+    }
+    for ((t, obj), spec) in objects.iter_mut().zip(&scene.objects).zip(&file.objects) {
+        if let Some(v) = t.get_mut("file").and_then(|i| i.as_value_mut()) {
+            let rebased = rebase(v.as_str()?, from_dir, to_dir);
+            let decor = v.decor().clone();
+            *v = rebased.into();
+            *v.decor_mut() = decor;
+        }
+        // An emitter given no material reflects nothing: nothing to write.
+        if spec.material.is_none() && matches!(obj.material, Material::Black) {
+            continue;
+        }
+        let mut m = material_spec(&obj.material);
+        // Unchanged (a fixed group): the user's line stays, unless a texture path needs rebasing.
+        let textured = matches!(m, MaterialSpec::Textured { .. });
+        if !textured && spec.material.as_ref().map(|s| s.get_ref()) == Some(&m) {
+            continue;
+        }
+        if let MaterialSpec::Textured { texture, .. } = &mut m {
+            *texture = rebase(texture, from_dir, to_dir);
+        }
+        let mut new = inline_material(&m)?;
+        match t.get_mut("material").and_then(|i| i.as_value_mut()) {
+            Some(v) => {
+                *new.decor_mut() = v.decor().clone();
+                *v = new;
+            }
+            None => {
+                t.insert("material", toml_edit::Item::Value(new));
+            }
+        }
+    }
+    Some(doc.to_string())
+}
+
+/// The scene written from its schema form (comments and layout of the source are lost).
+fn fresh_toml(scene: &Scene, from_dir: &Path, to_dir: &Path) -> String {
     let mut file: SceneFile = scene.source.clone();
     for (spec, obj) in file.objects.iter_mut().zip(&scene.objects) {
         if let Some(f) = &spec.file {
@@ -94,4 +167,80 @@ pub fn scene_to_toml(scene: &Scene, dest: &Path) -> String {
         ward_variant: Some(r.ward_variant),
     });
     toml::to_string_pretty(&file).expect("scene serialises")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SCENE: &str = r#"# my room
+[camera]
+width = 32
+height = 24
+eye = [0.0, 2.0, 2.0]   # where I stood
+target = [0.0, 0.0, 0.0]
+fov_y_deg = 45.0
+
+[[object]]
+name = "floor"
+group = "floor"
+shape = "quad"
+corner = [-1.0, 0.0, 1.0]
+edge_u = [2.0, 0.0, 0.0]
+edge_v = [0.0, 0.0, -2.0]
+material = { type = "diffuse", rho_d = 0.5 } # a guess
+
+[[object]]
+name = "lamp"
+group = "lamp"
+shape = "quad"
+corner = [-0.2, 1.5, -0.2]
+edge_u = [0.4, 0.0, 0.0]
+edge_v = [0.0, 0.0, 0.4]
+emission = 5.0
+"#;
+
+    /// Only the material line differs: comments, inline arrays and key order stay.
+    #[test]
+    fn the_source_is_edited_in_place() {
+        let d = tempfile::tempdir().unwrap();
+        let path = d.path().join("scene.toml");
+        std::fs::write(&path, SCENE).unwrap();
+        let mut scene = crate::scene::load_scene(&path).unwrap();
+        scene.objects[0].material = Material::Ward {
+            rho_d: crate::math::Rgb::new(0.25, 0.5, 0.125),
+            rho_s: crate::math::Rgb::splat(0.25),
+            alpha_x: 0.125,
+            alpha_y: 0.125,
+            theta: 0.0,
+        };
+        let out = scene_to_toml(&scene, &d.path().join("out").join("recovered.toml"));
+        let changed: Vec<(&str, &str)> = SCENE
+            .lines()
+            .zip(out.lines())
+            .filter(|(a, b)| a != b)
+            .collect();
+        assert_eq!(SCENE.lines().count(), out.lines().count(), "{out}");
+        assert_eq!(changed.len(), 1, "{out}");
+        assert_eq!(
+            changed[0].1,
+            "material = { type = \"ward\", rho_d = [0.25, 0.5, 0.125], rho_s = 0.25, alpha = 0.125 } # a guess"
+        );
+        // And it loads again, with the new material.
+        let back = crate::scene::load::parse_scene(&out, &d.path().join("recovered.toml")).unwrap();
+        assert!(matches!(back.objects[0].material, Material::Ward { .. }));
+    }
+
+    /// A file changed since it was loaded is not taken for the scene: written anew.
+    #[test]
+    fn a_changed_source_is_not_edited() {
+        let d = tempfile::tempdir().unwrap();
+        let path = d.path().join("scene.toml");
+        std::fs::write(&path, SCENE).unwrap();
+        let scene = crate::scene::load_scene(&path).unwrap();
+        std::fs::write(&path, SCENE.replace("rho_d = 0.5", "rho_d = 0.7")).unwrap();
+        let out = scene_to_toml(&scene, &d.path().join("recovered.toml"));
+        assert!(!out.contains("# my room"), "{out}");
+        assert!(crate::scene::load::parse_scene(&out, &path).is_ok());
+    }
 }

@@ -2,11 +2,11 @@
 //! every global iteration, then write the outputs. `resume` continues a run that was killed
 //! (even by `kill -9`) from its last checkpoint, to exactly the result of an uninterrupted run.
 
-use crate::fit::recover::{fingerprint, CHECKPOINT_VERSION};
-use crate::fit::{recover_resumable, Checkpoint, RecoverOptions, Recovery};
-use crate::io::atomic::write_atomic;
-use crate::photo::{Photo, UsableMask};
-use crate::scene::Scene;
+use matfit::fit::recover::{fingerprint, CHECKPOINT_VERSION};
+use matfit::fit::{recover_resumable, Checkpoint, RecoverOptions, Recovery};
+use matfit::io::atomic::write_atomic;
+use matfit::photo::{Photo, UsableMask};
+use matfit::scene::Scene;
 use std::io::{Seek, Write};
 use std::path::Path;
 
@@ -99,6 +99,6 @@ pub fn run_recover(
     if let Some(e) = err.into_inner() {
         return Err(e);
     }
-    crate::report::write_outputs(out, &rec, photo)?;
+    matfit::report::write_outputs(out, &rec, photo)?;
     Ok(rec)
 }

@@ -1,11 +1,11 @@
 //! `matfit demo`: renders the figure6 photo (kept for the next run), recovers its materials
 //! without looking at the true ones, and prints the notes' Figure 6 table.
 
-use crate::fit::{GroupParams, Level, RecoverOptions};
-use crate::io::image::read_linear;
-use crate::photo::Photo;
-use crate::render::film::{render, RenderOptions};
-use crate::scene::{load_scene, Scene};
+use matfit::fit::{GroupParams, Level, RecoverOptions};
+use matfit::io::image::read_linear;
+use matfit::photo::Photo;
+use matfit::render::film::{render, RenderOptions};
+use matfit::scene::{load_scene, Scene};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -40,8 +40,12 @@ pub struct DemoOptions {
 
 /// `img` with relative Gaussian noise of standard deviation `sigma` (Box–Muller on a hashed,
 /// seeded stream: the same seed gives the same noise).
-pub fn add_noise(img: &crate::io::image::Image, sigma: f32, seed: u64) -> crate::io::image::Image {
-    use crate::math::sampler::{hash_seed, mix64};
+pub fn add_noise(
+    img: &matfit::io::image::Image,
+    sigma: f32,
+    seed: u64,
+) -> matfit::io::image::Image {
+    use matfit::math::sampler::{hash_seed, mix64};
     let uniform =
         |k: u64| ((mix64(hash_seed(&[seed, k])) >> 40) as f64 + 0.5) / (1u64 << 24) as f64;
     let mut out = img.clone();
@@ -63,7 +67,7 @@ pub fn photo_of(scene: &Scene, spp: u32, path: &Path) -> Result<(Photo, bool), S
         .map_err(|e| format!("{}: {e}", scene.path.display()))?;
     let stamp = format!(
         "{:016x} spp {spp}",
-        crate::math::sampler::hash_seed(&text.bytes().map(u64::from).collect::<Vec<_>>())
+        matfit::math::sampler::hash_seed(&text.bytes().map(u64::from).collect::<Vec<_>>())
     );
     let stamp_path = path.with_extension("stamp");
     if path.exists() && std::fs::read_to_string(&stamp_path).ok().as_deref() == Some(stamp.as_str())
@@ -81,11 +85,11 @@ pub fn photo_of(scene: &Scene, spp: u32, path: &Path) -> Result<(Photo, bool), S
         },
     );
     img.write(path)?;
-    crate::io::atomic::write_atomic(&stamp_path, stamp.as_bytes()).map_err(|e| e.to_string())?;
+    matfit::io::atomic::write_atomic(&stamp_path, stamp.as_bytes()).map_err(|e| e.to_string())?;
     Ok((Photo::from_linear(img), false))
 }
 
-fn fmt_rgb(c: crate::math::Rgb) -> String {
+fn fmt_rgb(c: matfit::math::Rgb) -> String {
     format!("({:.4}, {:.4}, {:.4})", c.x, c.y, c.z)
 }
 
@@ -98,14 +102,23 @@ fn truth(scene: &Scene, g: usize) -> GroupParams {
 /// over the fitted groups.
 pub fn print_table(
     scene: &Scene,
-    rec: &crate::fit::Recovery,
+    rec: &matfit::fit::Recovery,
     out: &mut impl Write,
 ) -> std::io::Result<f32> {
-    use crate::fit::hierarchy::Status;
+    use matfit::fit::hierarchy::Status;
     let mut worst = 0.0f32;
+    // The surface column is as wide as the longest shown name.
+    let sw = rec
+        .groups
+        .iter()
+        .filter(|st| st.status != Status::Light)
+        .map(|st| st.name.chars().count())
+        .max()
+        .unwrap_or(0)
+        .max("surface".len());
     writeln!(
         out,
-        "{:<12} {:<9} {:<28} {:<28} level / status",
+        "{:<sw$} {:<9} {:<28} {:<28} level / status",
         "surface", "parameter", "true value", "recovered value"
     )?;
     for (g, st) in rec.groups.iter().enumerate() {
@@ -138,7 +151,7 @@ pub fn print_table(
         }
         for (i, (param, truth, got)) in rows.iter().enumerate() {
             let surface = if i == 0 { st.name.as_str() } else { "" };
-            write!(out, "{surface:<12} {param:<9} {truth:<28} {got:<28}")?;
+            write!(out, "{surface:<sw$} {param:<9} {truth:<28} {got:<28}")?;
             if i == 0 {
                 write!(out, " {status}")?;
             }
@@ -163,11 +176,11 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
     let scene = load_scene(&path).map_err(|e| e.to_string())?;
     let rec_dir = opts.out.join("recovery");
     // Both folders before the photo is rendered (minutes): they must be usable.
-    crate::io::atomic::prepare_output_dir(&opts.out)?;
-    crate::io::atomic::prepare_output_dir(&rec_dir)?;
+    matfit::io::atomic::prepare_output_dir(&opts.out)?;
+    matfit::io::atomic::prepare_output_dir(&rec_dir)?;
     let tp = Instant::now();
     let (photo, reused) = photo_of(&scene, opts.photo_spp, &opts.out.join("photo.exr"))?;
-    println!(
+    crate::outln!(
         "photo: {} ({})",
         opts.out.join("photo.exr").display(),
         if reused {
@@ -186,7 +199,7 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
     if opts.noise > 0.0 {
         photo_path = opts.out.join(format!("photo-noise{}.exr", opts.noise));
         add_noise(&photo.image, opts.noise, scene.render.seed).write(&photo_path)?;
-        println!(
+        crate::outln!(
             "photo with {}% relative Gaussian noise: {}",
             100.0 * opts.noise,
             photo_path.display()
@@ -195,24 +208,25 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
     let mut model = scene.clone();
     if opts.shift != (0.0, 0.0) {
         model.camera = scene.camera.shifted(opts.shift.0, opts.shift.1);
-        println!(
+        crate::outln!(
             "model misregistered by ({}, {}) px",
-            opts.shift.0, opts.shift.1
+            opts.shift.0,
+            opts.shift.1
         );
     }
-    let prepared = crate::photo::prepare(&model, &photo_path, &Default::default())?;
+    let prepared = matfit::photo::prepare(&model, &photo_path, &Default::default())?;
     if let Some(r) = &prepared.registration {
         let (dx, dy) = (
             prepared.camera.cx - scene.camera.cx,
             prepared.camera.cy - scene.camera.cy,
         );
-        println!(
+        crate::outln!(
             "registration: found a shift of ({:.2}, {:.2}) px; the model's camera is now ({:.2}, {:.2}) px off the photo's",
             r.dx, r.dy, dx, dy
         );
     }
     model.camera = prepared.camera.clone();
-    let rec = crate::cli_recover::run_recover(
+    let rec = crate::cli::recover::run_recover(
         &model,
         &prepared.photo,
         &prepared.mask,
@@ -220,12 +234,14 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
         &rec_dir,
         false,
     )?;
-    let mut stdout = std::io::stdout();
-    println!();
-    let worst = print_table(&scene, &rec, &mut stdout).map_err(|e| e.to_string())?;
-    println!();
-    println!(
-        "recovery {:.1} s ({} global iterations, {} cache builds, {} objective evaluations), final render {:.1} s: ratio {:.2}",
+    let mut table = Vec::new();
+    let worst = print_table(&scene, &rec, &mut table).map_err(|e| e.to_string())?;
+    crate::outln!();
+    crate::cli::out::print(format_args!("{}", String::from_utf8_lossy(&table)));
+    crate::outln!();
+    crate::outln!(
+        "recovery {:.1} s ({} global iterations, {} cache builds, {} objective evaluations), final render {:.1} s: \
+         ratio {:.2} (recovery time / final render time: the recovery cost as much as that many renders)",
         rec.total_s,
         rec.iterations,
         rec.cache_builds,
@@ -233,7 +249,7 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
         rec.final_render_s,
         rec.total_s / rec.final_render_s.max(1e-9)
     );
-    println!(
+    crate::outln!(
         "demo total {:.1} s; outputs in {}",
         t0.elapsed().as_secs_f64(),
         rec_dir.display()
@@ -244,8 +260,8 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::image::Image;
-    use crate::math::Rgb;
+    use matfit::io::image::Image;
+    use matfit::math::Rgb;
 
     #[test]
     fn noise_is_relative_gaussian_and_seeded() {

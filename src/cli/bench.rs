@@ -1,10 +1,10 @@
 //! Benchmarks run by `matfit bench`: figures for the issue notes, measured on the machine at
 //! hand, reported as medians of several repetitions.
 
-use crate::geometry::packet::{Packet, LANES};
-use crate::geometry::{shapes, Bvh, Ray};
-use crate::math::{Vec2, Vec3};
-use crate::scene::{Camera, Scene};
+use matfit::geometry::packet::{Packet, LANES};
+use matfit::geometry::{shapes, Bvh, Ray};
+use matfit::math::{Vec2, Vec3};
+use matfit::scene::{Camera, Scene};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -37,7 +37,7 @@ fn throughput(camera: &Camera, passes: usize, trace: impl Fn(&Ray) -> bool + Syn
 /// Primary-ray throughput on `scene` and on a sphere tessellated into ≥ `triangles` triangles.
 pub fn rays(scene: &Scene, triangles: usize, repeat: usize) {
     let threads = rayon::current_num_threads();
-    println!("primary rays, closest hit, {threads} threads, median of {repeat}");
+    crate::outln!("primary rays, closest hit, {threads} threads, median of {repeat}");
     let runs: Vec<f64> = (0..repeat)
         .map(|_| {
             throughput(&scene.camera, 8, |r| {
@@ -46,7 +46,7 @@ pub fn rays(scene: &Scene, triangles: usize, repeat: usize) {
             .0
         })
         .collect();
-    println!(
+    crate::outln!(
         "  {:<28} {:>10} tris  {:>7.2} Mrays/s",
         scene.path.display(),
         scene.triangle_count(),
@@ -72,7 +72,7 @@ pub fn rays(scene: &Scene, triangles: usize, repeat: usize) {
         .map(|_| throughput(&cam, 2, |r| bvh.intersect(r, f32::INFINITY).is_some()))
         .collect();
     let hit_frac = runs[0].1 as f64 / (2 * 1024 * 768) as f64;
-    println!(
+    crate::outln!(
         "  {:<28} {:>10} tris  {:>7.2} Mrays/s  (BVH build {:.2} s, {} nodes, {:.0}% of rays hit)",
         "sphere mesh",
         tris.len(),
@@ -148,7 +148,7 @@ pub fn ray_file(scene: &Scene, path: &std::path::Path, repeat: usize) -> anyhow:
         .iter()
         .filter(|(r, _)| scene.intersect(r, f32::INFINITY).is_some())
         .count();
-    println!(
+    crate::outln!(
         "{} rays from {}, 1 thread, median of {repeat}: closest hit with hit record {closest:.1} ns, \
          BVH query alone {bvh_one:.1} ns, shadow {shadow:.1} ns ({:.1}% hit); packets of 8: \
          BVH query {bvh8:.1} ns, shadow {shadow8:.1} ns",

@@ -1,0 +1,212 @@
+//! Checks the commands make before their long work: the scene's lights, the photo's exposure
+//! and brightness, and the output folder.
+
+use super::out::warn;
+use anyhow::{bail, Result};
+use matfit::photo::{PhotoArgs, PreparedPhoto};
+use matfit::scene::lint::{group_name_warnings, lighting, Lighting};
+use matfit::scene::Scene;
+use std::path::Path;
+
+/// Warns of group names that look like typos; returns what the view says about the lights.
+pub fn scene_warnings(sc: &Scene) -> Lighting {
+    for w in group_name_warnings(sc) {
+        warn(w);
+    }
+    lighting(sc)
+}
+
+fn object_at(sc: &Scene, o: usize) -> String {
+    format!(
+        "{}:{}: light '{}'",
+        sc.path.display(),
+        sc.objects[o].line,
+        sc.objects[o].name
+    )
+}
+
+/// Refuses a scene whose render would be black (no light, or every light facing away from
+/// what the camera sees); warns of each light that faces away while others do not.
+pub fn require_light(sc: &Scene, l: &Lighting) -> Result<()> {
+    if l.emitters.is_empty() {
+        bail!(
+            "{}: no object emits light (give a light an `emission = [r, g, b]`): the image would be \
+             black",
+            sc.path.display()
+        );
+    }
+    let hint = "its front side is along the surface normal (edge_u × edge_v for a quad: swap \
+                edge_u and edge_v to turn it)";
+    if l.dark() {
+        let names: Vec<String> = l.facing_away.iter().map(|&o| object_at(sc, o)).collect();
+        bail!(
+            "{} face{} away from every surface the camera sees, so nothing in view is lit: {hint}",
+            names.join(", "),
+            if names.len() == 1 { "s" } else { "" }
+        );
+    }
+    for &o in &l.facing_away {
+        warn(format!(
+            "{} faces away from every surface the camera sees and lights nothing in view: {hint}",
+            object_at(sc, o)
+        ));
+    }
+    Ok(())
+}
+
+/// The photo is an 8/16-bit file (judged by its name, before it is read).
+fn is_ldr(photo: &Path) -> bool {
+    let ext = photo
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    matches!(ext.as_str(), "png" | "jpg" | "jpeg")
+}
+
+/// Warns when an 8/16-bit photo comes with no way to know its exposure: k = 1 then means the
+/// file's codes are radiances, which a camera's JPEG almost never is.
+pub fn exposure_warning(photo: &Path, args: &PhotoArgs, l: &Lighting) {
+    if !is_ldr(photo)
+        || args.exposure.is_some()
+        || args.grey_card.is_some()
+        || args.exposure_from_lights
+    {
+        return;
+    }
+    let light = if l.in_view.is_empty() {
+        String::new()
+    } else {
+        " (a light is in view: --exposure-from-lights can calibrate from it)".into()
+    };
+    warn(format!(
+        "{}: an 8/16-bit photo and no --exposure, --grey-card or --exposure-from-lights: the \
+         exposure is taken as 1 (photo = radiance), which a camera's file rarely is{light}",
+        photo.display()
+    ));
+}
+
+/// Says how the exposure was set; warns when some group is far brighter in the photo than any
+/// light of the scene could make a surface (reflected radiance never exceeds the brightest
+/// emitted radiance when no material reflects more than it receives): a wrong exposure.
+pub fn exposure_report(sc: &Scene, photo: &Path, args: &PhotoArgs, p: &PreparedPhoto) {
+    match &p.calibration {
+        Some(c) => crate::outln!(
+            "exposure k = {:.6} calibrated from {} (per channel {:.6}, {:.6}, {:.6})",
+            c.factor,
+            c.source,
+            c.per_channel[0],
+            c.per_channel[1],
+            c.per_channel[2]
+        ),
+        None => crate::outln!(
+            "exposure k = {} ({})",
+            p.photo.exposure,
+            if args.exposure.is_some() {
+                "given"
+            } else {
+                "default, not given"
+            }
+        ),
+    }
+    let Some((brightest, lmax)) = sc
+        .objects
+        .iter()
+        .filter(|o| o.is_emitter())
+        .map(|o| (o.name.as_str(), o.emission.max_element()))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+    else {
+        return;
+    };
+    for (g, grp) in sc.groups.iter().enumerate() {
+        if grp.objects.iter().any(|&o| sc.objects[o].is_emitter()) {
+            continue;
+        }
+        let mut l: Vec<f32> = p
+            .mask
+            .pixels_of(g)
+            .iter()
+            .map(|&i| p.photo.image.data[i].max_element())
+            .collect();
+        if l.len() < 16 {
+            continue;
+        }
+        let mid = l.len() / 2;
+        let median = *l.select_nth_unstable_by(mid, f32::total_cmp).1;
+        if median > 1.5 * lmax {
+            warn(format!(
+                "{}: group '{}' is {:.0}× brighter in the photo (median {}) than the brightest \
+                 light ('{brightest}', radiance {}) could make any surface: is the exposure \
+                 right? (--exposure K, --grey-card GROUP=RHO or --exposure-from-lights)",
+                photo.display(),
+                grp.name,
+                median / lmax,
+                super::table::num(median, 4),
+                super::table::num(lmax, 4),
+            ));
+        }
+    }
+}
+
+/// Files a command of matfit writes into its output folder: a folder holding any of them is a
+/// matfit output and may be written again.
+const OUTPUT_MARKS: &[&str] = &[
+    "results.json",
+    "checkpoint.json",
+    "log.jsonl",
+    "recovered.toml",
+    "outlines.png",
+    "usable.png",
+    "scene.xml",
+    "photo.stamp",
+    "recovery",
+];
+
+/// Refuses to write into a folder that holds other things than a matfit output, unless
+/// `force`; says when a previous matfit output is overwritten.
+pub fn output_folder(dir: &Path, force: bool) -> Result<()> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Ok(()); // absent (created later) or not a folder (reported when it is created)
+    };
+    let mut names: Vec<String> = entries
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| !n.starts_with(".matfit-probe-"))
+        .collect();
+    names.sort();
+    if names.is_empty() {
+        return Ok(());
+    }
+    if names.iter().any(|n| OUTPUT_MARKS.contains(&n.as_str())) {
+        eprintln!("note: writing over the matfit output in {}", dir.display());
+        return Ok(());
+    }
+    if force {
+        eprintln!(
+            "note: writing into {}, which holds other files (--force)",
+            dir.display()
+        );
+        return Ok(());
+    }
+    bail!(
+        "{} is not empty ({} entr{}, e.g. '{}') and is not a matfit output: refusing to write \
+         there (choose another folder, or --force to write into it anyway)",
+        dir.display(),
+        names.len(),
+        if names.len() == 1 { "y" } else { "ies" },
+        names[0]
+    )
+}
+
+/// On Ctrl-C during `recover`: say how to continue from the last checkpoint, then stop.
+pub fn on_interrupt_say_resume(resume_cmd: String) {
+    let r = ctrlc::set_handler(move || {
+        eprintln!(
+            "\ninterrupted: the last finished global iteration is saved; continue with\n  {resume_cmd}"
+        );
+        std::process::exit(130);
+    });
+    if let Err(e) = r {
+        tracing::debug!("no Ctrl-C handler: {e}");
+    }
+}

@@ -1,0 +1,615 @@
+//! The `matfit` command line: clap's description of the commands and what each one runs. The
+//! library knows nothing of it.
+
+pub mod bench;
+pub mod checks;
+pub mod demo;
+pub mod out;
+pub mod recover;
+pub mod table;
+
+use crate::outln;
+use anyhow::{bail, Context, Result};
+use clap::{Parser, Subcommand, ValueEnum};
+use matfit::io::atomic::{check_output_file, prepare_output_dir};
+use matfit::io::image::Image;
+use matfit::math::Rgb;
+use matfit::photo::{PhotoArgs, Response};
+use matfit::render::aov::{aov_image, Aov};
+use matfit::render::film::{render, RenderOptions};
+use matfit::scene::{load_scene, Scene};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Parser)]
+#[command(
+    name = "matfit",
+    version,
+    about = "Recover the materials of a scene from one photograph",
+    after_help = "Workflow:\n  \
+        matfit inspect SCENE PHOTO -o check/    # does the model line up with the photo? which pixels are usable?\n  \
+        matfit recover SCENE PHOTO -o result/   # fit every group's material; result/recovered.toml, report.html\n\n\
+        Try it on a bundled scene first: matfit demo"
+)]
+pub struct Cli {
+    /// Worker threads [default: all cores]. Results do not depend on it.
+    #[arg(long, global = true, value_name = "N")]
+    pub threads: Option<usize>,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The scene file (TOML: camera, objects with their groups and materials, lights).
+const SCENE_HELP: &str =
+    "Scene file (TOML): camera, objects with their groups and materials, lights; see README";
+/// The photograph.
+const PHOTO_HELP: &str = "Photograph of the scene taken through the scene's camera: EXR, HDR or \
+                          PFM (linear), or PNG/JPEG (8/16-bit, through --response)";
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Render a scene: a path-traced image, or an index buffer / AOV.
+    Render {
+        #[arg(help = SCENE_HELP)]
+        scene: PathBuf,
+        /// Output image: .exr, .hdr, .pfm (linear) or .png (sRGB preview).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Samples per pixel, at least 1 [default: the scene's [render] spp].
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+        spp: Option<u32>,
+        /// Random seed [default: the scene's [render] seed].
+        #[arg(long, value_name = "S")]
+        seed: Option<u64>,
+        /// What to write: the image, or per pixel the group / object seen (directly or through a
+        /// mirror), the normal, the depth (scene units) or the UV.
+        #[arg(long, value_enum, default_value = "beauty")]
+        aov: AovArg,
+    },
+    /// Recover the materials of a scene's groups from a photograph.
+    Recover {
+        #[arg(help = SCENE_HELP)]
+        scene: PathBuf,
+        #[arg(help = PHOTO_HELP)]
+        photo: PathBuf,
+        /// Output folder (created if needed; a folder with other files is refused unless --force).
+        #[arg(short, long)]
+        output: PathBuf,
+        #[command(flatten)]
+        fit: FitArgs,
+        #[command(flatten)]
+        photo_args: PhotoCli,
+        /// Continue a run in OUTPUT that was interrupted, from its last checkpoint.
+        #[arg(long)]
+        resume: bool,
+        /// Write into OUTPUT even if it holds files that are not a matfit output.
+        #[arg(long)]
+        force: bool,
+    },
+    /// Render a scene's photo with its true materials, recover them blind, print true vs
+    /// recovered values (the course notes' Figure 6 with the default scene).
+    Demo {
+        /// Scene whose materials are the truth [default: scenes/figure6/scene.toml].
+        #[arg(long)]
+        scene: Option<PathBuf>,
+        /// Output folder; the photo is kept there for the next run.
+        #[arg(short, long, default_value = "out/demo")]
+        output: PathBuf,
+        /// Samples per pixel of the photo.
+        #[arg(long, value_name = "N", default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..))]
+        photo_spp: u32,
+        /// Relative Gaussian noise added to the photo, as a standard deviation (0.01 = 1%).
+        #[arg(long, value_name = "SIGMA", default_value_t = 0.0)]
+        noise: f32,
+        /// Misregister the model: shift the camera given to the recovery by DX,DY pixels.
+        #[arg(long, value_name = "DX,DY", value_parser = parse_shift, default_value = "0,0")]
+        shift: (f32, f32),
+        /// Write into OUTPUT even if it holds files that are not a matfit output.
+        #[arg(long)]
+        force: bool,
+        #[command(flatten)]
+        fit: FitArgs,
+    },
+    /// Print a summary of a scene file: camera, render settings, groups with their materials,
+    /// lights.
+    Info {
+        #[arg(help = SCENE_HELP)]
+        scene: PathBuf,
+    },
+    /// Check a photo against the model before fitting: group outlines over the photo, the
+    /// usable-pixel masks, per-group visible / usable / rejected pixel counts, the exposure.
+    Inspect {
+        #[arg(help = SCENE_HELP)]
+        scene: PathBuf,
+        #[arg(help = PHOTO_HELP)]
+        photo: PathBuf,
+        /// Output folder for outlines.png, usable.png, edges.png.
+        #[arg(short, long)]
+        output: PathBuf,
+        #[command(flatten)]
+        photo_args: PhotoCli,
+        /// Write into OUTPUT even if it holds files that are not a matfit output.
+        #[arg(long)]
+        force: bool,
+    },
+    /// Export a scene to another renderer: `matfit export mitsuba SCENE -o DIR` writes
+    /// DIR/scene.xml (Mitsuba 3) and DIR/meshes/*.ply; approximations are printed as warnings.
+    Export {
+        /// Target renderer.
+        format: FormatArg,
+        #[arg(help = SCENE_HELP)]
+        scene: PathBuf,
+        /// Output folder (created if needed).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Write into OUTPUT even if it holds files that are not a matfit output.
+        #[arg(long)]
+        force: bool,
+    },
+    /// Measure how fast this machine traces rays (to compare machines or builds; not needed
+    /// to use matfit).
+    Bench {
+        #[command(subcommand)]
+        which: BenchCommand,
+    },
+}
+
+/// What `render --aov` writes.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum AovArg {
+    Beauty,
+    Group,
+    Object,
+    MirrorGroup,
+    MirrorObject,
+    Normal,
+    Depth,
+    Uv,
+}
+
+impl From<AovArg> for Aov {
+    fn from(a: AovArg) -> Aov {
+        match a {
+            AovArg::Beauty => Aov::Beauty,
+            AovArg::Group => Aov::Group,
+            AovArg::Object => Aov::Object,
+            AovArg::MirrorGroup => Aov::MirrorGroup,
+            AovArg::MirrorObject => Aov::MirrorObject,
+            AovArg::Normal => Aov::Normal,
+            AovArg::Depth => Aov::Depth,
+            AovArg::Uv => Aov::Uv,
+        }
+    }
+}
+
+/// The formats `export` writes.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum FormatArg {
+    /// Mitsuba 3 scene (XML, version 3.0.0) with one binary PLY per object.
+    Mitsuba,
+}
+
+/// How to read the photo and choose its usable pixels (`inspect` and `recover`).
+#[derive(clap::Args, Clone, Debug)]
+pub struct PhotoCli {
+    /// Response curve of 8/16-bit photos: srgb, linear, gamma:G (linear = code^G) or
+    /// table:FILE (format in README, "Photographs"). EXR/HDR/PFM photos are linear.
+    #[arg(long, default_value = "srgb", value_parser = Response::parse)]
+    pub response: Response,
+    /// Exposure factor k, the photo's linear values = k × radiance [default: 1, unless
+    /// calibrated by --grey-card or --exposure-from-lights].
+    #[arg(long, value_name = "K", conflicts_with_all = ["grey_card", "exposure_from_lights"])]
+    pub exposure: Option<f32>,
+    /// Calibrate the exposure from a group of known diffuse reflectance: GROUP=RHO or
+    /// GROUP=R,G,B (e.g. a grey card: --grey-card card=0.18).
+    #[arg(long, value_name = "GROUP=RHO", value_parser = matfit::photo::args::parse_grey_card,
+          conflicts_with = "exposure_from_lights")]
+    pub grey_card: Option<(String, Rgb)>,
+    /// Calibrate the exposure from the light sources seen in the photo (their radiance is known).
+    #[arg(long)]
+    pub exposure_from_lights: bool,
+    /// Half-width, in pixels, of the band removed around every boundary between objects.
+    #[arg(long, value_name = "PIXELS", default_value_t = 2)]
+    pub band: usize,
+    /// Edge-detector threshold on |∇ ln luminance| per pixel (unitless); 0 turns it off.
+    #[arg(long, value_name = "T", default_value_t = 0.12)]
+    pub edge_threshold: f32,
+    /// Reject pixels of planar groups far from a plane fitted to their intensity (unmodelled
+    /// objects on diffuse walls; do not use it on glossy groups, it would drop highlights).
+    #[arg(long)]
+    pub planar_outliers: bool,
+    /// Keep the camera as given [default: shift it by the translation that best aligns the
+    /// model's outlines with the photo's edges].
+    #[arg(long = "no-register", action = clap::ArgAction::SetFalse)]
+    pub register: bool,
+    /// Largest misregistration searched, in pixels.
+    #[arg(long, value_name = "PIXELS", default_value_t = 4)]
+    pub max_shift: i32,
+}
+
+impl From<PhotoCli> for PhotoArgs {
+    fn from(a: PhotoCli) -> PhotoArgs {
+        PhotoArgs {
+            response: a.response,
+            exposure: a.exposure,
+            grey_card: a.grey_card,
+            exposure_from_lights: a.exposure_from_lights,
+            band: a.band,
+            edge_threshold: a.edge_threshold,
+            planar_outliers: a.planar_outliers,
+            register: a.register,
+            max_shift: a.max_shift,
+        }
+    }
+}
+
+/// Options of the fitting engine shared by `recover` and `demo`.
+#[derive(clap::Args, Clone)]
+pub struct FitArgs {
+    /// Random seed of the caches and the final render.
+    #[arg(long, value_name = "S", default_value_t = 0)]
+    seed: u64,
+    /// At most this many global iterations (each re-renders the light every group receives).
+    #[arg(long, value_name = "N", default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..))]
+    max_iterations: u32,
+    /// Light samples per cached pixel.
+    #[arg(long, value_name = "N", default_value_t = 32, value_parser = clap::value_parser!(u32).range(2..))]
+    light_samples: u32,
+    /// Indirect samples per cached pixel.
+    #[arg(long, value_name = "N", default_value_t = 32, value_parser = clap::value_parser!(u32).range(2..))]
+    indirect_samples: u32,
+    /// At most this many cached pixels per group.
+    #[arg(long, value_name = "N", default_value_t = 12000)]
+    max_pixels: usize,
+    /// Cached pixels per group in the first global iteration, doubling each iteration up to
+    /// --max-pixels (0: --max-pixels from the start).
+    #[arg(long, value_name = "N", default_value_t = 1500)]
+    first_pixels: usize,
+    /// Samples per pixel of the final render (at least 2: its two halves give the noise floor).
+    #[arg(long, value_name = "N", default_value_t = 64, value_parser = clap::value_parser!(u32).range(2..))]
+    final_spp: u32,
+}
+
+impl FitArgs {
+    fn options(&self) -> matfit::fit::RecoverOptions {
+        let d = matfit::fit::RecoverOptions::default();
+        matfit::fit::RecoverOptions {
+            seed: self.seed,
+            max_iterations: self.max_iterations.max(1),
+            final_spp: self.final_spp.max(2),
+            first_pixels: self.first_pixels,
+            cache: matfit::fit::cache::CacheOptions {
+                light_samples: self.light_samples.max(2),
+                indirect_samples: self.indirect_samples.max(2),
+                max_pixels: self.max_pixels.max(16),
+                ..d.cache.clone()
+            },
+            ..d
+        }
+    }
+}
+
+#[derive(Subcommand)]
+pub enum BenchCommand {
+    /// Primary rays per second on a scene and on a generated mesh of ≥ 1M triangles.
+    Rays {
+        /// Scene to trace.
+        #[arg(long, default_value = "scenes/figure6/scene.toml")]
+        scene: PathBuf,
+        /// Triangles of the generated mesh.
+        #[arg(long, value_name = "N", default_value_t = 1_000_000)]
+        triangles: usize,
+        /// Repetitions (the median is reported).
+        #[arg(long, value_name = "N", default_value_t = 5)]
+        repeat: usize,
+        /// Instead: time one thread's closest-hit and shadow queries on the rays of this file
+        /// (little-endian f32 records: origin xyz, direction xyz, shadow-ray length; written
+        /// by bench/rays.py, which times Mitsuba 3 on the same rays).
+        #[arg(long)]
+        ray_file: Option<PathBuf>,
+    },
+}
+
+/// Loads a scene and prints its warnings (group names that look like typos).
+fn load(path: &Path) -> Result<(Scene, matfit::scene::lint::Lighting)> {
+    let sc = load_scene(path)?;
+    let l = checks::scene_warnings(&sc);
+    Ok((sc, l))
+}
+
+/// The command line that continues an interrupted `recover`.
+fn resume_command() -> String {
+    let mut args: Vec<String> = std::env::args()
+        .map(|a| {
+            if a.contains(|c: char| c.is_whitespace() || c == '\'') {
+                format!("'{}'", a.replace('\'', "'\\''"))
+            } else {
+                a
+            }
+        })
+        .collect();
+    if !args.iter().any(|a| a == "--resume") {
+        args.push("--resume".into());
+    }
+    args.join(" ")
+}
+
+pub fn run(cmd: Command) -> Result<()> {
+    match cmd {
+        Command::Render {
+            scene,
+            output,
+            spp,
+            seed,
+            aov,
+        } => {
+            let (sc, lighting) = load(&scene)?;
+            let ext = output
+                .extension()
+                .and_then(|e| e.to_str())
+                .unwrap_or("")
+                .to_ascii_lowercase();
+            if !["exr", "hdr", "pfm", "png"].contains(&ext.as_str()) {
+                bail!(
+                    "{}: output must end in .exr, .hdr, .pfm or .png",
+                    output.display()
+                );
+            }
+            // Before minutes of rendering: the file must be writable.
+            check_output_file(&output).map_err(anyhow::Error::msg)?;
+            let t = Instant::now();
+            let aov = Aov::from(aov);
+            let (img, what): (Image, String) = match aov {
+                Aov::Beauty => {
+                    checks::require_light(&sc, &lighting)?;
+                    let spp = spp.unwrap_or(sc.render.spp).max(1);
+                    let opts = RenderOptions {
+                        spp,
+                        seed: seed.unwrap_or(sc.render.seed),
+                        progress: true,
+                    };
+                    (render(&sc, &sc.camera, &opts), format!("{spp} spp"))
+                }
+                other => (
+                    aov_image(&sc, &sc.camera, other, ext == "png"),
+                    format!("{other:?} AOV").to_lowercase(),
+                ),
+            };
+            img.write(&output).map_err(anyhow::Error::msg)?;
+            outln!(
+                "wrote {} ({}×{}, {what}) in {:.1} s",
+                output.display(),
+                img.width,
+                img.height,
+                t.elapsed().as_secs_f64()
+            );
+            Ok(())
+        }
+        Command::Recover {
+            scene,
+            photo,
+            output,
+            fit,
+            photo_args,
+            resume,
+            force,
+        } => {
+            let (mut sc, lighting) = load(&scene)?;
+            checks::require_light(&sc, &lighting)?;
+            let photo_args = PhotoArgs::from(photo_args);
+            // Before any work: the output folder must be usable.
+            if !resume {
+                checks::output_folder(&output, force)?;
+            }
+            prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
+            let prepared =
+                matfit::photo::prepare(&sc, &photo, &photo_args).map_err(anyhow::Error::msg)?;
+            // Once the photo is known to be readable (an unreadable one gets only its error).
+            checks::exposure_warning(&photo, &photo_args, &lighting);
+            checks::exposure_report(&sc, &photo, &photo_args, &prepared);
+            // Render through the camera registered to the photo.
+            sc.camera = prepared.camera.clone();
+            checks::on_interrupt_say_resume(resume_command());
+            let rec = recover::run_recover(
+                &sc,
+                &prepared.photo,
+                &prepared.mask,
+                &fit.options(),
+                &output,
+                resume,
+            )
+            .map_err(anyhow::Error::msg)?;
+            outln!();
+            out::print(format_args!("{}", table::recovered(&rec)));
+            outln!(
+                "outputs in {} ({:.1} s): recovered.toml, results.json, report.html",
+                output.display(),
+                rec.total_s
+            );
+            for g in rec.groups.iter() {
+                if let Some(n) = &g.note {
+                    outln!("note: {}: {n}", g.name);
+                }
+            }
+            out::repeat_warnings();
+            Ok(())
+        }
+        Command::Demo {
+            scene,
+            output,
+            photo_spp,
+            noise,
+            shift,
+            force,
+            fit,
+        } => {
+            checks::output_folder(&output, force)?;
+            let opts = demo::DemoOptions {
+                scene,
+                out: output,
+                photo_spp,
+                noise,
+                shift,
+                recover: fit.options(),
+            };
+            demo::run(&opts).map_err(anyhow::Error::msg)?;
+            out::repeat_warnings();
+            Ok(())
+        }
+        Command::Info { scene } => {
+            let (sc, lighting) = load(&scene)?;
+            info(&sc, &lighting);
+            Ok(())
+        }
+        Command::Inspect {
+            scene,
+            photo,
+            output,
+            photo_args,
+            force,
+        } => {
+            let (sc, lighting) = load(&scene)?;
+            let photo_args = PhotoArgs::from(photo_args);
+            checks::output_folder(&output, force)?;
+            prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
+            let report = matfit::photo::inspect::inspect(&sc, &photo, &photo_args, &output)
+                .map_err(anyhow::Error::msg)?;
+            out::print(format_args!("{report}"));
+            checks::exposure_warning(&photo, &photo_args, &lighting);
+            Ok(())
+        }
+        Command::Export {
+            format,
+            scene,
+            output,
+            force,
+        } => {
+            let (sc, _) = load(&scene)?;
+            checks::output_folder(&output, force)?;
+            prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
+            let report = match format {
+                FormatArg::Mitsuba => {
+                    matfit::export::mitsuba::export(&sc, &output).map_err(anyhow::Error::msg)?
+                }
+            };
+            for w in &report.warnings {
+                out::warn(w.clone());
+            }
+            outln!(
+                "wrote {} ({} files)",
+                report.files[0].display(),
+                report.files.len()
+            );
+            Ok(())
+        }
+        Command::Bench { which } => match which {
+            BenchCommand::Rays {
+                scene,
+                triangles,
+                repeat,
+                ray_file,
+            } => {
+                let sc = load_scene(&scene).with_context(|| "loading the benchmark scene")?;
+                match ray_file {
+                    Some(f) => bench::ray_file(&sc, &f, repeat)?,
+                    None => bench::rays(&sc, triangles, repeat),
+                }
+                Ok(())
+            }
+        },
+    }
+}
+
+/// `info`: the camera, render settings, groups with their objects and materials, lights.
+fn info(sc: &Scene, lighting: &matfit::scene::lint::Lighting) {
+    use table::{num, rgb, vec3};
+    let c = &sc.camera;
+    outln!("scene {}", sc.path.display());
+    outln!(
+        "camera {}×{} px, eye {}, looking along {}, fov_y {}°, fx {} fy {} px",
+        c.width,
+        c.height,
+        vec3(c.eye()),
+        vec3(
+            c.ray(matfit::math::Vec2::new(
+                c.width as f32 / 2.0,
+                c.height as f32 / 2.0
+            ))
+            .d
+        ),
+        num(c.fov_y_deg(), 3),
+        num(c.fx, 2),
+        num(c.fy, 2)
+    );
+    let r = &sc.render;
+    outln!(
+        "render spp {}, max_depth {}, rr_depth {}, seed {}, ward_variant {}",
+        r.spp,
+        r.max_depth,
+        r.rr_depth,
+        r.seed,
+        r.ward_variant.name()
+    );
+    outln!("triangles {}", sc.triangle_count());
+    for g in &sc.groups {
+        let names: Vec<&str> = g
+            .objects
+            .iter()
+            .map(|&o| sc.objects[o].name.as_str())
+            .collect();
+        let mats: Vec<String> = {
+            let mut m: Vec<String> = g
+                .objects
+                .iter()
+                .filter(|&&o| !sc.objects[o].is_emitter())
+                .map(|&o| table::material(&sc.objects[o].material))
+                .collect();
+            m.dedup();
+            m
+        };
+        outln!(
+            "group {}{}: {}{}",
+            g.name,
+            if g.fixed { " (fixed)" } else { "" },
+            names.join(", "),
+            if mats.is_empty() {
+                String::new()
+            } else {
+                format!("; {}", mats.join(" | "))
+            }
+        );
+    }
+    for (i, o) in sc
+        .objects
+        .iter()
+        .enumerate()
+        .filter(|(_, o)| o.is_emitter())
+    {
+        outln!(
+            "light {}: radiance {}, area {}{}",
+            o.name,
+            rgb(o.emission),
+            num(o.area, 4),
+            if lighting.facing_away.contains(&i) {
+                " (faces away from everything in view)"
+            } else {
+                ""
+            }
+        );
+    }
+    if lighting.emitters.is_empty() {
+        out::warn(format!("{}: no object emits light", sc.path.display()));
+    }
+}
+
+/// `DX,DY` in pixels.
+fn parse_shift(s: &str) -> Result<(f32, f32), String> {
+    let bad = || format!("expected DX,DY in pixels (e.g. 2,0), got {s:?}");
+    let (a, b) = s.split_once(',').ok_or_else(bad)?;
+    let dx: f32 = a.trim().parse().map_err(|_| bad())?;
+    let dy: f32 = b.trim().parse().map_err(|_| bad())?;
+    if !(dx.is_finite() && dy.is_finite()) {
+        return Err(bad());
+    }
+    Ok((dx, dy))
+}

@@ -1,0 +1,105 @@
+//! Terminal output. Standard output goes through [`print`], which ends the program quietly when
+//! the reader has gone (`matfit info … | head -1`), as ripgrep does; warnings go through
+//! [`warn`], which also keeps them so that a long command can repeat them at its end.
+
+use std::io::Write;
+use std::sync::Mutex;
+
+static WARNINGS: Mutex<Vec<String>> = Mutex::new(Vec::new());
+
+/// Writes to standard output; a closed pipe ends the program with status 0, any other write
+/// error with status 2.
+pub fn print(args: std::fmt::Arguments) {
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = out.write_fmt(args).and_then(|_| out.flush()) {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            std::process::exit(0);
+        }
+        // Standard error may be gone too: nothing more to say then.
+        let _ = writeln!(
+            std::io::stderr(),
+            "error: cannot write to standard output: {e}"
+        );
+        std::process::exit(2);
+    }
+}
+
+/// `println!` through [`print`].
+#[macro_export]
+macro_rules! outln {
+    () => { $crate::cli::out::print(format_args!("\n")) };
+    ($($t:tt)*) => { $crate::cli::out::print(format_args!("{}\n", format_args!($($t)*))) };
+}
+
+/// Prints `warning: MSG` to standard error now and keeps it for [`repeat_warnings`].
+pub fn warn(msg: impl Into<String>) {
+    let msg = msg.into();
+    let _ = writeln!(std::io::stderr(), "warning: {msg}");
+    remember(msg);
+}
+
+fn remember(msg: String) {
+    if let Ok(mut w) = WARNINGS.lock() {
+        if !w.contains(&msg) {
+            w.push(msg);
+        }
+    }
+}
+
+/// Repeats every warning given so far (after a long output they would have scrolled away).
+pub fn repeat_warnings() {
+    let w = WARNINGS.lock().map(|w| w.clone()).unwrap_or_default();
+    if w.is_empty() {
+        return;
+    }
+    let mut err = std::io::stderr().lock();
+    let _ = writeln!(
+        err,
+        "\n{} warning{} (repeated):",
+        w.len(),
+        if w.len() == 1 { "" } else { "s" }
+    );
+    for m in &w {
+        let _ = writeln!(err, "warning: {m}");
+    }
+}
+
+/// The log's writer: standard error, keeping the library's WARN lines for [`repeat_warnings`].
+pub struct LogWriter;
+
+impl Write for LogWriter {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let text = String::from_utf8_lossy(buf);
+        for line in text.lines() {
+            if let Some(pos) = line.find("WARN") {
+                // Drop the level and the module path: keep the message.
+                let rest = line[pos + 4..].trim_start();
+                let msg = rest.split_once(": ").map(|(_, m)| m).unwrap_or(rest);
+                let msg = strip_ansi(msg);
+                remember(msg);
+            }
+        }
+        std::io::stderr().write_all(buf)?;
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        std::io::stderr().flush()
+    }
+}
+
+fn strip_ansi(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    let mut chars = s.chars();
+    while let Some(c) = chars.next() {
+        if c == '\u{1b}' {
+            for d in chars.by_ref() {
+                if d.is_ascii_alphabetic() {
+                    break;
+                }
+            }
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}

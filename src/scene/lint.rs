@@ -1,0 +1,122 @@
+//! Checks of a loaded scene that do not stop it from loading but would make a command's work
+//! useless or suspicious: group names that look like typos, and lights that nothing in view
+//! can receive light from. Commands run them before the long work.
+
+use super::Scene;
+use crate::math::{Vec2, Vec3};
+
+/// What the camera's view says about the scene's lights.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Lighting {
+    /// Emitting objects (indices into `scene.objects`).
+    pub emitters: Vec<usize>,
+    /// Emitters whose front side (along the surface normal, edge_u × edge_v for a quad) faces
+    /// away from every surface point the camera sees: they light nothing in the picture.
+    pub facing_away: Vec<usize>,
+    /// Emitters the camera sees directly.
+    pub in_view: Vec<usize>,
+}
+
+impl Lighting {
+    /// True when no emitter can light anything the camera sees: a render would be black.
+    pub fn dark(&self) -> bool {
+        self.emitters.len() == self.facing_away.len()
+    }
+}
+
+/// Points the camera sees on a `nx`×`ny` grid of the film: (point, normal on the camera's
+/// side, object).
+fn visible_points(scene: &Scene, nx: u32, ny: u32) -> Vec<(Vec3, Vec3, usize)> {
+    let cam = &scene.camera;
+    let mut pts = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            let film = Vec2::new(
+                (i as f32 + 0.5) / nx as f32 * cam.width as f32,
+                (j as f32 + 0.5) / ny as f32 * cam.height as f32,
+            );
+            let ray = cam.ray(film);
+            if let Some(h) = scene.intersect(&ray, f32::INFINITY) {
+                let n = if h.ng.dot(ray.d) < 0.0 { h.ng } else { -h.ng };
+                pts.push((h.p, n, h.object as usize));
+            }
+        }
+    }
+    pts
+}
+
+/// Which emitters can light what the camera sees. Geometric only (occlusion is not tested):
+/// it finds a light put in backwards, not one hidden behind a wall.
+pub fn lighting(scene: &Scene) -> Lighting {
+    let g = &scene.geometry;
+    let pts = visible_points(scene, 48, 36);
+    let mut out = Lighting::default();
+    for (e, obj) in scene.objects.iter().enumerate() {
+        if !obj.is_emitter() {
+            continue;
+        }
+        out.emitters.push(e);
+        if pts.iter().any(|&(_, _, o)| o == e) {
+            out.in_view.push(e);
+        }
+        // At most ~256 triangles of a big emitting mesh: a light that faces some surface
+        // does so over much of its area.
+        let n_tris = obj.tri_range.len().max(1);
+        let step = n_tris.div_ceil(256);
+        let lights_something = obj.tri_range.clone().step_by(step).any(|t| {
+            let tri = &g.tris[t as usize];
+            let ng = g.faces[t as usize].ng;
+            let v = tri.v.map(|i| g.positions[i as usize]);
+            let centroid = (v[0] + v[1] + v[2]) / 3.0;
+            [centroid, v[0], v[1], v[2]].iter().any(|&q| {
+                pts.iter()
+                    .any(|&(p, n, o)| o != e && ng.dot(p - q) > 0.0 && n.dot(q - p) > 0.0)
+            })
+        });
+        if !lights_something {
+            out.facing_away.push(e);
+        }
+    }
+    out
+}
+
+/// One message per group name that looks like a typo of another: one edit away from it, or a
+/// group of a single object whose name is close to another group's. Names the object and line.
+pub fn group_name_warnings(scene: &Scene) -> Vec<String> {
+    let mut out = Vec::new();
+    let groups = &scene.groups;
+    for (a, ga) in groups.iter().enumerate() {
+        for (b, gb) in groups.iter().enumerate() {
+            if a == b {
+                continue;
+            }
+            let d = strsim::damerau_levenshtein(&ga.name, &gb.name);
+            let (na, nb) = (ga.objects.len(), gb.objects.len());
+            // The suspect is the smaller group (the later one on a tie, so each pair warns once).
+            let suspect = na < nb || (na == nb && a > b);
+            let close = d == 1
+                || (na == 1 && d == 2 && ga.name.chars().count().min(gb.name.chars().count()) >= 5);
+            if !(suspect && close) {
+                continue;
+            }
+            let Some(&o) = ga.objects.first() else {
+                continue;
+            };
+            let obj = &scene.objects[o];
+            out.push(format!(
+                "{}:{}: object '{}' is in group '{}', {} edit{} away from group '{}' ({} object{}): \
+                 a typo? A new group gets its own material",
+                scene.path.display(),
+                obj.line,
+                obj.name,
+                ga.name,
+                d,
+                if d == 1 { "" } else { "s" },
+                gb.name,
+                nb,
+                if nb == 1 { "" } else { "s" },
+            ));
+        }
+    }
+    out
+}
