@@ -176,11 +176,28 @@ pub fn recover_resumable(
         Some(c) => RecoveryLoop::resume(scene, photo, mask, opts, c)?,
         None => RecoveryLoop::start(scene, photo, mask, opts),
     };
-    let pb = progress_bar(opts.max_iterations as u64, "recover", opts.progress);
-    pb.inc(run.next_iteration() as u64);
+    // The bar advances once per group fitted (the iterations grow longer as the cache's pixel
+    // budget doubles, so a bar per iteration stalled and then jumped); its message says which
+    // iteration of at most how many, since a run that converges stops before the last.
+    let fitted = run.fitted_groups().max(1) as u64;
+    let pb = progress_bar(
+        opts.max_iterations as u64 * fitted,
+        "recover",
+        opts.progress,
+    );
+    pb.inc(run.next_iteration() as u64 * fitted);
     while !run.converged() {
-        run.iterate(&mut log)?;
-        pb.inc(1);
+        pb.set_message(format!(
+            "iteration {}/{}",
+            run.next_iteration() + 1,
+            opts.max_iterations
+        ));
+        run.iterate(&mut |l: &LogLine| {
+            if matches!(l.event, Event::Fit { .. }) {
+                pb.inc(1);
+            }
+            log(l)
+        })?;
         checkpoint(&run.checkpoint());
     }
     run.decide_the_undecided(&mut log);

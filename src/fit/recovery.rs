@@ -124,6 +124,11 @@ impl<'a> RecoveryLoop<'a> {
         r
     }
 
+    /// How many groups each global iteration fits.
+    pub fn fitted_groups(&self) -> usize {
+        self.states.iter().filter(|s| s.is_fitted()).count()
+    }
+
     /// The next global iteration to run.
     pub fn next_iteration(&self) -> u32 {
         self.next
