@@ -10,6 +10,7 @@ pub mod objective;
 pub mod params;
 pub mod recover;
 pub mod solve;
+pub mod unseen;
 
 pub use level::Level;
 pub use params::GroupParams;

@@ -36,8 +36,13 @@ pub struct RecoverOptions {
     pub settle: f32,
     /// Do not stop before every confirmed group has averaged this many independent fits.
     pub min_average: u32,
-    /// Diffuse reflectance given to groups with no usable pixels (the notes: white).
+    /// Diffuse reflectance given to groups with no usable pixels when `unseen.enabled` is false
+    /// (the notes: white).
     pub default_rho_d: f32,
+    /// Groups with no usable pixels: their ρd estimated from the light they reflect
+    /// ([`super::unseen`]).
+    #[serde(default)]
+    pub unseen: super::unseen::UnseenOptions,
     /// Cached pixels per group in the first global iteration; the number doubles every
     /// iteration up to `cache.max_pixels`. The first iterations fit against a scene still far
     /// from its fixed point (every group starts grey), so precision there is wasted time; the
@@ -60,6 +65,7 @@ impl Default for RecoverOptions {
             settle: 0.03,
             min_average: 4,
             default_rho_d: 1.0,
+            unseen: Default::default(),
             first_pixels: 1500,
             final_spp: 64,
             seed: 0,
@@ -148,6 +154,8 @@ pub fn fingerprint(
 pub struct Recovery {
     pub groups: Vec<GroupState>,
     pub pixel_stats: Vec<GroupPixelStats>,
+    /// The unseen groups' estimates after the last global iteration (empty without such groups).
+    pub unseen: Vec<super::unseen::UnseenEstimate>,
     /// The scene with the recovered materials.
     pub scene: Scene,
     pub synthetic: Image,
@@ -227,6 +235,14 @@ pub fn recover_resumable(
                     Status::Fixed,
                     GroupParams::from_material(&objs[0].material),
                 )
+            } else if mask.stats[g].usable == 0 && opts.unseen.enabled {
+                // Grey until the first estimate, after global iteration 0 (unseen.rs).
+                let mut s = GroupState::new(&grp.name, Status::Default, GroupParams::default());
+                s.note = Some(format!(
+                    "no usable pixels ({} visible): ρd estimated from the light it reflects",
+                    mask.stats[g].visible
+                ));
+                s
             } else if mask.stats[g].usable == 0 {
                 let mut s = GroupState::new(
                     &grp.name,
@@ -296,6 +312,8 @@ pub fn recover_resumable(
     let pb = progress_bar(opts.max_iterations as u64, "recover", opts.progress);
     pb.inc(start as u64);
     let mut finished = resume.is_some_and(|c| c.next_iteration >= opts.max_iterations);
+    let mut unseen = Vec::new();
+    let mut unseen_history = super::unseen::History::default();
     for it in start..opts.max_iterations {
         if finished {
             break;
@@ -381,6 +399,17 @@ pub fn recover_resumable(
             }
             apply(&mut current, &states);
         }
+        // Hook (issue 26): unseen groups' ρd re-estimated against the refitted seen groups.
+        let (estimates, unseen_moved) = super::unseen::update(
+            &mut current,
+            &mut states,
+            photo,
+            &mask,
+            &opts.unseen,
+            &mut unseen_history,
+            hash_seed(&[opts.seed, it as u64, u64::MAX]),
+        );
+        unseen = estimates;
         pb.inc(1);
         let moved = states
             .iter()
@@ -400,7 +429,7 @@ pub fn recover_resumable(
                     dr
                 }
             })
-            .fold(0.0f32, f32::max);
+            .fold(unseen_moved, f32::max);
         let level_changed = states
             .iter()
             .zip(&levels_before)
@@ -471,6 +500,7 @@ pub fn recover_resumable(
     Ok(Recovery {
         groups: states,
         pixel_stats: mask.stats.clone(),
+        unseen,
         scene: current,
         synthetic,
         final_error,

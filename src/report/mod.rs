@@ -39,6 +39,9 @@ pub struct GroupResult {
     pub params: BTreeMap<&'static str, Value>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub note: Option<String>,
+    /// For a group with no usable pixels: which rule gave its ρd, its 1σ and the remedy.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unseen: Option<crate::fit::unseen::UnseenEstimate>,
 }
 
 #[derive(Serialize)]
@@ -82,6 +85,7 @@ pub fn results(rec: &Recovery) -> Results {
                 edge_test: st.edge_test,
                 params: s.params.named(s.level).into_iter().collect(),
                 note: s.note.clone(),
+                unseen: rec.unseen.iter().find(|u| u.group == g).cloned(),
             }
         })
         .collect();
