@@ -5,21 +5,22 @@
 //!
 //! The seen pixels' radiance is, to first order, affine in an unseen group's ρd: per channel,
 //! L_p(ρ) ≈ L_p(ρ⁰) + s_p (ρ − ρ⁰). The seen groups are refitted at every global iteration, and
-//! a brighter unseen surface makes them fit darker: to first order that rescales a seen group's
-//! whole rendering, L_p → k_g L_p. So per channel the model of a seen pixel p of group g is
+//! a brighter unseen surface makes them fit darker: to first order that rescales each seen
+//! group's reflectance by k_g, which moves its own pixels and the light it sends to the others
+//! (column J_g). So per channel
 //!
-//!   photo_p − L_p ≈ (k_g − 1) L_p + Σ_u s_pu δ_u,
+//!   photo_p − L_p ≈ Σ_g J_pg (k_g − 1) + Σ_u s_pu δ_u,
 //!
-//! and δ (the change of the unseen groups' ρd) is what the residual says once each seen group's
-//! own scale is projected out: the unseen group is told apart from the seen groups' own
-//! reflectance by the *shape* of the light it sends (it fills shadows, it lights one side more).
-//! The least squares is weighted by 1/photo² (relative error, as ε). Its 1σ is the larger of the
-//! formula's (residual scatter × (AᵀWA)⁻¹) and half the difference between the estimates from
-//! two independent halves of the pixels.
+//! and δ (the change of the unseen groups' ρd) is what the residual says once the seen groups'
+//! own scales are accounted for: the unseen group is told apart by the *shape* of the light it
+//! sends (it fills shadows, it lights one side more). Weights: one per seen group, 1/(its mean
+//! photo value)² (relative error, as ε). The 1σ is the larger of the formula's (residual
+//! scatter × (AᵀWA)⁻¹) and half the difference between the estimates from
+//! two independent halves of the pixels; over iterations, see [`History`].
 //!
 //! [`update`] does this after a global iteration: it renders a sample of the seen groups' usable
-//! pixels with the current scene and with each unseen group's ρd moved (common random numbers,
-//! so the slope is nearly noise-free), solves, and sets ρd ← clamp(ρ⁰ + δ, 0, 1). Where the
+//! pixels with the current scene, with each seen group's reflectance scaled and with each unseen
+//! group's ρd moved (common random numbers, so the slopes are nearly noise-free), solves, and sets ρd ← clamp(ρ⁰ + δ, 0, 1). Where the
 //! estimate is not determined (σ above [`UnseenOptions::max_sigma`] in a channel), the group
 //! gets a stated scene-derived default instead: the seen groups' area-weighted mean albedo
 //! (ρd + ρs). [`UnseenEstimate`] says which rule gave the value, how well it is determined and
@@ -247,37 +248,39 @@ pub fn unseen_groups(states: &[GroupState]) -> Vec<usize> {
         .collect()
 }
 
-/// The estimates of the global iterations so far, per unseen group and channel: each
-/// iteration's is noisy (its own samples), so the value used is their running mean since the
-/// last time a new estimate fell more than 3σ away from it (the scene had moved).
+/// The determined estimates of the last [`History::WINDOW`] global iterations, per unseen
+/// group. Each iteration's is noisy (its own samples) and the seen groups move between
+/// iterations, so the value used is their mean, and its 1σ the larger of their scatter and the
+/// mean single-iteration σ: not divided by √n, because the estimates share the photo and the
+/// seen groups' fits, so they are not independent (on room-unseen they scatter by 0.01–0.05
+/// where one iteration's σ says 0.01).
 #[derive(Clone, Debug, Default)]
 pub struct History {
-    /// Per unseen group: (sum of estimates, sum of σ², count).
-    runs: Vec<(Rgb, Rgb, u32)>,
+    /// Per unseen group: (estimate, σ) of recent iterations, oldest first.
+    runs: Vec<Vec<(Rgb, Rgb)>>,
 }
 
 impl History {
+    pub const WINDOW: usize = 8;
+
     fn add(&mut self, j: usize, rho: Rgb, sigma: Rgb) -> (Rgb, Rgb) {
         if self.runs.len() <= j {
-            self.runs.resize(j + 1, (Rgb::ZERO, Rgb::ZERO, 0));
+            self.runs.resize(j + 1, Vec::new());
         }
         let r = &mut self.runs[j];
-        if r.2 > 0 {
-            let n = r.2 as f32;
-            let (m, s) = (r.0 / n, (r.1 / n).powf(0.5) / n.sqrt());
-            let far = (rho - m)
-                .abs()
-                .cmpgt(3.0 * (sigma * sigma + s * s).powf(0.5));
-            if far.any() {
-                *r = (Rgb::ZERO, Rgb::ZERO, 0);
-            }
+        r.push((rho, sigma));
+        if r.len() > Self::WINDOW {
+            r.remove(0);
         }
-        r.0 += rho;
-        r.1 += sigma * sigma;
-        r.2 += 1;
-        let n = r.2 as f32;
-        // The mean of n estimates of (about) equal σ has σ/√n.
-        (r.0 / n, (r.1 / n).powf(0.5) / n.sqrt())
+        let n = r.len() as f32;
+        let mean = r.iter().map(|e| e.0).sum::<Rgb>() / n;
+        let single = r.iter().map(|e| e.1).sum::<Rgb>() / n;
+        let scatter = if r.len() > 1 {
+            (r.iter().map(|e| (e.0 - mean) * (e.0 - mean)).sum::<Rgb>() / (n - 1.0)).powf(0.5)
+        } else {
+            Rgb::ZERO
+        };
+        (mean, scatter.max(single))
     }
 }
 
@@ -474,9 +477,9 @@ mod tests {
         let scale = [0.97f32, 1.03, 1.0];
         let mut rows = Vec::new();
         for p in 0..3000u64 {
-            let g = (mix64(p as u64) % 3) as usize;
+            let g = (mix64(p) % 3) as usize;
             let x = p as f32 / 3000.0;
-            let slope = vec![
+            let slope = [
                 slope_gain * 0.1 * (1.0 + x),
                 slope_gain * 0.05 * (2.0 - x * x),
             ];
