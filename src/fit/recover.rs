@@ -118,6 +118,10 @@ pub struct Checkpoint {
     /// The log's `elapsed` when the checkpoint was taken.
     #[serde(default)]
     pub elapsed: f64,
+    /// The unseen groups' recent estimates (`unseen::History`), so a resumed run averages the
+    /// same ones.
+    #[serde(default)]
+    pub unseen_history: super::unseen::History,
 }
 
 pub const CHECKPOINT_VERSION: u32 = 2;
@@ -270,6 +274,7 @@ pub fn recover_resumable(
     let mut start = 0;
     // Time before this call: that of the interrupted run, when resuming.
     let mut elapsed_before = 0.0;
+    let mut unseen_history = super::unseen::History::default();
     if let Some(c) = resume {
         elapsed_before = c.elapsed;
         // A checkpoint is the run's own, but it was read from disk: refuse, rather than carry
@@ -286,6 +291,7 @@ pub fn recover_resumable(
             ));
         }
         states = c.states.clone();
+        unseen_history = c.unseen_history.clone();
         settled = c.settled;
         cache_builds = c.cache_builds;
         evals = c.objective_evals;
@@ -313,7 +319,6 @@ pub fn recover_resumable(
     pb.inc(start as u64);
     let mut finished = resume.is_some_and(|c| c.next_iteration >= opts.max_iterations);
     let mut unseen = Vec::new();
-    let mut unseen_history = super::unseen::History::default();
     for it in start..opts.max_iterations {
         if finished {
             break;
@@ -463,6 +468,7 @@ pub fn recover_resumable(
             objective_evals: evals,
             log_bytes: 0,
             elapsed: elapsed_before + t0.elapsed().as_secs_f64(),
+            unseen_history: unseen_history.clone(),
         });
     }
     pb.finish_and_clear();
