@@ -13,7 +13,7 @@ use matfit::scene::load::parse_scene;
 use matfit::scene::{Material, Scene};
 
 /// The bundled scene at `path` with its film scaled by `scale` (same field of view).
-fn scaled(path: &str, scale: f32) -> Scene {
+pub(crate) fn scaled(path: &str, scale: f32) -> Scene {
     let p = root().join(path);
     let text = std::fs::read_to_string(&p).unwrap();
     let sc = parse_scene(&text, &p).unwrap();
@@ -71,7 +71,7 @@ fn run_with(
     (rec, log)
 }
 
-fn truth(scene: &Scene, group: &str) -> Material {
+pub(crate) fn truth(scene: &Scene, group: &str) -> Material {
     let g = scene.group_index(group).unwrap();
     scene.objects[scene.groups[g].objects[0]].material.clone()
 }

@@ -12,3 +12,4 @@ mod recover;
 mod render_physics;
 mod resume;
 mod scene_errors;
+mod unseen;

@@ -268,6 +268,11 @@ pub struct FitArgs {
     /// Samples per pixel of the final render (at least 2: its two halves give the noise floor).
     #[arg(long, value_name = "N", default_value_t = 64, value_parser = clap::value_parser!(u32).range(2..))]
     final_spp: u32,
+    /// Estimate the diffuse reflectance of groups no usable pixel shows (a ceiling out of view)
+    /// from the light they reflect onto the seen groups, instead of the default white.
+    /// Experimental: off by default (on figure6, whose hidden ceiling is white, it comes out low).
+    #[arg(long)]
+    estimate_unseen: bool,
 }
 
 impl FitArgs {
@@ -278,6 +283,10 @@ impl FitArgs {
             max_iterations: self.max_iterations.max(1),
             final_spp: self.final_spp.max(2),
             first_pixels: self.first_pixels,
+            unseen: matfit::fit::unseen::UnseenOptions {
+                enabled: self.estimate_unseen,
+                ..d.unseen.clone()
+            },
             cache: matfit::fit::cache::CacheOptions {
                 light_samples: self.light_samples.max(2),
                 indirect_samples: self.indirect_samples.max(2),

@@ -24,6 +24,10 @@ pub struct Checkpoint {
     /// The log's `elapsed` when the checkpoint was taken.
     #[serde(default)]
     pub elapsed: f64,
+    /// The unseen groups' recent estimates (`unseen::History`), so a resumed run averages the
+    /// same ones.
+    #[serde(default)]
+    pub unseen_history: super::unseen::History,
 }
 
 pub const CHECKPOINT_VERSION: u32 = 2;

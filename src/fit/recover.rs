@@ -66,8 +66,13 @@ pub struct RecoverOptions {
     pub settle: f32,
     /// Do not stop before every confirmed group has averaged this many independent fits.
     pub min_average: u32,
-    /// Diffuse reflectance given to groups with no usable pixels (the notes: white).
+    /// Diffuse reflectance given to groups with no usable pixels when `unseen.enabled` is false
+    /// (the notes: white).
     pub default_rho_d: f32,
+    /// Groups with no usable pixels: their ρd estimated from the light they reflect
+    /// ([`super::unseen`]).
+    #[serde(default)]
+    pub unseen: super::unseen::UnseenOptions,
     /// Cached pixels per group in the first global iteration; the number doubles every
     /// iteration up to `cache.max_pixels`. The first iterations fit against a scene still far
     /// from its fixed point (every group starts grey), so precision there is wasted time; the
@@ -90,6 +95,7 @@ impl Default for RecoverOptions {
             settle: 0.03,
             min_average: 4,
             default_rho_d: 1.0,
+            unseen: Default::default(),
             first_pixels: 1500,
             final_spp: 64,
             seed: 0,
@@ -128,6 +134,8 @@ pub struct LogLine {
 pub struct Recovery {
     pub groups: Vec<GroupState>,
     pub pixel_stats: Vec<GroupPixelStats>,
+    /// The unseen groups' estimates after the last global iteration (empty without such groups).
+    pub unseen: Vec<super::unseen::UnseenEstimate>,
     /// The scene with the recovered materials.
     pub scene: Scene,
     pub synthetic: Image,

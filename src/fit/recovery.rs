@@ -52,6 +52,9 @@ pub struct RecoveryLoop<'a> {
     elapsed_before: f64,
     cap: usize,
     pixel_lists: PixelLists,
+    /// The unseen groups' recent estimates and the last ones (`unseen::update`).
+    unseen_history: super::unseen::History,
+    unseen: Vec<super::unseen::UnseenEstimate>,
 }
 
 impl<'a> RecoveryLoop<'a> {
@@ -88,6 +91,7 @@ impl<'a> RecoveryLoop<'a> {
         r.evals = c.objective_evals;
         r.iterations = c.next_iteration;
         r.converged = c.next_iteration >= opts.max_iterations;
+        r.unseen_history = c.unseen_history.clone();
         Ok(r)
     }
 
@@ -119,6 +123,8 @@ impl<'a> RecoveryLoop<'a> {
             elapsed_before: 0.0,
             cap,
             pixel_lists: Vec::new(),
+            unseen_history: Default::default(),
+            unseen: Vec::new(),
         };
         r.pixel_lists = r.choose_all(cap);
         r
@@ -226,6 +232,17 @@ impl<'a> RecoveryLoop<'a> {
             // Gauss–Seidel: the next groups' caches see this group's new parameters.
             apply(&mut self.current, &self.states);
         }
+        // Unseen groups' ρd re-estimated against the refitted seen groups (issue 26).
+        let (estimates, unseen_moved) = super::unseen::update(
+            &mut self.current,
+            &mut self.states,
+            self.photo,
+            &self.mask,
+            &opts.unseen,
+            &mut self.unseen_history,
+            hash_seed(&[opts.seed, it as u64, u64::MAX]),
+        );
+        self.unseen = estimates;
         let moves: Vec<Option<f32>> = self
             .states
             .iter()
@@ -235,7 +252,7 @@ impl<'a> RecoveryLoop<'a> {
                     .then(|| largest_move([(s.level, &s.params, b)]))
             })
             .collect();
-        let moved = moves.iter().flatten().fold(0.0f32, |a, &b| a.max(b));
+        let moved = moves.iter().flatten().fold(unseen_moved, |a, &b| a.max(b));
         let mut motions = Vec::new();
         for (g, m) in moves.iter().enumerate() {
             let Some(m) = *m else { continue };
@@ -316,6 +333,7 @@ impl<'a> RecoveryLoop<'a> {
             objective_evals: self.evals,
             log_bytes: 0,
             elapsed: self.elapsed(),
+            unseen_history: self.unseen_history.clone(),
         }
     }
 
@@ -350,6 +368,7 @@ impl<'a> RecoveryLoop<'a> {
         Recovery {
             groups: self.states,
             pixel_stats: self.mask.stats.clone(),
+            unseen: self.unseen,
             scene: self.current,
             synthetic,
             final_error,
@@ -385,6 +404,14 @@ fn initial_states(scene: &Scene, mask: &UsableMask, opts: &RecoverOptions) -> Ve
                     Status::Fixed,
                     GroupParams::from_material(&objs[0].material),
                 )
+            } else if mask.stats[g].usable == 0 && opts.unseen.enabled {
+                // Grey until the first estimate, after global iteration 0 (unseen.rs).
+                let mut s = GroupState::new(&grp.name, Status::Default, GroupParams::default());
+                s.note = Some(format!(
+                    "no usable pixels ({} visible): ρd estimated from the light it reflects",
+                    mask.stats[g].visible
+                ));
+                s
             } else if mask.stats[g].usable == 0 {
                 let mut s = GroupState::new(
                     &grp.name,

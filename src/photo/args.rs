@@ -5,7 +5,7 @@
 use crate::math::Rgb;
 use crate::photo::exposure::{self, ExposureCalibration, ExposureSource};
 use crate::photo::register::{estimate_shift, Registration};
-use crate::photo::{load_photo, mask, Photo, PhotoOptions, Response, UsableMask};
+use crate::photo::{coverage, load_photo, mask, Photo, PhotoOptions, Response, UsableMask};
 use crate::render::aov::{index_buffers, IndexBuffers};
 use crate::scene::{Camera, Scene};
 use std::path::Path;
@@ -156,8 +156,10 @@ pub fn prepare(scene: &Scene, path: &Path, args: &PhotoArgs) -> Result<PreparedP
     } else {
         scene
     };
-    let mask = mask::usable_pixels(
+    let pure = coverage::pure_pixels(scene, &camera, &index);
+    let mask = mask::usable_pixels_covered(
         &index,
+        Some(&pure),
         &photo,
         scene.groups.len(),
         &args.mask_options(scene),

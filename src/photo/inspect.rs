@@ -150,8 +150,17 @@ pub fn inspect(
     );
     let _ = writeln!(
         r,
-        "{:<16} {:>8} {:>8} {:>8}   {:>7} {:>7} {:>7} {:>7}   {:>12}",
-        "group", "visible", "usable", "rejected", "band", "edge", "invalid", "outlier", "median L"
+        "{:<16} {:>8} {:>8} {:>8}   {:>7} {:>7} {:>7} {:>7}   {:>12}  {:>5}",
+        "group",
+        "visible",
+        "usable",
+        "rejected",
+        "band",
+        "edge",
+        "invalid",
+        "outlier",
+        "median L",
+        "width"
     );
     for (g, st) in p.mask.stats.iter().enumerate() {
         let mut l: Vec<f32> = p
@@ -168,7 +177,7 @@ pub fn inspect(
             .unwrap_or_else(|| "-".into());
         let _ = writeln!(
             r,
-            "{:<16} {:>8} {:>8} {:>8}   {:>7} {:>7} {:>7} {:>7}   {:>12}{}",
+            "{:<16} {:>8} {:>8} {:>8}   {:>7} {:>7} {:>7} {:>7}   {:>12}  {:>5}{}",
             scene.groups[g].name,
             st.visible,
             st.usable,
@@ -178,6 +187,7 @@ pub fn inspect(
             st.invalid,
             st.outlier,
             med,
+            format!("{}{}", st.band_width, if st.edge_test { "" } else { "*" }),
             if st.visible > 0 && st.usable == 0 {
                 "  (no usable pixel!)"
             } else {
@@ -185,6 +195,14 @@ pub fn inspect(
             }
         );
     }
+    let _ = writeln!(
+        r,
+        "band: removed around id boundaries or not covered by one object at sub-pixel level; \
+         width: the band each group used (narrowed until it keeps min({}, {:.0}% of visible)), \
+         * = edge test dropped to keep them",
+        args.mask_options(scene).min_usable,
+        100.0 * args.mask_options(scene).min_usable_fraction
+    );
     let _ = writeln!(
         r,
         "wrote {} (outlines.png, usable.png, edges.png)",

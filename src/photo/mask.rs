@@ -9,6 +9,9 @@
 //! 4. optionally, for planar groups, pixels far from a plane fitted to their log-intensity (the
 //!    planar approximation, [`robust::planar_inliers`]): an unmodelled object on a wall or floor.
 //!
+//! The band's width adapts to each group (thin frames and small objects keep their interior) and
+//! sub-pixel coverage replaces it where it narrows to nothing: see [`usable_pixels_covered`].
+//!
 //! Step 4 is off unless `planar_groups` names groups: a plane over the intensities of a glossy
 //! floor would throw its highlight away as an "outlier", so use it for surfaces known diffuse,
 //! or prefer the ratio form in [`estimate`](super::estimate) which compares the photo with a
@@ -31,6 +34,18 @@ pub struct MaskOptions {
     pub planar_groups: Vec<bool>,
     /// Outlier threshold of the planar test, in robust σ.
     pub planar_k: f32,
+    /// The band narrows for a group until it keeps min(`min_usable`, `min_usable_fraction` ×
+    /// visible) pixels ([`usable_pixels_covered`]).
+    pub min_usable: usize,
+    pub min_usable_fraction: f32,
+}
+
+impl MaskOptions {
+    /// The number of usable pixels the band narrows for, for a group of `visible` pixels.
+    pub fn min_keep(&self, visible: usize) -> usize {
+        let frac = (self.min_usable_fraction.clamp(0.0, 1.0) as f64 * visible as f64).ceil();
+        self.min_usable.min(frac as usize)
+    }
 }
 
 impl Default for MaskOptions {
@@ -41,6 +56,8 @@ impl Default for MaskOptions {
             edge_reach: 6,
             planar_groups: Vec::new(),
             planar_k: 4.0,
+            min_usable: 100,
+            min_usable_fraction: 0.5,
         }
     }
 }
@@ -72,6 +89,37 @@ pub struct GroupPixelStats {
     pub edge: usize,
     /// Rejected by the planar approximation.
     pub outlier: usize,
+    /// The band width this group's mask used (narrower than asked for thin or small groups).
+    pub band_width: usize,
+    /// Whether the edge test was applied to this group (dropped as a last resort).
+    pub edge_test: bool,
+}
+
+impl GroupPixelStats {
+    /// Why the group lost the pixels it lost, in words (empty when it lost none).
+    pub fn why(&self) -> String {
+        let mut parts = Vec::new();
+        for (n, what) in [
+            (self.band, "band/mixed"),
+            (self.edge, "edge"),
+            (self.invalid, "invalid/saturated"),
+            (self.outlier, "outlier"),
+        ] {
+            if n > 0 {
+                parts.push(format!("{n} {what}"));
+            }
+        }
+        let mut s = parts.join(", ");
+        if self.visible > 0 {
+            s.push_str(&format!(
+                "{}band {} px{}",
+                if s.is_empty() { "" } else { "; " },
+                self.band_width,
+                if self.edge_test { "" } else { ", no edge test" }
+            ));
+        }
+        s
+    }
 }
 
 #[derive(Clone, Debug)]
@@ -195,15 +243,71 @@ pub fn planar_groups(scene: &Scene) -> Vec<bool> {
     out
 }
 
-/// Computes the usable pixels of every group.
+/// Computes the usable pixels of every group from the index buffer alone (no sub-pixel
+/// coverage: the narrowest band is then 1 pixel). See [`usable_pixels_covered`].
 pub fn usable_pixels(
     ib: &IndexBuffers,
     photo: &Photo,
     groups: usize,
     opts: &MaskOptions,
 ) -> UsableMask {
+    usable_pixels_covered(ib, None, photo, groups, opts)
+}
+
+/// Radius of the largest window (up to `cap`) around each pixel in which every pixel sees the
+/// pixel's own object; pixels off the image do not count.
+fn clean_radius(ib: &IndexBuffers, cap: usize) -> Vec<u8> {
     let (w, h) = (ib.width, ib.height);
-    let b = opts.band as i64;
+    let mut out = vec![0u8; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let id = ib.object[y * w + x];
+            let mut r = 0;
+            'grow: while r < cap {
+                let n = r as i64 + 1;
+                // Only the ring at distance n is new.
+                for dy in -n..=n {
+                    for dx in -n..=n {
+                        if dx.abs() != n && dy.abs() != n {
+                            continue;
+                        }
+                        let (xx, yy) = (x as i64 + dx, y as i64 + dy);
+                        if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
+                            continue;
+                        }
+                        if ib.object[yy as usize * w + xx as usize] != id {
+                            break 'grow;
+                        }
+                    }
+                }
+                r += 1;
+            }
+            out[y * w + x] = r as u8;
+        }
+    }
+    out
+}
+
+/// Computes the usable pixels of every group.
+///
+/// The band adapts to each group: it starts at `opts.band` with the edge test on, and narrows
+/// one pixel at a time (down to 0 = sub-pixel purity alone when `pure` is given, else 1) until
+/// the group keeps [`MaskOptions::min_keep`] of its visible pixels; if no band width does, the
+/// edge test is dropped for that group and the band narrows again. A group that reaches the
+/// minimum at none of these steps gets the step that keeps most. So a large group's mask is the
+/// fixed band's, and a thin frame keeps its interior. `pure` ([`coverage::pure_pixels`],
+/// one flag per pixel) is always required when given: a pixel part of which sees another
+/// object is never usable.
+///
+/// [`coverage::pure_pixels`]: super::coverage::pure_pixels
+pub fn usable_pixels_covered(
+    ib: &IndexBuffers,
+    pure: Option<&[bool]>,
+    photo: &Photo,
+    groups: usize,
+    opts: &MaskOptions,
+) -> UsableMask {
+    let (w, h) = (ib.width, ib.height);
     let mut group = vec![-1i32; w * h];
     let mut reason = vec![Reject::Background; w * h];
     let mut stats = vec![GroupPixelStats::default(); groups];
@@ -228,44 +332,68 @@ pub fn usable_pixels(
             }
         }
     }
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            let id = ib.object[i];
-            let g = ib.group[i];
-            if g < 0 {
-                continue;
-            }
-            stats[g as usize].visible += 1;
-            // Every pixel within the band must see the same object.
-            let mut clean = true;
-            'band: for dy in -b..=b {
-                for dx in -b..=b {
-                    let (xx, yy) = (x as i64 + dx, y as i64 + dy);
-                    if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
-                        continue;
-                    }
-                    if ib.object[yy as usize * w + xx as usize] != id {
-                        clean = false;
-                        break 'band;
-                    }
-                }
-            }
-            let s = &mut stats[g as usize];
-            reason[i] = if !photo.valid[i] {
-                s.invalid += 1;
-                Reject::Invalid
-            } else if !clean {
-                s.band += 1;
-                Reject::Band
-            } else if edge_near[i] {
-                s.edge += 1;
-                Reject::Edge
-            } else {
-                group[i] = g;
-                Reject::None
-            };
+    let radius = clean_radius(ib, opts.band.min(u8::MAX as usize));
+    let is_pure = |i: usize| pure.is_none_or(|p| p[i]);
+    let narrowest = if pure.is_some() { 0 } else { opts.band.min(1) };
+    // The ladder of (band, edge test) steps, from the strictest.
+    let steps: Vec<(usize, bool)> = [true, false]
+        .iter()
+        .flat_map(|&e| (narrowest..=opts.band).rev().map(move |b| (b, e)))
+        .collect();
+    // Usable count of every group at every step.
+    let mut counts = vec![vec![0usize; steps.len()]; groups];
+    for i in 0..w * h {
+        let g = ib.group[i];
+        if g < 0 || g as usize >= groups {
+            continue;
         }
+        stats[g as usize].visible += 1;
+        if !photo.valid[i] || !is_pure(i) {
+            continue;
+        }
+        for (k, &(b, e)) in steps.iter().enumerate() {
+            if radius[i] as usize >= b && !(e && edge_near[i]) {
+                counts[g as usize][k] += 1;
+            }
+        }
+    }
+    let chosen: Vec<(usize, bool)> = (0..groups)
+        .map(|g| {
+            let target = opts.min_keep(stats[g].visible);
+            let c = &counts[g];
+            let k = (0..steps.len())
+                .find(|&k| c[k] >= target)
+                .unwrap_or_else(|| {
+                    // The first of the steps that keep most.
+                    let best = c.iter().copied().max().unwrap_or(0);
+                    c.iter().position(|&n| n == best).unwrap_or(0)
+                });
+            steps[k]
+        })
+        .collect();
+    for (g, s) in stats.iter_mut().enumerate() {
+        (s.band_width, s.edge_test) = chosen[g];
+    }
+    for i in 0..w * h {
+        let g = ib.group[i];
+        if g < 0 || g as usize >= groups {
+            continue;
+        }
+        let (b, e) = chosen[g as usize];
+        let s = &mut stats[g as usize];
+        reason[i] = if !photo.valid[i] {
+            s.invalid += 1;
+            Reject::Invalid
+        } else if (radius[i] as usize) < b || !is_pure(i) {
+            s.band += 1;
+            Reject::Band
+        } else if e && edge_near[i] {
+            s.edge += 1;
+            Reject::Edge
+        } else {
+            group[i] = g;
+            Reject::None
+        };
     }
     // The planar approximation, on ln-luminance, for the groups asked for.
     for (g, _) in opts.planar_groups.iter().enumerate().filter(|(_, &p)| p) {

@@ -5,6 +5,7 @@
 //! exposure and robust pixel selection lives here.
 
 pub mod args;
+pub mod coverage;
 pub mod edges;
 pub mod estimate;
 pub mod exposure;
@@ -15,7 +16,7 @@ pub mod response;
 pub mod robust;
 
 pub use args::{prepare, PhotoArgs, PreparedPhoto};
-pub use mask::{usable_pixels, GroupPixelStats, MaskOptions, UsableMask};
+pub use mask::{usable_pixels, usable_pixels_covered, GroupPixelStats, MaskOptions, UsableMask};
 pub use response::{Response, ResponseTable};
 
 use crate::io::image::{decode_raw_checked, Image, RawImage};

@@ -32,9 +32,17 @@ pub struct GroupResult {
     pub visible_pixels: usize,
     pub usable_pixels: usize,
     pub rejected_pixels: usize,
+    /// How many pixels the group kept and why it lost the rest, in words.
+    pub pixels_lost: String,
+    /// The band width its mask used and whether the edge test applied.
+    pub band_width: usize,
+    pub edge_test: bool,
     pub params: BTreeMap<&'static str, Value>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub note: Option<String>,
+    /// For a group with no usable pixels: which rule gave its ρd, its 1σ and the remedy.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unseen: Option<crate::fit::unseen::UnseenEstimate>,
 }
 
 #[derive(Serialize)]
@@ -101,8 +109,12 @@ pub fn results(rec: &Recovery) -> Results {
                 visible_pixels: st.visible,
                 usable_pixels: st.usable,
                 rejected_pixels: st.rejected,
+                pixels_lost: st.why(),
+                band_width: st.band_width,
+                edge_test: st.edge_test,
                 params: params.named(level).into_iter().collect(),
                 note: s.note.clone(),
+                unseen: rec.unseen.iter().find(|u| u.group == g).cloned(),
             }
         })
         .collect();
