@@ -4,25 +4,11 @@
 //! Each gets a clear message and a non-zero exit (or, for the group without pixels, a warning
 //! and a stated default), quickly: before the long work, never a panic.
 
-use crate::common::{run, write, SMALL_SCENE};
+use crate::common::{run, write, QUICK, SMALL_SCENE};
 use matfit::io::image::Image;
 use matfit::math::Rgb;
 use std::path::Path;
 use std::time::Instant;
-
-/// Fit options that make `recover` on the small scene take a second or two.
-const QUICK: [&str; 10] = [
-    "--max-iterations",
-    "2",
-    "--light-samples",
-    "4",
-    "--indirect-samples",
-    "4",
-    "--final-spp",
-    "2",
-    "--max-pixels",
-    "400",
-];
 
 /// The small scene and its photo (a 16-spp rendering) in `dir`, and a regular file `blocker`.
 fn setup(dir: &Path) {

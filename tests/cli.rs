@@ -1,23 +1,9 @@
 //! Issue 27: what a new user meets first. Each behaviour through the binary, checking the
 //! message and the exit status.
 
-use crate::common::{matfit, root, run, write, SMALL_SCENE};
+use crate::common::{matfit, root, run, write, QUICK, SMALL_SCENE};
 use std::path::Path;
 use std::process::Stdio;
-
-/// Fit options that make `recover` on the small scene take a second or two.
-const QUICK: [&str; 10] = [
-    "--max-iterations",
-    "2",
-    "--light-samples",
-    "4",
-    "--indirect-samples",
-    "4",
-    "--final-spp",
-    "2",
-    "--max-pixels",
-    "400",
-];
 
 fn render_photo(dir: &Path, name: &str) {
     let (code, _, err) = run(&["render", "scene.toml", "-o", name, "--spp", "16"], dir);

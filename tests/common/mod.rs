@@ -65,3 +65,17 @@ edge_u = [0.4, 0.0, 0.0]
 edge_v = [0.0, 0.0, 0.4]
 emission = 5.0
 "#;
+
+/// Fit options that make `recover` on the small scene take a second or two.
+pub const QUICK: [&str; 10] = [
+    "--max-iterations",
+    "2",
+    "--light-samples",
+    "4",
+    "--indirect-samples",
+    "4",
+    "--final-spp",
+    "2",
+    "--max-pixels",
+    "400",
+];
