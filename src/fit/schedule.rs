@@ -37,7 +37,7 @@ pub fn climb_priority(state: &GroupState, opts: &HierarchyOptions) -> Option<f32
 
 /// The group that may move to a higher level this iteration, if any: none until the scene has
 /// settled, then among those with a [`climb_priority`] the one that has waited longest since it
-/// found a better level (`GroupState::waiting`), then the highest priority (the first such on
+/// found a better level (`GroupState::waiting`), then the highest priority (the later group on
 /// ties). The waiting count makes turns rotate: one group that keeps finding better levels
 /// cannot hold the turn while another waits.
 pub fn climb_turn(states: &[GroupState], settled: bool, opts: &HierarchyOptions) -> Option<usize> {
