@@ -387,6 +387,13 @@ pub fn build(
     cache
 }
 
+/// D of the cache's model (Σ c / π) for the reference samples [`synthetic_cache`] hands to its
+/// photo function: a Lambert surface's radiance per unit ρd.
+#[cfg(test)]
+pub(crate) fn synthetic_diffuse(s: &[(Vec3, Vec3, Rgb)]) -> Rgb {
+    s.iter().fold(Rgb::ZERO, |a, x| a + x.2) * INV_PI
+}
+
 /// A cache built without a scene, for tests of the fit: `n` pixels of `per_half` samples in
 /// each half, each pixel seen from a random direction under a sky with a bright region (so
 /// that lobes matter), directions cosine-sampled with weight c = π L / N, `tiles` tiles. The

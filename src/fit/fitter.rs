@@ -370,7 +370,7 @@ pub fn fit_level(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fit::cache::{synthetic_cache, CachePixel};
+    use crate::fit::cache::{synthetic_cache, synthetic_diffuse as diffuse, CachePixel};
     use crate::math::{Vec3, PI};
 
     /// An anisotropic Trowbridge–Reitz (GGX) distribution term per unit ρs, D / (4 cos θi cos θo)
@@ -405,11 +405,6 @@ mod tests {
     /// parameters (`embed`) is the same model (same ε to rounding), and a climb's fit of the
     /// higher level (`fit_level_above`) is never worse than the lower level's, on a material
     /// neither is exact for.
-    /// D of the cache's model (Σ c / π) for the reference samples of a synthetic photo.
-    fn diffuse(s: &[(Vec3, Vec3, Rgb)]) -> Rgb {
-        s.iter().fold(Rgb::ZERO, |a, x| a + x.2) * crate::math::INV_PI
-    }
-
     #[test]
     fn a_climb_never_fits_worse_than_a_level_it_contains() {
         use Level::*;

@@ -541,7 +541,7 @@ impl GroupState {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fit::cache::{synthetic_cache, CachePixel};
+    use crate::fit::cache::{synthetic_cache, synthetic_diffuse as diffuse, CachePixel};
     use crate::math::{Rgb, Vec3};
 
     /// Ward lobe per unit ρs for the synthetic photos (the renderer's own lobe).
@@ -552,11 +552,6 @@ mod tests {
             variant: WardVariant::Ward1992,
         };
         lobe.eval(wo, wi)
-    }
-
-    /// D of the cache's model (Σ c / π) for the reference samples of a synthetic photo.
-    fn diffuse(s: &[(Vec3, Vec3, Rgb)]) -> Rgb {
-        s.iter().fold(Rgb::ZERO, |a, x| a + x.2) * crate::math::INV_PI
     }
 
     /// The held-out test (`predicts`): a Ward lobe on every tile of a group (a property of its

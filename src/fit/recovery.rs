@@ -146,6 +146,20 @@ impl<'a> RecoveryLoop<'a> {
         self.converged || self.next >= self.opts.max_iterations
     }
 
+    /// The log line of `event` for group `g` in global iteration `it`, with the group's
+    /// parameters as they are now.
+    fn line(&self, it: u32, g: usize, event: Event, seconds: f64) -> LogLine {
+        let st = &self.states[g];
+        LogLine {
+            iteration: it,
+            group: st.name.clone(),
+            params: st.params.named(st.level).into_iter().collect(),
+            event,
+            seconds,
+            elapsed: self.elapsed(),
+        }
+    }
+
     /// Seconds since the recovery started (across a resume, the interrupted run's included).
     fn elapsed(&self) -> f64 {
         self.elapsed_before + self.t0.elapsed().as_secs_f64()
@@ -212,15 +226,7 @@ impl<'a> RecoveryLoop<'a> {
                 if let Event::Fit { evals: n, .. } = e {
                     self.evals += n as u64;
                 }
-                let st = &self.states[g];
-                log(&LogLine {
-                    iteration: it,
-                    group: st.name.clone(),
-                    params: st.params.named(st.level).into_iter().collect(),
-                    event: e,
-                    seconds: secs,
-                    elapsed: self.elapsed(),
-                });
+                log(&self.line(it, g, e, secs));
             }
             if let Some(what) = self.states[g].non_finite() {
                 return Err(RecoverError::Diverged {
@@ -258,15 +264,7 @@ impl<'a> RecoveryLoop<'a> {
             let Some(m) = *m else { continue };
             let motion = self.states[g].record_move(m, opts.settle);
             if motion == Motion::Jittering {
-                let st = &self.states[g];
-                log(&LogLine {
-                    iteration: it,
-                    group: st.name.clone(),
-                    params: st.params.named(st.level).into_iter().collect(),
-                    event: Event::Jitter { moved: m },
-                    seconds: 0.0,
-                    elapsed: self.elapsed(),
-                });
+                log(&self.line(it, g, Event::Jitter { moved: m }, 0.0));
             }
             motions.push(motion);
         }
@@ -302,15 +300,7 @@ impl<'a> RecoveryLoop<'a> {
         let (opts, iterations) = (self.opts, self.iterations);
         for g in 0..self.states.len() {
             if let Some(event) = self.states[g].decide_at_end(&opts.hierarchy, iterations) {
-                let st = &self.states[g];
-                log(&LogLine {
-                    iteration: iterations.saturating_sub(1),
-                    group: st.name.clone(),
-                    params: st.params.named(st.level).into_iter().collect(),
-                    event,
-                    seconds: 0.0,
-                    elapsed: self.elapsed(),
-                });
+                log(&self.line(iterations.saturating_sub(1), g, event, 0.0));
             }
         }
     }
