@@ -50,8 +50,8 @@ pub struct UnseenOptions {
 
 impl Default for UnseenOptions {
     fn default() -> Self {
-        // Off by default: on figure6, whose hidden ceiling is white (ρd 1), the estimate came
-        // out low and the seen groups 3–25% too bright (see the commit message).
+        // Off by default: on figure6, whose hidden ceiling is white (ρd 1), the estimate comes
+        // out low and biases the seen groups (figures in commit 9b520b2's message).
         UnseenOptions {
             enabled: false,
             pixels: 4000,
