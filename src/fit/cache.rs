@@ -22,6 +22,7 @@ use crate::math::{Rgb, Sampler, Vec2, Vec3, INV_PI};
 use crate::render::incident::{indirect_radiance, IndirectRay};
 use crate::render::integrator::facing;
 use crate::render::PathTracer;
+use crate::scene::atlas::Atlas;
 use crate::scene::Scene;
 use rayon::prelude::*;
 
@@ -57,12 +58,14 @@ impl Default for CacheOptions {
 /// its hit (unrotated by θ), as the lobe's evaluation needs it, and its radiance weight.
 pub use crate::render::bsdf::ward::LobeSample as Sample;
 
-/// A cache sample on its way: its half, directions in the local frame, and its weight.
+/// A cache sample on its way: its half, directions in the local frame, its weight, and the
+/// texels its primary hit reads (when the cache records them).
 struct Entry {
     half: usize,
     wo: Vec3,
     wi: Vec3,
     weight: Weight,
+    taps: Option<[(u32, f32); 4]>,
 }
 
 /// A cache sample's weight: known (next-event estimation), or waiting for its indirect path.
@@ -106,6 +109,20 @@ pub struct GroupCache {
     pub tiles: usize,
     /// Jittered primary rays that left the group (counted, dropped).
     pub stray: usize,
+    /// Per pixel, how each texel of the group's atlas enters its D (when asked for).
+    pub texels: Option<TexelRows>,
+}
+
+/// The textured form of D: a pixel's diffuse radiance is Σ_t ρ_t w_t over the texels its
+/// samples' primary hits read (bilinear weight × c / π), so for a texture ρ the pixel is
+/// L = Σ_t ρ_t w_t + ρs S: linear in every texel, with no new rays (`fit/texture.rs`).
+#[derive(Clone, Debug, Default)]
+pub struct TexelRows {
+    /// Per cached pixel: its rows of half 0 are `rows[r[0]..r[1]]`, of half 1 `rows[r[1]..r[2]]`.
+    pub ranges: Vec<[u32; 3]>,
+    /// (texel, weight per channel), raw sums over the half's samples (D = both halves' sum;
+    /// a half alone estimates D as twice its sum, as `CachePixel::d_half`).
+    pub rows: Vec<(u32, Rgb)>,
 }
 
 impl GroupCache {
@@ -135,10 +152,12 @@ impl GroupCache {
 }
 
 /// Which parts a cache needs: D alone suffices for a group confirmed at level 1.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub struct CacheNeeds {
     pub lobe_samples: bool,
     pub mirror: bool,
+    /// The texel rows of D (a textured group, or one that may climb to the textured level).
+    pub texels: bool,
 }
 
 impl CacheNeeds {
@@ -203,14 +222,16 @@ pub fn build(
     n_tiles: usize,
     photo: &[Rgb],
     needs: CacheNeeds,
+    atlas: Option<&Atlas>,
     opts: &CacheOptions,
     seed: u64,
 ) -> GroupCache {
     let cam = &scene.camera;
+    let atlas = atlas.filter(|_| needs.texels);
     let w = cam.width as usize;
     let (nl, ni) = (opts.light_samples.max(1), opts.indirect_samples.max(1));
     let cw = needs.cosine_weight();
-    let per_pixel: Vec<(CachePixel, [Vec<Sample>; 2], usize)> = pixels
+    let per_pixel: Vec<BuiltPixel> = pixels
         .par_iter()
         .zip(tiles)
         .map(|(&p, &tile)| {
@@ -241,6 +262,7 @@ pub fn build(
                     continue;
                 }
                 let wo_world = -ray.d;
+                let taps = atlas.and_then(|a| a.taps(hit.object, hit.p, hit.ng));
                 let (frame, ng) = facing(hit.frame, hit.ng, wo_world);
                 let wo = frame.to_local(wo_world);
                 if k < hl {
@@ -265,6 +287,7 @@ pub fn build(
                         wo,
                         wi: frame.to_local(ls.wi),
                         weight: Weight::Known(ls.radiance * (wi.z * w_l / (ls.pdf * nl as f32))),
+                        taps,
                     });
                 } else {
                     let Some(wi) = super::mixture::sample(wo, &mut sampler, cw) else {
@@ -297,6 +320,7 @@ pub fn build(
                             emitted,
                             scale: wi.z / (pm * ni as f32),
                         },
+                        taps,
                     });
                     rays.push(IndirectRay {
                         ray: r,
@@ -306,6 +330,7 @@ pub fn build(
                 }
             }
             let traced = indirect_radiance(pt, rays);
+            let mut rows: [Vec<(u32, Rgb)>; 2] = [Vec::new(), Vec::new()];
             for e in entries {
                 let c = match e.weight {
                     Weight::Known(c) => c,
@@ -325,6 +350,13 @@ pub fn build(
                     continue;
                 }
                 d_half[e.half] += c * INV_PI;
+                if let Some(taps) = e.taps {
+                    for (t, w) in taps {
+                        if w > 0.0 {
+                            rows[e.half].push((t, c * (w * INV_PI)));
+                        }
+                    }
+                }
                 if needs.lobe_samples {
                     samples[e.half].push(Sample::new(e.wo, e.wi, c));
                 }
@@ -368,14 +400,22 @@ pub fn build(
                 end: 0,
                 tile,
             };
-            (px, samples, stray)
+            (px, samples, stray, rows.map(merge_rows))
         })
         .collect();
     let mut cache = GroupCache {
         tiles: n_tiles,
+        texels: atlas.map(|_| TexelRows::default()),
         ..Default::default()
     };
-    for (mut px, [s0, s1], stray) in per_pixel {
+    for (mut px, [s0, s1], stray, [r0, r1]) in per_pixel {
+        if let Some(t) = cache.texels.as_mut() {
+            let a = t.rows.len() as u32;
+            t.rows.extend(r0);
+            let b = t.rows.len() as u32;
+            t.rows.extend(r1);
+            t.ranges.push([a, b, t.rows.len() as u32]);
+        }
         px.start = cache.samples.len() as u32;
         cache.samples.extend(s0);
         px.mid = cache.samples.len() as u32;
@@ -385,6 +425,23 @@ pub fn build(
         cache.stray += stray;
     }
     cache
+}
+
+/// A cached pixel as built: the pixel, its samples and texel rows per half, and its stray rays.
+type BuiltPixel = (CachePixel, [Vec<Sample>; 2], usize, [Vec<(u32, Rgb)>; 2]);
+
+/// One half's texel rows with each texel once, in texel order (the sums are taken in a fixed
+/// order, so they are the same on any thread count).
+fn merge_rows(mut rows: Vec<(u32, Rgb)>) -> Vec<(u32, Rgb)> {
+    rows.sort_by_key(|r| r.0);
+    let mut out: Vec<(u32, Rgb)> = Vec::with_capacity(rows.len() / 2);
+    for (t, w) in rows {
+        match out.last_mut() {
+            Some(last) if last.0 == t => last.1 += w,
+            _ => out.push((t, w)),
+        }
+    }
+    out
 }
 
 /// D of the cache's model (Σ c / π) for the reference samples [`synthetic_cache`] hands to its

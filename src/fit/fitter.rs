@@ -135,7 +135,7 @@ fn finish(
 }
 
 /// The specular term a level's parameters stand for on the cache.
-fn spec_of(level: Level, p: &GroupParams) -> Spec {
+pub(crate) fn spec_of(level: Level, p: &GroupParams) -> Spec {
     if level.is_ward() {
         Spec::Lobe {
             alpha_x: p.alpha_x,

@@ -27,6 +27,8 @@ use super::cache::{CacheNeeds, GroupCache};
 use super::fitter::{assess, fit_level, fit_level_above, LevelFit};
 use super::level::{Level, Thresholds};
 use super::params::GroupParams;
+use super::texture::{fit_textured, TextureState};
+use crate::scene::atlas::Atlas;
 use crate::scene::WardVariant;
 use serde::{Deserialize, Serialize};
 
@@ -107,6 +109,9 @@ pub struct GroupState {
     /// ρ change or relative α change): whether it is still converging or only jittering.
     #[serde(default)]
     pub moves: Vec<f32>,
+    /// Level 7's texture (and the level of the lobe on top of it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub texture: Option<super::texture::TextureState>,
 }
 
 /// What happened to a group in one global iteration.
@@ -180,6 +185,7 @@ impl GroupState {
             waiting: 0,
             pending: None,
             moves: Vec::new(),
+            texture: None,
         }
     }
 
@@ -233,9 +239,12 @@ impl GroupState {
     }
 
     fn cache_needs_for(&self, level: Level, may_climb: bool) -> CacheNeeds {
+        let textured = level == Level::Textured;
+        let varnished = textured && self.texture.as_ref().is_some_and(|t| t.base.is_ward());
         CacheNeeds {
-            lobe_samples: may_climb || level.is_ward(),
+            lobe_samples: may_climb || level.is_ward() || varnished,
             mirror: may_climb || level.is_mirror(),
+            texels: may_climb || textured,
         }
     }
 
@@ -262,6 +271,48 @@ impl GroupState {
             self.params = self.params.clamped();
         }
         self.last_step = Some((self.params.rho_d - old.rho_d, self.params.rho_s - old.rho_s));
+    }
+
+    /// The fit of the current level on the cache (level 7: the lobe, then the texture warm-
+    /// started from the last one), and the new texture.
+    fn fit_current(
+        &self,
+        cache: &GroupCache,
+        atlas: Option<&Atlas>,
+        variant: WardVariant,
+    ) -> (LevelFit, Option<TextureState>) {
+        if self.level == Level::Textured {
+            if let (Some(a), Some(t)) = (atlas, &self.texture) {
+                let start = Some(t.texels.as_slice());
+                if let Some(r) = fit_textured(cache, a, t.base, &self.params, start, variant) {
+                    return (r.0, Some(r.1));
+                }
+            }
+        }
+        (fit_level(cache, self.level, &self.params, variant), None)
+    }
+
+    /// Takes a newly solved texture: once the group is confirmed, into the running mean of the
+    /// textures since (each global iteration's cache is an independent estimate, as for the
+    /// parameters' mean of `accumulate`), else as it is.
+    fn take_texture(&mut self, new: TextureState) {
+        let n = match (&self.average, self.status) {
+            (Some(a), Status::Confirmed) => a.1,
+            _ => 1,
+        };
+        match &mut self.texture {
+            Some(t) if n > 1 && t.texels.len() == new.texels.len() => {
+                let k = 1.0 / n as f32;
+                for (m, x) in t.texels.iter_mut().zip(&new.texels) {
+                    *m = *m * (1.0 - k) + *x * k;
+                }
+                for (s, x) in t.seen.iter_mut().zip(&new.seen) {
+                    *s |= *x;
+                }
+                t.base = new.base;
+            }
+            _ => self.texture = Some(new),
+        }
     }
 
     fn take(&mut self, f: &LevelFit) {
@@ -384,16 +435,19 @@ impl GroupState {
     /// whether it may also move to one (one group at a time, the worst first; see `schedule.rs`).
     /// A try that finds no better level confirms the group; one that finds a better level
     /// without leave to move changes nothing and is tried again later.
+    /// `atlas`: the group's texture atlas, for level 7 (None: the group cannot be textured).
+    #[allow(clippy::too_many_arguments)]
     pub fn step(
         &mut self,
         cache: &GroupCache,
+        atlas: Option<&Atlas>,
         variant: WardVariant,
         opts: &HierarchyOptions,
         may_climb: bool,
         may_move: bool,
     ) -> Vec<Event> {
         let mut events = Vec::new();
-        let fit = fit_level(cache, self.level, &self.params, variant);
+        let (fit, texture) = self.fit_current(cache, atlas, variant);
         events.push(Event::Fit {
             level: self.level,
             error: fit.error,
@@ -404,13 +458,21 @@ impl GroupState {
         self.take(&fit);
         if self.status == Status::Confirmed {
             self.accumulate(cache.pixels.len().max(1) as f32);
+        } else if texture.is_some() {
+            // A texture's mean ρd moves with its texels: nothing to damp.
         } else if self.iterations_at_level > 0 {
             self.damp(&old);
         } else {
             self.last_step = None;
         }
+        if let Some(new) = texture {
+            self.take_texture(new);
+        }
         self.iterations_at_level += 1;
-        if self.status == Status::Confirmed && self.level != Level::Diffuse {
+        if self.status == Status::Confirmed
+            && self.level != Level::Diffuse
+            && self.level != Level::Textured
+        {
             // Demotion check: does a simpler level (available in this cache) do as well?
             let needs = self.cache_needs_for(self.level, false);
             for lower in Level::FITTED.iter().copied().filter(|&l| l < self.level) {
@@ -468,7 +530,39 @@ impl GroupState {
         let mut best = fit.clone();
         let mut tried = vec![fit];
         let mut level = self.level;
+        let mut texture = None;
         while let Some(next) = level.next() {
+            if next == Level::Textured {
+                // Algorithm 1 of the notes: every uniform model failed its threshold. The
+                // texture keeps the specular part of the best level if a Ward lobe earned its
+                // place. A per-texel model cannot be judged on held-out tiles (their texels are
+                // not fitted); its gain must clear the margin and the noise like any other.
+                let base = if best.level.is_ward() {
+                    best.level
+                } else {
+                    Level::Diffuse
+                };
+                let Some((f, t)) = atlas.and_then(|a| {
+                    super::texture::fit_textured(cache, a, base, &best.params, None, variant)
+                }) else {
+                    break;
+                };
+                let (kept, gain_noise) = Self::earns(&best, &f, opts);
+                events.push(Event::Tried {
+                    level: next,
+                    error_before: best.error,
+                    error_after: f.error,
+                    noise_floor: f.noise_floor,
+                    gain_noise,
+                    held_out: None,
+                    kept,
+                });
+                if kept {
+                    best = f;
+                    texture = Some(t);
+                }
+                break;
+            }
             let last = tried.last().expect("the current level's fit");
             let start = GroupParams {
                 alpha_x: last.params.alpha_x,
@@ -515,6 +609,7 @@ impl GroupState {
             });
             self.level = best.level;
             self.take(&best);
+            self.texture = texture;
             self.iterations_at_level = 0;
             self.moves.clear();
             self.last_step = None;
@@ -604,7 +699,7 @@ mod tests {
         );
         let mut st = GroupState::new("sphere", Status::Analysing, GroupParams::default());
         st.iterations_at_level = 2;
-        let events = st.step(&c, v, &opts, true, true);
+        let events = st.step(&c, None, v, &opts, true, true);
         assert_eq!(st.level, Level::Isotropic, "{events:?}");
         assert!(events.iter().any(|e| matches!(
             e,

@@ -18,18 +18,20 @@ pub enum Level {
     Isotropic = 5,
     /// 6: Lambert + anisotropic Ward, ρd, ρs, αx, αy, θ.
     Anisotropic = 6,
-    /// 7: a per-texel diffuse map (radiosity texture, §5.2).
+    /// 7: a per-texel diffuse map (radiosity texture, §5.2), with the uniform Ward lobe of level
+    /// 5 or 6 on top where one earned its place (`fit/texture.rs`).
     Textured = 7,
 }
 
 impl Level {
-    pub const FITTED: [Level; 6] = [
+    pub const FITTED: [Level; 7] = [
         Level::Diffuse,
         Level::PerfectSpecular,
         Level::Specular,
         Level::DiffuseSpecular,
         Level::Isotropic,
         Level::Anisotropic,
+        Level::Textured,
     ];
 
     pub fn number(self) -> u8 {
@@ -77,6 +79,15 @@ pub struct Thresholds {
     pub diffuse_specular: f32,
     pub isotropic: f32,
     pub anisotropic: f32,
+    /// Level 7 confirms below this (a texture is a diffuse model: as level 1). A group reaches
+    /// level 7 only when the anisotropic level (or the best lower one) stays above its own
+    /// threshold: that is the texture threshold of Algorithm 1.
+    #[serde(default = "textured_threshold")]
+    pub textured: f32,
+}
+
+fn textured_threshold() -> f32 {
+    0.02
 }
 
 impl Default for Thresholds {
@@ -90,6 +101,7 @@ impl Default for Thresholds {
             diffuse_specular: 0.02,
             isotropic: 0.01,
             anisotropic: 0.01,
+            textured: textured_threshold(),
         }
     }
 }
@@ -102,7 +114,8 @@ impl Thresholds {
             Level::Specular => self.specular,
             Level::DiffuseSpecular => self.diffuse_specular,
             Level::Isotropic => self.isotropic,
-            Level::Anisotropic | Level::Textured => self.anisotropic,
+            Level::Anisotropic => self.anisotropic,
+            Level::Textured => self.textured,
         }
     }
 }

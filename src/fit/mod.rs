@@ -14,6 +14,7 @@ pub mod recover;
 pub mod recovery;
 pub mod schedule;
 pub mod solve;
+pub mod texture;
 pub mod unseen;
 
 pub use level::Level;

@@ -286,6 +286,14 @@ impl GroupParams {
     }
 
     /// The material a group at `level` with these parameters has.
+    /// Level 7's material: the texture, with the lobe of the texture's base level on top.
+    pub fn textured(&self, texture: std::sync::Arc<crate::scene::texture::Texture>) -> Material {
+        Material::Textured {
+            texture,
+            scale: Rgb::ONE,
+        }
+    }
+
     pub fn material(&self, level: Level) -> Material {
         match level {
             Level::Diffuse | Level::Textured => Material::Diffuse { rho_d: self.rho_d },

@@ -337,6 +337,7 @@ emission = 5.0
                 samples: vec![sample; 32],
                 tiles: 4,
                 stray: 0,
+                texels: None,
             };
             let mut any_bad = false;
             for level in Level::FITTED {
@@ -344,6 +345,7 @@ emission = 5.0
                 st.level = level;
                 st.step(
                     &cache,
+                    None,
                     WardVariant::Ward1992,
                     &HierarchyOptions::default(),
                     true,

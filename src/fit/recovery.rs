@@ -14,6 +14,7 @@ use super::cache::{build, choose_pixels, CacheOptions};
 use super::checkpoint::{Checkpoint, CHECKPOINT_VERSION};
 use super::error::{block_tile, block_tiles, tiled_error, PixelTerms};
 use super::hierarchy::{Event, GroupState, Motion, Status};
+use super::level::Level;
 use super::params::{largest_move, GroupParams};
 use super::recover::{pixel_budget, LogLine, RecoverError, RecoverOptions, Recovery};
 use super::schedule;
@@ -23,7 +24,10 @@ use crate::math::Rgb;
 use crate::photo::{Photo, UsableMask};
 use crate::render::film::{render, RenderOptions};
 use crate::render::PathTracer;
+use crate::scene::atlas::Atlas;
+use crate::scene::texture::{Mapping, Texture};
 use crate::scene::Scene;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// The cached pixels of every group at one pixel budget: (pixels, their tiles, tile count).
@@ -55,7 +59,15 @@ pub struct RecoveryLoop<'a> {
     /// The unseen groups' recent estimates and the last ones (`unseen::update`).
     unseen_history: super::unseen::History,
     unseen: Vec<super::unseen::UnseenEstimate>,
+    /// Per group, the atlas a texture of it would use (fitted groups only; `texture.rs`).
+    atlases: Vec<Option<Arc<Atlas>>>,
+    /// Per group at level 7, its current texture as the renderer reads it.
+    textures: Vec<Option<Arc<Texture>>>,
 }
+
+/// A textured group's cache draws this many times the samples per pixel: its texels are fitted
+/// from a few pixels each, not from the whole group, so their noise is that of single pixels.
+pub const TEXTURED_SAMPLES: u32 = 4;
 
 impl<'a> RecoveryLoop<'a> {
     /// A fresh recovery: every fitted group starts at level 1 with grey parameters.
@@ -103,8 +115,26 @@ impl<'a> RecoveryLoop<'a> {
         states: Vec<GroupState>,
         next: u32,
     ) -> RecoveryLoop<'a> {
+        let atlases: Vec<Option<Arc<Atlas>>> = (0..scene.groups.len())
+            .map(|g| {
+                if !states[g].is_fitted() {
+                    return None;
+                }
+                let texel = super::texture::footprint(scene, &mask.pixels_of(g))?;
+                let objects = &scene.groups[g].objects;
+                Some(Arc::new(Atlas::build(
+                    &scene.geometry,
+                    objects,
+                    scene.objects.len(),
+                    texel,
+                )))
+            })
+            .collect();
+        let textures: Vec<Option<Arc<Texture>>> = (0..states.len())
+            .map(|g| texture_of(scene, &states[g], atlases[g].as_ref()))
+            .collect();
         let mut current = scene.clone();
-        apply(&mut current, &states);
+        apply(&mut current, &states, &textures);
         let cap = pixel_budget(opts, next);
         let mut r = RecoveryLoop {
             scene,
@@ -125,6 +155,8 @@ impl<'a> RecoveryLoop<'a> {
             pixel_lists: Vec::new(),
             unseen_history: Default::default(),
             unseen: Vec::new(),
+            atlases,
+            textures,
         };
         r.pixel_lists = r.choose_all(cap);
         r
@@ -173,8 +205,28 @@ impl<'a> RecoveryLoop<'a> {
         };
         let w = self.scene.camera.width as usize;
         (0..self.scene.groups.len())
-            .map(|g| choose_pixels(&self.mask.pixels_of(g), w, &cache_opts))
+            .map(|g| self.choose(g, &cache_opts, w))
             .collect()
+    }
+
+    /// The cached pixels of group `g`: all usable ones at level 7 (every texel needs its
+    /// pixels), else a subsample within the budget.
+    fn choose(
+        &self,
+        g: usize,
+        cache_opts: &CacheOptions,
+        w: usize,
+    ) -> (Vec<usize>, Vec<u32>, usize) {
+        let all = CacheOptions {
+            max_pixels: usize::MAX,
+            ..cache_opts.clone()
+        };
+        let textured = self.states[g].level == Level::Textured;
+        choose_pixels(
+            &self.mask.pixels_of(g),
+            w,
+            if textured { &all } else { cache_opts },
+        )
     }
 
     /// One global iteration: every fitted group's cache rebuilt and refitted in turn, `log`
@@ -198,8 +250,26 @@ impl<'a> RecoveryLoop<'a> {
                 continue;
             }
             let tg = Instant::now();
+            let textured = self.states[g].level == Level::Textured;
+            if textured && self.pixel_lists[g].0.len() < self.mask.stats[g].usable {
+                let cache_opts = CacheOptions {
+                    max_pixels: self.cap,
+                    ..opts.cache.clone()
+                };
+                self.pixel_lists[g] = self.choose(g, &cache_opts, self.scene.camera.width as usize);
+            }
+            let cache_opts = if textured {
+                CacheOptions {
+                    light_samples: opts.cache.light_samples * TEXTURED_SAMPLES,
+                    indirect_samples: opts.cache.indirect_samples * TEXTURED_SAMPLES,
+                    ..opts.cache.clone()
+                }
+            } else {
+                opts.cache.clone()
+            };
             let (px, tiles, n_tiles) = &self.pixel_lists[g];
             let pt = PathTracer::new(&self.current);
+            let atlas = self.atlases[g].as_deref();
             let cache = build(
                 &self.current,
                 &pt,
@@ -209,13 +279,15 @@ impl<'a> RecoveryLoop<'a> {
                 *n_tiles,
                 &self.photo.image.data,
                 self.states[g].cache_needs(self.settled),
-                &opts.cache,
+                atlas,
+                &cache_opts,
                 hash_seed(&[opts.seed, it as u64, g as u64]),
             );
             self.cache_builds += 1;
             let st = &mut self.states[g];
             let events = st.step(
                 &cache,
+                atlas,
                 variant,
                 &opts.hierarchy,
                 self.settled,
@@ -236,7 +308,8 @@ impl<'a> RecoveryLoop<'a> {
                 });
             }
             // Gauss–Seidel: the next groups' caches see this group's new parameters.
-            apply(&mut self.current, &self.states);
+            self.textures[g] = texture_of(self.scene, &self.states[g], self.atlases[g].as_ref());
+            apply(&mut self.current, &self.states, &self.textures);
         }
         // Unseen groups' ρd re-estimated against the refitted seen groups (issue 26).
         let (estimates, unseen_moved) = super::unseen::update(
@@ -424,16 +497,48 @@ fn initial_states(scene: &Scene, mask: &UsableMask, opts: &RecoverOptions) -> Ve
         .collect()
 }
 
-/// Applies each group's current parameters to its objects.
-fn apply(scene: &mut Scene, states: &[GroupState]) {
+/// Applies each group's current parameters (and texture) to its objects.
+fn apply(scene: &mut Scene, states: &[GroupState], textures: &[Option<Arc<Texture>>]) {
     for obj in scene.objects.iter_mut() {
         let st = &states[obj.group];
         if matches!(
             st.status,
             Status::Analysing | Status::Confirmed | Status::Default
         ) {
-            obj.material = st.params.material(st.level);
+            obj.material = match &textures[obj.group] {
+                Some(t) if st.level == Level::Textured => st.params.textured(t.clone()),
+                _ => st.params.material(st.level),
+            };
         }
+    }
+}
+
+/// The texture the renderer reads for a group at level 7 (None at the other levels).
+fn texture_of(scene: &Scene, st: &GroupState, atlas: Option<&Arc<Atlas>>) -> Option<Arc<Texture>> {
+    let (t, atlas) = (st.texture.as_ref()?, atlas?);
+    if st.level != Level::Textured || t.texels.len() != atlas.width * atlas.height {
+        return None;
+    }
+    let g = scene.group_index(&st.name)?;
+    Some(Arc::new(Texture {
+        width: t.width,
+        height: t.height,
+        texels: t.texels.clone(),
+        path: std::path::PathBuf::from(format!("textures/{}.exr", texture_stem(g, &st.name))),
+        mapping: Mapping::Atlas(atlas.clone()),
+    }))
+}
+
+/// A file name for group `g`'s texture: its name where that is a safe file name, else its index.
+pub fn texture_stem(g: usize, name: &str) -> String {
+    let safe = !name.is_empty()
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+    if safe {
+        name.to_string()
+    } else {
+        format!("group{g}")
     }
 }
 

@@ -50,7 +50,7 @@ pub fn bsdf_at(material: &Material, hit: &SurfaceHit, variant: WardVariant) -> (
         ),
         Material::Textured { texture, scale } => (
             Bsdf::Diffuse {
-                rho_d: *scale * texture.lookup(hit.uv),
+                rho_d: *scale * texture.at(hit),
             },
             hit.frame,
         ),

@@ -43,6 +43,26 @@ pub struct GroupResult {
     /// For a group with no usable pixels: which rule gave its ρd, its 1σ and the remedy.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub unseen: Option<crate::fit::unseen::UnseenEstimate>,
+    /// For a textured group (level 7): its texture files and how much of it the photo saw.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub texture: Option<TextureResult>,
+}
+
+#[derive(Serialize)]
+pub struct TextureResult {
+    /// Linear reflectance (EXR) and its sRGB preview, relative to the output folder.
+    pub file: String,
+    pub preview: String,
+    pub width: usize,
+    pub height: usize,
+    /// World units per texel: one photo pixel at the group's median footprint.
+    pub texel_size: f32,
+    /// Texels inside the atlas's charts, and how many of them the photo saw; the others were
+    /// filled by pull–push from the seen texels of their chart.
+    pub texels: usize,
+    pub texels_seen: usize,
+    /// The uniform lobe on top of the texture: "none", or the Ward level it came from.
+    pub lobe: &'static str,
 }
 
 #[derive(Serialize)]
@@ -97,6 +117,12 @@ pub fn results(rec: &Recovery) -> Results {
                 (Status::Fixed, Some(m)) => (level_of(m), GroupParams::from_material(m)),
                 _ => (s.level, s.params),
             };
+            let texture = texture_result(g, s);
+            // A texture's parameters are its lobe's (ρd: the mean of its seen texels).
+            let named_at = match (&texture, &s.texture) {
+                (Some(_), Some(t)) => t.base,
+                _ => level,
+            };
             GroupResult {
                 name: s.name.clone(),
                 level: level.name(),
@@ -112,9 +138,10 @@ pub fn results(rec: &Recovery) -> Results {
                 pixels_lost: st.why(),
                 band_width: st.band_width,
                 edge_test: st.edge_test,
-                params: params.named(level).into_iter().collect(),
+                params: params.named(named_at).into_iter().collect(),
                 note: s.note.clone(),
                 unseen: rec.unseen.iter().find(|u| u.group == g).cloned(),
+                texture,
             }
         })
         .collect();
@@ -129,6 +156,61 @@ pub fn results(rec: &Recovery) -> Results {
         objective_evals: rec.objective_evals,
         ward_variant: rec.scene.render.ward_variant.name(),
     }
+}
+
+/// The texture outputs of group `g`, if it ended at level 7.
+fn texture_result(g: usize, s: &crate::fit::hierarchy::GroupState) -> Option<TextureResult> {
+    let t = s.texture.as_ref().filter(|_| s.level == Level::Textured)?;
+    let stem = crate::fit::recovery::texture_stem(g, &s.name);
+    Some(TextureResult {
+        file: format!("textures/{stem}.exr"),
+        preview: format!("textures/{stem}.png"),
+        width: t.width,
+        height: t.height,
+        texel_size: t.texel,
+        texels: t.charted,
+        texels_seen: t.seen_count(),
+        lobe: if t.base.is_ward() {
+            t.base.name()
+        } else {
+            "none"
+        },
+    })
+}
+
+/// The recovered scene with its level-7 textures written under `dir/textures/` and referenced
+/// by absolute paths (which `scene_to_toml` makes relative to `dir`).
+fn with_written_textures(rec: &Recovery, dir: &Path) -> Result<crate::scene::Scene, String> {
+    let mut scene = rec.scene.clone();
+    let mut written = std::collections::BTreeSet::new();
+    for obj in scene.objects.iter_mut() {
+        let Material::Textured { texture, .. } = &mut obj.material else {
+            continue;
+        };
+        if !matches!(texture.mapping, crate::scene::texture::Mapping::Atlas(_))
+            || texture.path.is_absolute()
+        {
+            continue;
+        }
+        let exr = dir.join(&texture.path);
+        if written.insert(exr.clone()) {
+            if let Some(parent) = exr.parent() {
+                std::fs::create_dir_all(parent)
+                    .map_err(|e| format!("cannot create {}: {e}", parent.display()))?;
+            }
+            let img = Image {
+                width: texture.width,
+                height: texture.height,
+                data: texture.texels.clone(),
+            };
+            img.write(&exr)?;
+            img.write(&exr.with_extension("png"))?;
+        }
+        let mut t = (**texture).clone();
+        t.path = std::path::absolute(&exr).unwrap_or(exr);
+        *texture = std::sync::Arc::new(t);
+    }
+    Ok(scene)
 }
 
 /// A false-colour ramp (black → blue → green → yellow → red → white) for t in [0, 1].
@@ -177,7 +259,8 @@ pub fn error_images(rec: &Recovery, photo: &Photo, scale: f32) -> (Image, Image)
 pub fn write_outputs(dir: &Path, rec: &Recovery, photo: &Photo) -> Result<(), String> {
     let io = |p: &Path, e: std::io::Error| format!("cannot write {}: {e}", p.display());
     let scene_path = dir.join("recovered.toml");
-    let text = crate::scene::write::scene_to_toml(&rec.scene, &scene_path);
+    let scene = with_written_textures(rec, dir)?;
+    let text = crate::scene::write::scene_to_toml(&scene, &scene_path);
     write_atomic(&scene_path, text.as_bytes()).map_err(|e| io(&scene_path, e))?;
     let res = results(rec);
     let json = serde_json::to_string_pretty(&res).expect("results serialise");

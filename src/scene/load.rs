@@ -303,6 +303,7 @@ fn build_scene(file: SceneFile, text: &str, path: &Path) -> Result<Scene, SceneE
     }
 
     let geometry = build_geometry(&mut objects, meshes);
+    map_atlas_textures(&mut objects, &groups, &geometry, &file, &cx)?;
     let scene = Scene {
         path: path.to_owned(),
         camera,
@@ -314,6 +315,71 @@ fn build_scene(file: SceneFile, text: &str, path: &Path) -> Result<Scene, SceneE
     };
     check_camera_sees_geometry(&scene, &cx)?;
     Ok(scene)
+}
+
+/// Gives every texture with `mapping = "atlas"` its group's atlas, which needs the geometry,
+/// and checks that the image has the atlas's size (a texture written for another model, or
+/// another texel size, would land on the wrong points).
+fn map_atlas_textures(
+    objects: &mut [Object],
+    groups: &[Group],
+    geometry: &Geometry,
+    file: &SceneFile,
+    cx: &Ctx,
+) -> Result<(), SceneError> {
+    use super::atlas::Atlas;
+    use super::texture::Mapping;
+    let mut built: HashMap<(usize, u32), Arc<Atlas>> = HashMap::new();
+    for (i, spec) in file.objects.iter().enumerate() {
+        let Some(m) = &spec.material else { continue };
+        let MaterialSpec::Textured {
+            mapping: Some(mapping),
+            texel_size: Some(texel),
+            ..
+        } = m.get_ref()
+        else {
+            continue;
+        };
+        if mapping != "atlas" {
+            continue;
+        }
+        let g = objects[i].group;
+        let atlas = built
+            .entry((g, texel.to_bits()))
+            .or_insert_with(|| {
+                Arc::new(Atlas::build(
+                    geometry,
+                    &groups[g].objects,
+                    objects.len(),
+                    *texel,
+                ))
+            })
+            .clone();
+        let Material::Textured { texture, .. } = &mut objects[i].material else {
+            continue;
+        };
+        if (texture.width, texture.height) != (atlas.width, atlas.height) || atlas.texel != *texel {
+            return Err(cx.at(
+                m.span().start,
+                format!(
+                    "object '{}': texture '{}' is {}×{} texels, but the atlas of group '{}' at \
+                     texel_size {} is {}×{}: the texture was made for another model or texel size",
+                    objects[i].name,
+                    texture.path.display(),
+                    texture.width,
+                    texture.height,
+                    groups[g].name,
+                    texel,
+                    atlas.width,
+                    atlas.height
+                ),
+            ));
+        }
+        let mut t = (**texture).clone();
+        t.mapping = Mapping::Atlas(atlas);
+        *texture = Arc::new(t);
+    }
+    Ok(())
 }
 
 fn build_render(file: &SceneFile, cx: &Ctx) -> Result<RenderSettings, SceneError> {
@@ -648,7 +714,32 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
                 theta: theta.to_radians(),
             }
         }
-        MaterialSpec::Textured { texture, scale } => {
+        MaterialSpec::Textured {
+            texture,
+            scale,
+            mapping,
+            texel_size,
+        } => {
+            match (mapping.as_deref(), texel_size) {
+                (None | Some("uv"), None) => {}
+                (Some("atlas"), Some(t)) if t.is_finite() && *t > 0.0 => {}
+                (Some("atlas"), Some(t)) => {
+                    return Err(format!("`texel_size` must be positive, got {t}"))
+                }
+                (Some("atlas"), None) => {
+                    return Err(
+                        "`mapping = \"atlas\"` needs `texel_size` (world units per texel)".into(),
+                    )
+                }
+                (None | Some("uv"), Some(_)) => {
+                    return Err("`texel_size` goes with `mapping = \"atlas\"` only".into())
+                }
+                (Some(m), _) => {
+                    return Err(format!(
+                        "`mapping` must be \"uv\" or \"atlas\", got \"{m}\""
+                    ))
+                }
+            }
             let p = dir.join(texture);
             let img = crate::io::image::read_linear(&p).map_err(|e| format!("texture: {e}"))?;
             Material::Textured {
@@ -657,6 +748,7 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
                     height: img.height,
                     texels: img.data,
                     path: PathBuf::from(texture),
+                    mapping: super::texture::Mapping::Uv,
                 }),
                 scale: match scale {
                     Some(s) => color(s, "scale")?,
@@ -752,6 +844,24 @@ fn check_camera_sees_geometry(scene: &Scene, cx: &Ctx) -> Result<(), SceneError>
     )))
 }
 
+/// The geometry of bare meshes, one object each (group 0, black), for tests of what reads it.
+#[cfg(test)]
+pub(crate) fn build_geometry_for_tests(meshes: Vec<TriangleMesh>) -> Geometry {
+    let mut objects: Vec<Object> = (0..meshes.len())
+        .map(|i| Object {
+            name: format!("o{i}"),
+            group: 0,
+            material: Material::Black,
+            emission: Rgb::ZERO,
+            tangent: None,
+            tri_range: 0..0,
+            area: 0.0,
+            line: 0,
+        })
+        .collect();
+    build_geometry(&mut objects, meshes)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -791,3 +901,4 @@ edge_v = [0.0, 0.05, 0.0]
         assert!(m.contains("did you mean `quad`?"), "{m}");
     }
 }
+

@@ -1,6 +1,7 @@
 //! Scenes: the TOML schema, mesh loaders, cameras, materials, and the loaded [`Scene`] that the
 //! renderer and the fitter read.
 
+pub mod atlas;
 pub mod camera;
 pub mod error;
 pub mod lint;

@@ -254,6 +254,12 @@ pub enum MaterialSpec {
         texture: String,
         #[serde(default, skip_serializing_if = "Option::is_none")]
         scale: Option<Color>,
+        /// "uv" (the mesh's UVs, the default) or "atlas": the group's chart atlas
+        /// (`scene/atlas.rs`), rebuilt from the geometry at `texel_size` world units per texel.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        mapping: Option<String>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        texel_size: Option<f32>,
     },
     Black,
 }

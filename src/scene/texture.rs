@@ -1,9 +1,22 @@
-//! Image textures over mesh UVs (bilinear, repeat), stored as linear RGB.
+//! Image textures over mesh UVs (bilinear, repeat) or over a group's atlas (`atlas.rs`), stored
+//! as linear RGB.
 
+use super::atlas::Atlas;
+use super::SurfaceHit;
 use crate::math::{Rgb, Vec2};
 use std::path::PathBuf;
+use std::sync::Arc;
 
-#[derive(Debug)]
+/// How surface points find their texel.
+#[derive(Debug, Clone)]
+pub enum Mapping {
+    /// The mesh's UVs, repeating.
+    Uv,
+    /// A group's chart atlas (recovered textures: the model needs no UVs).
+    Atlas(Arc<Atlas>),
+}
+
+#[derive(Debug, Clone)]
 pub struct Texture {
     pub width: usize,
     pub height: usize,
@@ -11,9 +24,19 @@ pub struct Texture {
     pub texels: Vec<Rgb>,
     /// Where it came from (written back into scene files).
     pub path: PathBuf,
+    pub mapping: Mapping,
 }
 
 impl Texture {
+    /// The texture's value at a hit point.
+    #[inline]
+    pub fn at(&self, hit: &SurfaceHit) -> Rgb {
+        match &self.mapping {
+            Mapping::Uv => self.lookup(hit.uv),
+            Mapping::Atlas(a) => a.lookup(&self.texels, hit.object, hit.p, hit.ng),
+        }
+    }
+
     /// Bilinear lookup; v = 0 is the bottom row (OpenGL convention, as OBJ and glTF UVs... glTF
     /// has v down, so loaders flip it to this convention).
     pub fn lookup(&self, uv: Vec2) -> Rgb {

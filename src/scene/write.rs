@@ -36,10 +36,18 @@ pub fn material_spec(m: &Material) -> MaterialSpec {
                 theta_deg: (!iso).then_some(theta.to_degrees()),
             }
         }
-        Material::Textured { texture, scale } => MaterialSpec::Textured {
-            texture: texture.path.to_string_lossy().into_owned(),
-            scale: Some(c(*scale)),
-        },
+        Material::Textured { texture, scale } => {
+            let atlas = match &texture.mapping {
+                super::texture::Mapping::Atlas(a) => Some(a.texel),
+                super::texture::Mapping::Uv => None,
+            };
+            MaterialSpec::Textured {
+                texture: texture.path.to_string_lossy().into_owned(),
+                scale: Some(c(*scale)),
+                mapping: atlas.map(|_| "atlas".to_string()),
+                texel_size: atlas,
+            }
+        }
         Material::Black => MaterialSpec::Black,
     }
 }

@@ -1,0 +1,507 @@
+//! Level 7, the radiosity texture (§5.2 and Algorithms 1–2 of the notes), with an optional
+//! uniform Ward lobe on top (a varnish).
+//!
+//! A texture cut from the photo holds the light that fell on it; rendered lit again it is lit
+//! twice. The notes correct it iteratively: each global iteration multiplies the texture by the
+//! ratio of the photo's texture to the synthetic image's. Here that ratio is taken on the
+//! group's incident-radiance cache instead of on a noisy re-render: with the texel rows of D
+//! (`cache::TexelRows`), a pixel is L_p = Σ_t A_pt ρ_t + ρs S_p, linear in the texels, and the
+//! notes' update becomes the multiplicative least-squares iteration (ISRA, Daube-Witherspoon &
+//! Muehllehner 1986)
+//!
+//!   ρ_t ← ρ_t · Σ_p A_pt (photo_p − ρs S_p) / Σ_p A_pt L_p(ρ),
+//!
+//! which keeps ρ ≥ 0 and converges to the non-negative least-squares texture, the irradiance
+//! divided out exactly. The global iterations then carry the texture's own interreflections to
+//! the rest of the scene and back.
+//!
+//! The lobe is fitted first with a uniform ρd (the texture's variation is then only noise to it,
+//! averaged away by the error's tiles), then the texture under that lobe: in one image a texture
+//! fitted texel by texel could absorb any highlight, so the lobe is the one the lower levels
+//! found, and level 7 keeps a lobe only where a Ward level had earned its place (`hierarchy.rs`).
+//!
+//! Texels seen by no pixel (a book's back, texels between a sub-sampled cache's pixels) are
+//! marked unseen and filled by pull–push from the seen texels of the same chart; a chart seen
+//! nowhere gets the mean of the seen texels.
+
+use super::cache::{GroupCache, TexelRows};
+use super::error::{tiled_error, ErrorStats, PixelTerms};
+use super::fitter::{fit_level, spec_of, LevelFit};
+use super::level::Level;
+use super::objective::{pixel_specs, PixelSpec};
+use super::params::GroupParams;
+use crate::math::{Rgb, Vec2};
+use crate::scene::atlas::Atlas;
+use crate::scene::{Scene, WardVariant};
+
+/// A texel counts as seen when its weight in the photo is at least this fraction of the median
+/// weight of the texels that have any: a texel clipped by the group's edge is fitted from the
+/// little light the photo shows of it, and below this its value would be mostly noise.
+pub const SEEN_FRACTION: f32 = 0.1;
+
+/// Weight of the smoothness penalty relative to each texel's own data weight (`solve`). On a
+/// checker poster with one-texel lines (200×150 photo, 1024 spp), texels against the truth
+/// box-filtered to them: 0.02 → 24.4 dB, 0.1 → 29.6 dB, 0.3 → 24.4 dB (edges blurred).
+pub const SMOOTHING: f32 = 0.1;
+
+/// ISRA iterations per global iteration (warm-started from the previous texture).
+pub const ITERATIONS: usize = 40;
+
+/// A group's texture: its texels (atlas layout) and which of them the photo sees.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TextureState {
+    /// The level whose specular part lies on top of the texture: diffuse (none), isotropic or
+    /// anisotropic (a varnish, with the group's ρs, α, θ).
+    pub base: super::level::Level,
+    pub width: usize,
+    pub height: usize,
+    /// World units per texel.
+    pub texel: f32,
+    pub texels: Vec<Rgb>,
+    pub seen: Vec<bool>,
+    /// Texels inside the charts (the rest are the gaps between them).
+    pub charted: usize,
+}
+
+impl TextureState {
+    pub fn seen_count(&self) -> usize {
+        self.seen.iter().filter(|&&s| s).count()
+    }
+
+    /// Mean of the seen texels.
+    pub fn mean(&self) -> Rgb {
+        let (sum, n) = self
+            .texels
+            .iter()
+            .zip(&self.seen)
+            .filter(|x| *x.1)
+            .fold((Rgb::ZERO, 0usize), |(a, n), (t, _)| (a + *t, n + 1));
+        if n == 0 {
+            Rgb::ZERO
+        } else {
+            sum / n as f32
+        }
+    }
+}
+
+/// ISRA iterations for a texture solved from a uniform start (a climb to level 7).
+pub const FIRST_ITERATIONS: usize = 150;
+
+/// The texel size of a group's atlas: one texel per photo pixel at the group's median pixel
+/// footprint. A pixel's footprint is the longer side of the parallelogram its two neighbours'
+/// rays cut out of the tangent plane at its hit (the longer side: where the surface is seen
+/// obliquely, texels as fine as the shorter side would outnumber the pixels along the other, and
+/// the texels the photo cannot tell apart would alternate freely); the median is over (at most
+/// 4096 of) the group's usable pixels.
+pub fn footprint(scene: &Scene, pixels: &[usize]) -> Option<f32> {
+    let cam = &scene.camera;
+    let w = cam.width as usize;
+    let step = pixels.len().div_ceil(4096).max(1);
+    let mut sizes: Vec<f32> = pixels
+        .iter()
+        .step_by(step)
+        .filter_map(|&i| {
+            let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+            let hit = scene.intersect(&cam.ray(Vec2::new(x, y)), f32::INFINITY)?;
+            let on_plane = |fx: f32, fy: f32| {
+                let r = cam.ray(Vec2::new(fx, fy));
+                let dn = r.d.dot(hit.ng);
+                (dn.abs() > 1e-6).then(|| r.o + r.d * ((hit.p - r.o).dot(hit.ng) / dn))
+            };
+            let (a, b) = (on_plane(x + 1.0, y)?, on_plane(x, y + 1.0)?);
+            let side = (a - hit.p).length().max((b - hit.p).length());
+            (side.is_finite() && side > 0.0).then_some(side)
+        })
+        .collect();
+    if sizes.is_empty() {
+        return None;
+    }
+    sizes.sort_by(f32::total_cmp);
+    Some(sizes[sizes.len() / 2])
+}
+
+/// Fits level 7 on the cache: the `base` level's uniform lobe (none for diffuse), then the
+/// texture under it from `start` (the previous texture) or, on a climb, from the lobe fit's
+/// uniform ρd. The fit's ρd is the mean of the seen texels (what a report or an exporter that
+/// cannot take the texture shows). None if the cache has no texel rows.
+pub fn fit_textured(
+    cache: &GroupCache,
+    atlas: &Atlas,
+    base: Level,
+    params: &GroupParams,
+    start: Option<&[Rgb]>,
+    variant: WardVariant,
+) -> Option<(LevelFit, TextureState)> {
+    let rows = cache.texels.as_ref()?;
+    let n = atlas.width * atlas.height;
+    let (lobe, evals) = if base.is_ward() {
+        let f = fit_level(cache, base, params, variant);
+        (f.params, f.evals)
+    } else {
+        (
+            GroupParams {
+                rho_s: Rgb::ZERO,
+                ..*params
+            },
+            0,
+        )
+    };
+    let specs: Vec<PixelSpec> = pixel_specs(cache, spec_of(base, &lobe), variant, false);
+    let spec: Vec<Rgb> = specs.iter().map(|s| lobe.rho_s * s.s).collect();
+    let spec_half: Vec<[Rgb; 2]> = specs
+        .iter()
+        .map(|s| s.s_half.map(|h| lobe.rho_s * h))
+        .collect();
+    let (start, iterations) = match start {
+        Some(t) if t.len() == n => (t.to_vec(), ITERATIONS),
+        _ => (vec![lobe.rho_d; n], FIRST_ITERATIONS),
+    };
+    let charts = atlas.chart_rects();
+    let mut texels = solve(cache, rows, &spec, &start, iterations, &charts, atlas.width);
+    let seen = seen_texels(&column_weights(rows, n));
+    let mut state = TextureState {
+        base,
+        width: atlas.width,
+        height: atlas.height,
+        texel: atlas.texel,
+        texels: Vec::new(),
+        seen,
+        charted: atlas.chart_rects().iter().map(|r| r[2] * r[3]).sum(),
+    };
+    state.texels = texels.clone();
+    let mean = state.mean();
+    fill_unseen(atlas, &mut texels, &state.seen, mean);
+    state.texels = texels;
+    let st = error(cache, rows, &state.texels, &spec, &spec_half);
+    let fit = LevelFit {
+        level: Level::Textured,
+        params: GroupParams {
+            rho_d: mean,
+            ..lobe
+        },
+        error: st.error,
+        noise_floor: st.noise_floor,
+        halves: st.halves,
+        cost: 0.0,
+        evals: evals + iterations as u32,
+    };
+    Some((fit, state))
+}
+
+/// The per-pixel model of a texture (and a specular term): Σ_t A_pt ρ_t + spec_p, for all
+/// samples and each half.
+fn model(rows: &TexelRows, texels: &[Rgb], p: usize) -> [Rgb; 2] {
+    let [a, b, c] = rows.ranges[p].map(|x| x as usize);
+    let sum = |r: &[(u32, Rgb)]| {
+        r.iter()
+            .fold(Rgb::ZERO, |acc, &(t, w)| acc + texels[t as usize] * w)
+    };
+    [sum(&rows.rows[a..b]), sum(&rows.rows[b..c])]
+}
+
+/// The weight of every texel in the photo (Σ_p A_pt over the channels).
+fn column_weights(rows: &TexelRows, n: usize) -> Vec<f32> {
+    let mut w = vec![0.0f32; n];
+    for &(t, r) in &rows.rows {
+        w[t as usize] += r.x + r.y + r.z;
+    }
+    w
+}
+
+/// Which texels the cache sees well enough to fit ([`SEEN_FRACTION`]).
+fn seen_texels(weights: &[f32]) -> Vec<bool> {
+    let mut nz: Vec<f32> = weights.iter().copied().filter(|&w| w > 0.0).collect();
+    if nz.is_empty() {
+        return vec![false; weights.len()];
+    }
+    nz.sort_by(f32::total_cmp);
+    let cut = SEEN_FRACTION * nz[nz.len() / 2];
+    weights.iter().map(|&w| w > 0.0 && w >= cut).collect()
+}
+
+/// Solves the texture on the cache by ISRA from `start`, with `spec[p]` (all samples) the
+/// specular radiance of each cached pixel, and a smoothness penalty of weight [`SMOOTHING`]
+/// between texels that are neighbours in `chart` (a list of texel rectangles; none: no
+/// penalty).
+///
+/// The penalty is what makes one texel per pixel solvable: a pattern alternating from texel to
+/// texel is invisible to a pixel that straddles two texels, so where the pixel grid runs half a
+/// texel off the texel grid the photo does not determine it, and unpenalised it grows freely
+/// (stripes beating with the two grids). Minimising |Aρ − y|² + Σ_t λ_t Σ_{n ~ t} (ρ_t − ρ_n)²
+/// with λ_t = SMOOTHING · (AᵀA)_tt, the one-step-late multiplicative form
+///   ρ_t ← ρ_t (Aᵀy + λ_t Σ_n ρ_n)_t / (AᵀAρ + λ_t deg_t ρ_t)_t
+/// keeps ρ ≥ 0 and has the penalised normal equations as its fixed point.
+pub fn solve(
+    cache: &GroupCache,
+    rows: &TexelRows,
+    spec: &[Rgb],
+    start: &[Rgb],
+    iterations: usize,
+    charts: &[[usize; 4]],
+    width: usize,
+) -> Vec<Rgb> {
+    let n = start.len();
+    let mut rho: Vec<Rgb> = start
+        .iter()
+        .map(|t| t.max(Rgb::splat(1e-3)).min(Rgb::ONE))
+        .collect();
+    // Σ_p A_pt · target_p: the photo's texture, irradiance not yet divided out.
+    let mut num = vec![Rgb::ZERO; n];
+    for (p, px) in cache.pixels.iter().enumerate() {
+        let target = (px.photo - spec[p]).max(Rgb::ZERO);
+        let [a, _, c] = rows.ranges[p].map(|x| x as usize);
+        for &(t, w) in &rows.rows[a..c] {
+            num[t as usize] += w * target;
+        }
+    }
+    // (AᵀA)_tt per channel, for the penalty's scale.
+    let mut diag = vec![Rgb::ZERO; n];
+    for p in 0..cache.pixels.len() {
+        let [a, _, c] = rows.ranges[p].map(|x| x as usize);
+        let d: Rgb = rows.rows[a..c].iter().fold(Rgb::ZERO, |s, r| s + r.1);
+        for &(t, w) in &rows.rows[a..c] {
+            diag[t as usize] += w * d;
+        }
+    }
+    let lambda: Vec<Rgb> = diag.iter().map(|d| *d * SMOOTHING).collect();
+    // Neighbours within each chart (4-connected).
+    let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); n];
+    for &[x0, y0, w, h] in charts {
+        for y in 0..h {
+            for x in 0..w {
+                let i = (y0 + y) * width + x0 + x;
+                if i >= n {
+                    continue;
+                }
+                let nb = &mut neighbours[i];
+                if x > 0 {
+                    nb.push((i - 1) as u32);
+                }
+                if x + 1 < w {
+                    nb.push((i + 1) as u32);
+                }
+                if y > 0 {
+                    nb.push((i - width) as u32);
+                }
+                if y + 1 < h {
+                    nb.push((i + width) as u32);
+                }
+            }
+        }
+    }
+    let mut den = vec![Rgb::ZERO; n];
+    for _ in 0..iterations {
+        den.iter_mut().for_each(|d| *d = Rgb::ZERO);
+        for p in 0..cache.pixels.len() {
+            let [h0, h1] = model(rows, &rho, p);
+            let l = h0 + h1;
+            let [a, _, c] = rows.ranges[p].map(|x| x as usize);
+            for &(t, w) in &rows.rows[a..c] {
+                den[t as usize] += w * l;
+            }
+        }
+        let old = rho.clone();
+        for t in 0..n {
+            let nb = &neighbours[t];
+            let sum_nb = nb.iter().fold(Rgb::ZERO, |a, &j| a + old[j as usize]);
+            let up = num[t] + lambda[t] * sum_nb;
+            let down = den[t] + lambda[t] * old[t] * nb.len() as f32;
+            for ch in 0..3 {
+                if down[ch] > 0.0 {
+                    rho[t][ch] = (old[t][ch] * up[ch] / down[ch]).clamp(0.0, 1.0);
+                }
+            }
+        }
+    }
+    rho
+}
+
+/// ε, the noise floor and the halves' ε of a texture (plus specular terms) on the cache.
+pub fn error(
+    cache: &GroupCache,
+    rows: &TexelRows,
+    texels: &[Rgb],
+    spec: &[Rgb],
+    spec_half: &[[Rgb; 2]],
+) -> ErrorStats {
+    let pixels = cache.pixels.iter().enumerate().map(|(p, px)| {
+        let [h0, h1] = model(rows, texels, p);
+        let terms = PixelTerms {
+            syn: h0 + h1 + spec[p],
+            photo: px.photo,
+            halves: [h0 * 2.0 + spec_half[p][0], h1 * 2.0 + spec_half[p][1]],
+        };
+        (px.tile as usize, terms)
+    });
+    tiled_error(cache.tiles.max(1), pixels).unwrap_or_default()
+}
+
+/// Fills the unseen texels of each chart by pull–push (Gortler et al. 1996) from its seen
+/// ones; a chart with no seen texel gets `fallback`. Texels outside every chart (the gaps) take
+/// the value of the nearest chart texel row-wise, so the preview image has no black seams.
+pub fn fill_unseen(atlas: &Atlas, texels: &mut [Rgb], seen: &[bool], fallback: Rgb) {
+    for [x0, y0, w, h] in atlas.chart_rects() {
+        let mut img = vec![(Rgb::ZERO, 0.0f32); w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let i = (y0 + y) * atlas.width + x0 + x;
+                if seen[i] {
+                    img[y * w + x] = (texels[i], 1.0);
+                }
+            }
+        }
+        if img.iter().all(|p| p.1 == 0.0) {
+            for y in 0..h {
+                for x in 0..w {
+                    texels[(y0 + y) * atlas.width + x0 + x] = fallback;
+                }
+            }
+            continue;
+        }
+        let filled = pull_push(&img, w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let i = (y0 + y) * atlas.width + x0 + x;
+                if !seen[i] {
+                    texels[i] = filled[y * w + x];
+                }
+            }
+        }
+    }
+}
+
+/// Pull–push on a weighted image: each coarser level averages 2×2 blocks by weight; every
+/// pixel of weight < 1 is then blended with the coarser level's value.
+fn pull_push(img: &[(Rgb, f32)], w: usize, h: usize) -> Vec<Rgb> {
+    if w <= 1 && h <= 1 {
+        let (c, wt) = img[0];
+        return vec![if wt > 0.0 { c / wt } else { Rgb::ZERO }];
+    }
+    let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
+    let mut coarse = vec![(Rgb::ZERO, 0.0f32); cw * ch];
+    for y in 0..h {
+        for x in 0..w {
+            let (c, wt) = img[y * w + x];
+            let k = (y / 2) * cw + x / 2;
+            coarse[k].0 += c * wt;
+            coarse[k].1 += wt;
+        }
+    }
+    for c in coarse.iter_mut() {
+        if c.1 > 0.0 {
+            c.0 /= c.1;
+            c.1 = c.1.min(1.0);
+        }
+    }
+    let up = pull_push(&coarse, cw, ch);
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let (c, wt) = img[i];
+            let wt = wt.min(1.0);
+            c * wt + up[(y / 2) * cw + x / 2] * (1.0 - wt)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::cache::CachePixel;
+
+    /// A 1-D "image" of 40 pixels over 40 texels, each pixel reading 0.6 of its own texel and 0.2
+    /// of each neighbour (a blur), under an irradiance that varies along the row: ISRA recovers a
+    /// texture with sharp detail and dark texels exactly, which dividing the photo by the
+    /// irradiance pixel by pixel does not (the blur).
+    #[test]
+    fn isra_divides_the_irradiance_out_and_undoes_the_blur() {
+        let n = 40;
+        let truth: Vec<Rgb> = (0..n)
+            .map(|i| match i % 7 {
+                0 | 1 => Rgb::new(0.9, 0.1, 0.05),
+                3 => Rgb::splat(0.03),
+                _ => Rgb::new(0.2, 0.5, 0.7),
+            })
+            .collect();
+        let irradiance = |p: usize| Rgb::new(1.0 + p as f32 / 20.0, 1.2, 0.8 - p as f32 / 100.0);
+        let mut rows = TexelRows::default();
+        let mut cache = GroupCache {
+            tiles: 4,
+            ..Default::default()
+        };
+        for p in 0..n {
+            let p: usize = p;
+            let start = rows.rows.len() as u32;
+            let mut photo = Rgb::ZERO;
+            for (t, f) in [(p.wrapping_sub(1), 0.2f32), (p, 0.6), (p + 1, 0.2)] {
+                if t < n {
+                    // Half 0 and half 1 each carry half the weight.
+                    let w = irradiance(p) * f * 0.5;
+                    rows.rows.push((t as u32, w));
+                    photo += truth[t] * w * 2.0;
+                }
+            }
+            let mid = rows.rows.len() as u32;
+            let copy: Vec<_> = rows.rows[start as usize..mid as usize].to_vec();
+            rows.rows.extend(copy);
+            rows.ranges.push([start, mid, rows.rows.len() as u32]);
+            cache.pixels.push(CachePixel {
+                pixel: p as u32,
+                photo,
+                d: Rgb::ZERO,
+                d_half: [Rgb::ZERO; 2],
+                mirror: Rgb::ZERO,
+                mirror_half: [Rgb::ZERO; 2],
+                start: 0,
+                mid: 0,
+                end: 0,
+                tile: (p * 4 / n) as u32,
+            });
+        }
+        let zero = vec![Rgb::ZERO; n];
+        let got = solve(
+            &cache,
+            &rows,
+            &zero,
+            &vec![Rgb::splat(0.5); n],
+            2000,
+            &[],
+            n,
+        );
+        let worst = got
+            .iter()
+            .zip(&truth)
+            .map(|(g, t)| ((*g - *t).abs() / *t).max_element())
+            .fold(0.0f32, f32::max);
+        assert!(worst < 0.01, "worst relative texel error {worst}");
+        let e = error(&cache, &rows, &got, &zero, &vec![[Rgb::ZERO; 2]; n]);
+        assert!(e.error < 1e-3, "{e:?}");
+        // Dividing each pixel by its irradiance instead keeps the blur: dark texels come out
+        // several times too bright.
+        let naive = (cache.pixels[3].photo / irradiance(3)).x;
+        assert!(naive > 3.0 * truth[3].x, "{naive}");
+    }
+
+    #[test]
+    fn pull_push_fills_holes_from_the_seen_texels_and_keeps_them() {
+        let (w, h) = (8, 6);
+        let mut img = vec![(Rgb::ZERO, 0.0); w * h];
+        for y in 0..h {
+            for x in 0..4 {
+                img[y * w + x] = (Rgb::splat(0.2), 1.0);
+            }
+        }
+        img[5 * w + 7] = (Rgb::splat(0.8), 1.0);
+        let out = pull_push(&img, w, h);
+        for y in 0..h {
+            for x in 0..4 {
+                assert_eq!(out[y * w + x], Rgb::splat(0.2));
+            }
+        }
+        assert_eq!(out[5 * w + 7], Rgb::splat(0.8));
+        // Holes take values between the seen ones, nearer the nearer.
+        let a = out[w + 4].x;
+        assert!((0.2..=0.8).contains(&a) && a < 0.5, "{a}");
+        assert!(out.iter().all(|c| c.x >= 0.2 - 1e-6 && c.x <= 0.8 + 1e-6));
+    }
+}
