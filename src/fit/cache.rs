@@ -111,6 +111,8 @@ pub struct GroupCache {
     pub stray: usize,
     /// Per pixel, how each texel of the group's atlas enters its D (when asked for).
     pub texels: Option<TexelRows>,
+    /// The image's width (pixel indices are row-major in it); 0 where unknown.
+    pub width: usize,
 }
 
 /// The textured form of D: a pixel's diffuse radiance is Σ_t ρ_t w_t over the texels its
@@ -406,6 +408,7 @@ pub fn build(
     let mut cache = GroupCache {
         tiles: n_tiles,
         texels: atlas.map(|_| TexelRows::default()),
+        width: w,
         ..Default::default()
     };
     for (mut px, [s0, s1], stray, [r0, r1]) in per_pixel {

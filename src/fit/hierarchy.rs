@@ -27,7 +27,7 @@ use super::cache::{CacheNeeds, GroupCache};
 use super::fitter::{assess, fit_level, fit_level_above, LevelFit};
 use super::level::{Level, Thresholds};
 use super::params::GroupParams;
-use super::texture::{fit_textured, TextureState};
+use super::texture::{coherent_detail, fit_textured, uniform_model, TextureState};
 use crate::scene::atlas::Atlas;
 use crate::scene::WardVariant;
 use serde::{Deserialize, Serialize};
@@ -226,6 +226,15 @@ impl GroupState {
                 p.alpha_y
             )
         })
+    }
+
+    /// The level whose parameters describe the group: its own, or at level 7 the level of the
+    /// lobe on top of its texture (ρd is then the texture's mean).
+    pub fn params_level(&self) -> Level {
+        match (&self.texture, self.level) {
+            (Some(t), Level::Textured) => t.base,
+            _ => self.level,
+        }
     }
 
     /// Whether the group is fitted at all.
@@ -513,7 +522,16 @@ impl GroupState {
             return events;
         }
         let thr = opts.thresholds.of(self.level);
-        if fit.error < thr {
+        // Fine detail the error's tiles average away (the texture threshold of Algorithm 1).
+        let detail = |level: Level, params: &GroupParams| match atlas {
+            Some(_) if level != Level::Textured && cache.texels.is_some() => {
+                let model = uniform_model(cache, level, params, variant);
+                coherent_detail(cache, &model, cache.width)
+            }
+            _ => 0.0,
+        };
+        let textured_detail = detail(self.level, &fit.params) >= opts.thresholds.texture_detail;
+        if fit.error < thr && !textured_detail {
             self.status = Status::Confirmed;
             events.push(Event::Confirmed {
                 level: self.level,
@@ -533,6 +551,9 @@ impl GroupState {
         let mut texture = None;
         while let Some(next) = level.next() {
             if next == Level::Textured {
+                if detail(best.level, &best.params) < opts.thresholds.texture_detail {
+                    break;
+                }
                 // Algorithm 1 of the notes: every uniform model failed its threshold. The
                 // texture keeps the specular part of the best level if a Ward lobe earned its
                 // place. A per-texel model cannot be judged on held-out tiles (their texels are

@@ -84,6 +84,17 @@ pub struct Thresholds {
     /// threshold: that is the texture threshold of Algorithm 1.
     #[serde(default = "textured_threshold")]
     pub textured: f32,
+    /// The texture threshold of Algorithm 1, on what the error metric cannot see: a group whose
+    /// best uniform model leaves fine, coherent detail of at least this RMS fraction of its
+    /// radiance (`texture::coherent_detail`) tries level 7 even when its ε is below its
+    /// threshold (fine grain averages out in the error's tiles), and level 7 is kept only for
+    /// such a group (a mirror whose ε misses its threshold by noise is not a texture).
+    #[serde(default = "texture_detail")]
+    pub texture_detail: f32,
+}
+
+fn texture_detail() -> f32 {
+    0.02
 }
 
 fn textured_threshold() -> f32 {
@@ -102,6 +113,7 @@ impl Default for Thresholds {
             isotropic: 0.01,
             anisotropic: 0.01,
             textured: textured_threshold(),
+            texture_detail: texture_detail(),
         }
     }
 }

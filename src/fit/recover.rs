@@ -338,6 +338,7 @@ emission = 5.0
                 tiles: 4,
                 stray: 0,
                 texels: None,
+                width: 0,
             };
             let mut any_bad = false;
             for level in Level::FITTED {

@@ -185,7 +185,7 @@ impl<'a> RecoveryLoop<'a> {
         LogLine {
             iteration: it,
             group: st.name.clone(),
-            params: st.params.named(st.level).into_iter().collect(),
+            params: st.params.named(st.params_level()).into_iter().collect(),
             event,
             seconds,
             elapsed: self.elapsed(),

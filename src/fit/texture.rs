@@ -120,6 +120,103 @@ pub fn footprint(scene: &Scene, pixels: &[usize]) -> Option<f32> {
     Some(sizes[sizes.len() / 2])
 }
 
+/// The texture threshold's statistic (Algorithm 1): the fine, spatially coherent part of the
+/// residual a uniform model leaves, as an RMS fraction of the group's mean radiance. The
+/// residual (photo − model, mean of the channels) is high-passed by subtracting its mean over
+/// the 5×5 neighbourhood of cached pixels, and the covariance of neighbouring high-passed
+/// residuals is taken: independent per-pixel noise contributes nothing to it (slightly less),
+/// a smooth shading error is removed by the high-pass, and a texture's strokes and edges, which
+/// span neighbouring pixels, remain. The error metric cannot see this: its tiles average fine
+/// detail away. Neighbours are those of the cache's pixel grid (every `stride`-th pixel).
+pub fn coherent_detail(cache: &GroupCache, model: &[Rgb], width: usize) -> f32 {
+    use std::collections::HashMap;
+    let n = cache.pixels.len();
+    if n < 16 {
+        return 0.0;
+    }
+    let at: HashMap<u32, usize> = cache
+        .pixels
+        .iter()
+        .enumerate()
+        .map(|(k, p)| (p.pixel, k))
+        .collect();
+    let stride = cache
+        .pixels
+        .windows(2)
+        .filter(|w| w[1].pixel / width as u32 == w[0].pixel / width as u32)
+        .map(|w| (w[1].pixel - w[0].pixel) as usize)
+        .min()
+        .unwrap_or(1)
+        .max(1);
+    let lum = |c: Rgb| (c.x + c.y + c.z) / 3.0;
+    let e: Vec<f32> = (0..n)
+        .map(|k| lum(cache.pixels[k].photo - model[k]))
+        .collect();
+    let neighbour = |k: usize, dx: i64, dy: i64| -> Option<usize> {
+        let p = cache.pixels[k].pixel as i64;
+        let (x, y) = (p % width as i64, p / width as i64);
+        let (nx, ny) = (x + dx * stride as i64, y + dy * stride as i64);
+        if nx < 0 || ny < 0 || nx >= width as i64 {
+            return None;
+        }
+        at.get(&((ny * width as i64 + nx) as u32)).copied()
+    };
+    let h: Vec<f32> = (0..n)
+        .map(|k| {
+            let (mut sum, mut m) = (0.0f32, 0usize);
+            for dy in -2..=2 {
+                for dx in -2..=2 {
+                    if let Some(j) = neighbour(k, dx, dy) {
+                        sum += e[j];
+                        m += 1;
+                    }
+                }
+            }
+            e[k] - sum / m.max(1) as f32
+        })
+        .collect();
+    let (mut cov, mut pairs) = (0.0f64, 0usize);
+    for k in 0..n {
+        for (dx, dy) in [(1, 0), (0, 1)] {
+            if let Some(j) = neighbour(k, dx, dy) {
+                cov += (h[k] * h[j]) as f64;
+                pairs += 1;
+            }
+        }
+    }
+    let mean = cache.pixels.iter().map(|p| lum(p.photo)).sum::<f32>() / n as f32;
+    if pairs == 0 || !(mean > 0.0) {
+        return 0.0;
+    }
+    ((cov / pairs as f64).max(0.0).sqrt() as f32) / mean
+}
+
+/// The model's radiance per cached pixel for a uniform level's parameters.
+pub fn uniform_model(
+    cache: &GroupCache,
+    level: Level,
+    params: &GroupParams,
+    variant: WardVariant,
+) -> Vec<Rgb> {
+    let specs = pixel_specs(cache, spec_of(level, params), variant, false);
+    let rho_s = if level == Level::PerfectSpecular {
+        Rgb::ONE
+    } else {
+        params.rho_s
+    };
+    let rho_d = if level == Level::PerfectSpecular {
+        Rgb::ZERO
+    } else {
+        params.rho_d
+    };
+    cache
+        .pixels
+        .iter()
+        .zip(&specs)
+        .map(|(p, s)| rho_d * p.d + rho_s * s.s)
+        .collect()
+}
+
 /// Fits level 7 on the cache: the `base` level's uniform lobe (none for diffuse), then the
 /// texture under it from `start` (the previous texture) or, on a climb, from the lobe fit's
 /// uniform ρd. The fit's ρd is the mean of the seen texels (what a report or an exporter that

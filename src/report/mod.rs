@@ -119,9 +119,9 @@ pub fn results(rec: &Recovery) -> Results {
             };
             let texture = texture_result(g, s);
             // A texture's parameters are its lobe's (ρd: the mean of its seen texels).
-            let named_at = match (&texture, &s.texture) {
-                (Some(_), Some(t)) => t.base,
-                _ => level,
+            let named_at = match s.status {
+                Status::Fixed => level,
+                _ => s.params_level(),
             };
             GroupResult {
                 name: s.name.clone(),

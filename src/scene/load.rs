@@ -901,4 +901,3 @@ edge_v = [0.0, 0.05, 0.0]
         assert!(m.contains("did you mean `quad`?"), "{m}");
     }
 }
-
