@@ -41,6 +41,16 @@ fn run_with(
     photo_spp: u32,
     opts: RecoverOptions,
 ) -> (Recovery, Vec<(String, Event)>) {
+    let (rec, _, log) = run_keeping_photo(scene, photo_spp, opts);
+    (rec, log)
+}
+
+/// [`run_with`], also returning the photo (linear).
+pub(crate) fn run_keeping_photo(
+    scene: &Scene,
+    photo_spp: u32,
+    opts: RecoverOptions,
+) -> (Recovery, matfit::io::image::Image, Vec<(String, Event)>) {
     let img = render(
         scene,
         &scene.camera,
@@ -50,7 +60,7 @@ fn run_with(
             progress: false,
         },
     );
-    let photo = Photo::from_linear(img);
+    let photo = Photo::from_linear(img.clone());
     let mask = usable_pixels(
         &index_buffers(scene, &scene.camera),
         &photo,
@@ -68,7 +78,7 @@ fn run_with(
         log.push((l.group.clone(), l.event.clone()))
     })
     .unwrap();
-    (rec, log)
+    (rec, img, log)
 }
 
 pub(crate) fn truth(scene: &Scene, group: &str) -> Material {
@@ -100,7 +110,7 @@ fn table(scene: &Scene, rec: &Recovery) -> String {
         .collect()
 }
 
-fn state<'a>(rec: &'a Recovery, name: &str) -> &'a matfit::fit::hierarchy::GroupState {
+pub(crate) fn state<'a>(rec: &'a Recovery, name: &str) -> &'a matfit::fit::hierarchy::GroupState {
     rec.groups.iter().find(|g| g.name == name).unwrap()
 }
 

@@ -254,6 +254,15 @@ fn cases() -> Vec<Case> {
             vec!["scene.toml:16", "object 'floor'", "t.png", "truncated or corrupt"],
         ),
         (
+            "varnish lobe without its rho_s",
+            s.replace(
+                "{ type = \"diffuse\", rho_d = 0.5 }",
+                "{ type = \"textured\", texture = \"t.png\", alpha = 0.1 }",
+            ),
+            vec![],
+            vec!["scene.toml:16", "object 'floor'", "`alpha` goes with `rho_s`"],
+        ),
+        (
             "NaN emission",
             s.replace("emission = 5.0", "emission = nan"),
             vec![],

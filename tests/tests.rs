@@ -12,4 +12,5 @@ mod recover;
 mod render_physics;
 mod resume;
 mod scene_errors;
+mod texture;
 mod unseen;

@@ -273,6 +273,28 @@ pub struct FitArgs {
     /// Experimental: off by default (on figure6, whose hidden ceiling is white, it comes out low).
     #[arg(long)]
     estimate_unseen: bool,
+    /// Texture threshold on ε (Algorithm 1 of the notes): a group whose best uniform model
+    /// misses by at least this much tries level 7, a texture.
+    #[arg(long, value_name = "E", default_value_t = 0.15, value_parser = positive_f32)]
+    texture_error: f32,
+    /// Texture threshold on fine detail: a group whose best uniform model leaves coherent
+    /// detail of at least this fraction of its radiance (averaged away in ε's tiles) tries
+    /// level 7 even with a small ε.
+    #[arg(long, value_name = "D", default_value_t = 0.02, value_parser = positive_f32)]
+    texture_detail: f32,
+    /// Never climb to level 7 (textures): uniform materials only, as before textures existed.
+    #[arg(long)]
+    no_textures: bool,
+}
+
+/// A finite number > 0, for thresholds.
+fn positive_f32(s: &str) -> Result<f32, String> {
+    let v: f32 = s.parse().map_err(|_| format!("'{s}' is not a number"))?;
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("must be a finite number > 0, got {s}"))
+    }
 }
 
 impl FitArgs {
@@ -286,6 +308,22 @@ impl FitArgs {
             unseen: matfit::fit::unseen::UnseenOptions {
                 enabled: self.estimate_unseen,
                 ..d.unseen.clone()
+            },
+            hierarchy: matfit::fit::hierarchy::HierarchyOptions {
+                thresholds: matfit::fit::level::Thresholds {
+                    texture_error: if self.no_textures {
+                        f32::MAX
+                    } else {
+                        self.texture_error
+                    },
+                    texture_detail: if self.no_textures {
+                        f32::MAX
+                    } else {
+                        self.texture_detail
+                    },
+                    ..d.hierarchy.thresholds.clone()
+                },
+                ..d.hierarchy.clone()
             },
             cache: matfit::fit::cache::CacheOptions {
                 light_samples: self.light_samples.max(2),

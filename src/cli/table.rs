@@ -55,8 +55,20 @@ pub fn material(m: &Material) -> String {
             rgb(*rho_s),
             alpha(*alpha_x, *alpha_y, *theta)
         ),
-        Material::Textured { texture, scale } => {
-            format!("textured {} × {}", texture.path.display(), rgb(*scale))
+        Material::Textured {
+            texture,
+            scale,
+            varnish,
+        } => {
+            let t = format!("textured {} × {}", texture.path.display(), rgb(*scale));
+            match varnish {
+                Some(v) => format!(
+                    "{t} + ward ρs {} {}",
+                    rgb(v.rho_s),
+                    alpha(v.alpha_x, v.alpha_y, v.theta)
+                ),
+                None => t,
+            }
         }
         Material::Black => "black".into(),
     }
@@ -89,7 +101,14 @@ fn columns(m: &Material) -> (String, String, String) {
             alpha_y,
             theta,
         } => (rgb(*rho_d), rgb(*rho_s), alpha(*alpha_x, *alpha_y, *theta)),
-        Material::Textured { scale, .. } => (format!("texture × {}", rgb(*scale)), dash(), dash()),
+        Material::Textured { scale, varnish, .. } => match varnish {
+            Some(v) => (
+                format!("texture × {}", rgb(*scale)),
+                rgb(v.rho_s),
+                alpha(v.alpha_x, v.alpha_y, v.theta),
+            ),
+            None => (format!("texture × {}", rgb(*scale)), dash(), dash()),
+        },
         Material::Black => (dash(), dash(), dash()),
     }
 }

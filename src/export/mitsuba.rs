@@ -241,13 +241,22 @@ fn bsdf_xml(m: &Material, name: &str, warnings: &mut Vec<String>) -> String {
             ));
             diffuse(*rho_d)
         }
-        Material::Textured { texture, scale } => {
+        Material::Textured {
+            texture,
+            scale,
+            varnish,
+        } => {
             let n = texture.texels.len().max(1) as f32;
             let mean = texture.texels.iter().copied().sum::<Rgb>() / n * *scale;
             warnings.push(format!(
                 "object '{name}': textures are not exported; diffuse with the texture's mean \
-                 {:?}",
-                mean.to_array()
+                 {:?}{}",
+                mean.to_array(),
+                if varnish.is_some() {
+                    " (its varnish, a Ward lobe, is dropped)"
+                } else {
+                    ""
+                }
             ));
             diffuse(mean)
         }

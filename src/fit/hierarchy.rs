@@ -551,22 +551,30 @@ impl GroupState {
         let mut texture = None;
         while let Some(next) = level.next() {
             if next == Level::Textured {
-                if detail(best.level, &best.params) < opts.thresholds.texture_detail {
+                let gross = best.error >= opts.thresholds.texture_error;
+                if !gross && detail(best.level, &best.params) < opts.thresholds.texture_detail {
                     break;
                 }
-                // Algorithm 1 of the notes: every uniform model failed its threshold. The
-                // texture keeps the specular part of the best level if a Ward lobe earned its
-                // place. A per-texel model cannot be judged on held-out tiles (their texels are
-                // not fitted); its gain must clear the margin and the noise like any other.
-                let base = if best.level.is_ward() {
-                    best.level
-                } else {
-                    Level::Diffuse
-                };
-                let Some((f, t)) = atlas.and_then(|a| {
+                // Algorithm 1 of the notes: every uniform model failed its threshold. A
+                // per-texel model cannot be judged on held-out tiles (their texels are not
+                // fitted); its gain must clear the margin and the noise like any other.
+                //
+                // The varnish. In one photo a bare texture can always mimic a highlight, so the
+                // two cannot be told apart by ε on the texture level: the evidence for a lobe is
+                // that a uniform Ward level earned its place, held-out tiles included. The
+                // texture is then varnished with that lobe (refitted under the texture), unless
+                // the bare texture fits significantly better (the lobe was the uniform model's
+                // way to imitate the texture: a poster's "anisotropic" lobe).
+                let Some(a) = atlas else { break };
+                let fit = |base| {
                     super::texture::fit_textured(cache, a, base, &best.params, None, variant)
-                }) else {
+                };
+                let Some(bare) = fit(Level::Diffuse) else {
                     break;
+                };
+                let (f, t) = match best.level.is_ward().then(|| fit(best.level)).flatten() {
+                    Some(varnished) if !Self::earns(&varnished.0, &bare.0, opts).0 => varnished,
+                    _ => bare,
                 };
                 let (kept, gain_noise) = Self::earns(&best, &f, opts);
                 events.push(Event::Tried {

@@ -87,14 +87,26 @@ pub struct Thresholds {
     /// The texture threshold of Algorithm 1, on what the error metric cannot see: a group whose
     /// best uniform model leaves fine, coherent detail of at least this RMS fraction of its
     /// radiance (`texture::coherent_detail`) tries level 7 even when its ε is below its
-    /// threshold (fine grain averages out in the error's tiles), and level 7 is kept only for
-    /// such a group (a mirror whose ε misses its threshold by noise is not a texture).
+    /// threshold (fine grain averages out in the error's tiles), and level 7 is tried only for
+    /// such a group or one above `texture_error` (a mirror whose ε misses its threshold by
+    /// noise is not a texture).
     #[serde(default = "texture_detail")]
     pub texture_detail: f32,
+    /// The texture threshold of Algorithm 1 on ε itself: a group whose best uniform model
+    /// misses by at least this much tries level 7 whatever its fine detail. Shelves of book
+    /// spines, tiles: a texture of large flat patches whose edges the usable-pixel mask removes
+    /// leaves no fine detail, only an ε no BRDF can lower (0.45 on the poster scene's books).
+    /// Far above what a mirror or a glossy lobe leaves when fitted at a neighbouring level.
+    #[serde(default = "texture_error")]
+    pub texture_error: f32,
 }
 
 fn texture_detail() -> f32 {
     0.02
+}
+
+fn texture_error() -> f32 {
+    0.15
 }
 
 fn textured_threshold() -> f32 {
@@ -114,6 +126,7 @@ impl Default for Thresholds {
             anisotropic: 0.01,
             textured: textured_threshold(),
             texture_detail: texture_detail(),
+            texture_error: texture_error(),
         }
     }
 }

@@ -271,29 +271,51 @@ impl GroupParams {
             rho_s: m.rho_s(),
             ..Default::default()
         };
-        if let Material::Ward {
-            alpha_x,
-            alpha_y,
-            theta,
-            ..
-        } = m
-        {
-            p.alpha_x = *alpha_x;
-            p.alpha_y = *alpha_y;
-            p.theta = *theta;
+        let lobe = match m {
+            Material::Ward {
+                alpha_x,
+                alpha_y,
+                theta,
+                ..
+            } => Some((*alpha_x, *alpha_y, *theta)),
+            Material::Textured {
+                varnish: Some(v), ..
+            } => Some((v.alpha_x, v.alpha_y, v.theta)),
+            _ => None,
+        };
+        if let Some((ax, ay, theta)) = lobe {
+            p.alpha_x = ax;
+            p.alpha_y = ay;
+            p.theta = theta;
         }
         p
     }
 
-    /// The material a group at `level` with these parameters has.
-    /// Level 7's material: the texture, with the lobe of the texture's base level on top.
-    pub fn textured(&self, texture: std::sync::Arc<crate::scene::texture::Texture>) -> Material {
+    /// Level 7's material: the texture, with the lobe of the texture's `base` level on top (a
+    /// varnish when the base is a Ward level, none when it is diffuse).
+    pub fn textured(
+        &self,
+        texture: std::sync::Arc<crate::scene::texture::Texture>,
+        base: Level,
+    ) -> Material {
+        let varnish = match base {
+            Level::Isotropic => Some((self.alpha_x, self.alpha_x, 0.0)),
+            Level::Anisotropic => Some((self.alpha_x, self.alpha_y, self.theta)),
+            _ => None,
+        };
         Material::Textured {
             texture,
             scale: Rgb::ONE,
+            varnish: varnish.map(|(alpha_x, alpha_y, theta)| crate::scene::Varnish {
+                rho_s: self.rho_s,
+                alpha_x,
+                alpha_y,
+                theta,
+            }),
         }
     }
 
+    /// The material a group at `level` with these parameters has.
     pub fn material(&self, level: Level) -> Material {
         match level {
             Level::Diffuse | Level::Textured => Material::Diffuse { rho_d: self.rho_d },

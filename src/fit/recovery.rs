@@ -63,6 +63,33 @@ pub struct RecoveryLoop<'a> {
     atlases: Vec<Option<Arc<Atlas>>>,
     /// Per group at level 7, its current texture as the renderer reads it.
     textures: Vec<Option<Arc<Texture>>>,
+    /// Per group, the pixels a texture of it is fitted from (`texture_pixels`).
+    texture_pixels: Vec<Vec<usize>>,
+}
+
+/// The pixels a textured group is fitted from: its usable pixels and those the mask's edge test
+/// removed. Near a group's boundary a strong photo edge is taken for the neighbour's surface
+/// showing through a misregistered model; on a textured group it is mostly the texture's own
+/// strokes (a poster's dark band and its lettering next to its frame, a book spine's label: on
+/// the poster scene the test removes half of the books' pixels), and a texel only the removed
+/// pixels see could only be guessed. The band around the boundary stays removed.
+fn texture_pixels(scene: &Scene, mask: &UsableMask) -> Vec<Vec<usize>> {
+    use crate::photo::mask::Reject;
+    let ib = crate::render::aov::index_buffers(scene, &scene.camera);
+    let mut out = vec![Vec::new(); scene.groups.len()];
+    for (i, (&g, r)) in mask.group.iter().zip(&mask.reason).enumerate() {
+        let g = match r {
+            Reject::None => g,
+            Reject::Edge => ib.group.get(i).copied().unwrap_or(-1),
+            _ => -1,
+        };
+        if g >= 0 {
+            if let Some(v) = out.get_mut(g as usize) {
+                v.push(i);
+            }
+        }
+    }
+    out
 }
 
 /// A textured group's cache draws this many times the samples per pixel: its texels are fitted
@@ -157,6 +184,7 @@ impl<'a> RecoveryLoop<'a> {
             unseen: Vec::new(),
             atlases,
             textures,
+            texture_pixels: texture_pixels(scene, mask),
         };
         r.pixel_lists = r.choose_all(cap);
         r
@@ -209,8 +237,8 @@ impl<'a> RecoveryLoop<'a> {
             .collect()
     }
 
-    /// The cached pixels of group `g`: all usable ones at level 7 (every texel needs its
-    /// pixels), else a subsample within the budget.
+    /// The cached pixels of group `g`: at level 7 all of [`texture_pixels`] (every texel needs
+    /// its pixels), else a subsample of the usable ones within the budget.
     fn choose(
         &self,
         g: usize,
@@ -221,12 +249,11 @@ impl<'a> RecoveryLoop<'a> {
             max_pixels: usize::MAX,
             ..cache_opts.clone()
         };
-        let textured = self.states[g].level == Level::Textured;
-        choose_pixels(
-            &self.mask.pixels_of(g),
-            w,
-            if textured { &all } else { cache_opts },
-        )
+        if self.states[g].level == Level::Textured {
+            choose_pixels(&self.texture_pixels[g], w, &all)
+        } else {
+            choose_pixels(&self.mask.pixels_of(g), w, cache_opts)
+        }
     }
 
     /// One global iteration: every fitted group's cache rebuilt and refitted in turn, `log`
@@ -251,7 +278,7 @@ impl<'a> RecoveryLoop<'a> {
             }
             let tg = Instant::now();
             let textured = self.states[g].level == Level::Textured;
-            if textured && self.pixel_lists[g].0.len() < self.mask.stats[g].usable {
+            if textured && self.pixel_lists[g].0.len() < self.texture_pixels[g].len() {
                 let cache_opts = CacheOptions {
                     max_pixels: self.cap,
                     ..opts.cache.clone()
@@ -506,7 +533,9 @@ fn apply(scene: &mut Scene, states: &[GroupState], textures: &[Option<Arc<Textur
             Status::Analysing | Status::Confirmed | Status::Default
         ) {
             obj.material = match &textures[obj.group] {
-                Some(t) if st.level == Level::Textured => st.params.textured(t.clone()),
+                Some(t) if st.level == Level::Textured => {
+                    st.params.textured(t.clone(), st.params_level())
+                }
                 _ => st.params.material(st.level),
             };
         }

@@ -16,13 +16,15 @@
 //! the rest of the scene and back.
 //!
 //! The lobe is fitted first with a uniform ρd (the texture's variation is then only noise to it,
-//! averaged away by the error's tiles), then the texture under that lobe: in one image a texture
-//! fitted texel by texel could absorb any highlight, so the lobe is the one the lower levels
-//! found, and level 7 keeps a lobe only where a Ward level had earned its place (`hierarchy.rs`).
+//! averaged away by the error's tiles), then the texture under it, then the lobe again on what
+//! the texture leaves, then the texture again. In one image a texture fitted texel by texel
+//! could absorb any highlight, so the evidence for a lobe is that a uniform Ward level earned
+//! its place on held-out tiles, and `hierarchy.rs` keeps it over the bare texture unless the
+//! bare one fits significantly better.
 //!
 //! Texels seen by no pixel (a book's back, texels between a sub-sampled cache's pixels) are
 //! marked unseen and filled by pull–push from the seen texels of the same chart; a chart seen
-//! nowhere gets the mean of the seen texels.
+//! nowhere gets the mean of its object's seen texels (or of the group's).
 
 use super::cache::{GroupCache, TexelRows};
 use super::error::{tiled_error, ErrorStats, PixelTerms};
@@ -255,6 +257,38 @@ pub fn fit_textured(
     };
     let charts = atlas.chart_rects();
     let mut texels = solve(cache, rows, &spec, &start, iterations, &charts, atlas.width);
+    let (mut lobe, mut spec, mut spec_half, mut evals) = (lobe, spec, spec_half, evals);
+    if base.is_ward() {
+        // One alternation: the lobe refitted on what the texture leaves (the photo minus the
+        // texture's diffuse radiance: its ρd comes out near zero), then the texture under it.
+        // The uniform fit's lobe absorbs part of the texture's contrast; this one does not.
+        let mut rest = cache.clone();
+        for (p, px) in rest.pixels.iter_mut().enumerate() {
+            let [h0, h1] = model(rows, &texels, p);
+            px.photo -= h0 + h1;
+        }
+        let f = fit_level(&rest, base, &lobe, variant);
+        evals += f.evals;
+        lobe = GroupParams {
+            rho_d: lobe.rho_d,
+            ..f.params
+        };
+        let specs = pixel_specs(cache, spec_of(base, &lobe), variant, false);
+        spec = specs.iter().map(|s| lobe.rho_s * s.s).collect();
+        spec_half = specs
+            .iter()
+            .map(|s| s.s_half.map(|h| lobe.rho_s * h))
+            .collect();
+        texels = solve(
+            cache,
+            rows,
+            &spec,
+            &texels,
+            ITERATIONS,
+            &charts,
+            atlas.width,
+        );
+    }
     let seen = seen_texels(&column_weights(rows, n));
     let mut state = TextureState {
         base,
@@ -325,7 +359,7 @@ fn seen_texels(weights: &[f32]) -> Vec<bool> {
 /// texel is invisible to a pixel that straddles two texels, so where the pixel grid runs half a
 /// texel off the texel grid the photo does not determine it, and unpenalised it grows freely
 /// (stripes beating with the two grids). Minimising |Aρ − y|² + Σ_t λ_t Σ_{n ~ t} (ρ_t − ρ_n)²
-/// with λ_t = SMOOTHING · (AᵀA)_tt, the one-step-late multiplicative form
+/// with λ_t = SMOOTHING · max((AᵀA)_tt, the median texel's), the one-step-late multiplicative form
 ///   ρ_t ← ρ_t (Aᵀy + λ_t Σ_n ρ_n)_t / (AᵀAρ + λ_t deg_t ρ_t)_t
 /// keeps ρ ≥ 0 and has the penalised normal equations as its fixed point.
 pub fn solve(
@@ -360,7 +394,19 @@ pub fn solve(
             diag[t as usize] += w * d;
         }
     }
-    let lambda: Vec<Rgb> = diag.iter().map(|d| *d * SMOOTHING).collect();
+    // Floored at the median texel's: a texel at a chart's edge, seen by a sliver of a pixel,
+    // would otherwise be nearly free and drift to any value the little light on it allows.
+    let mut seen_diag: Vec<f32> = diag
+        .iter()
+        .map(|d| d.x + d.y + d.z)
+        .filter(|&d| d > 0.0)
+        .collect();
+    seen_diag.sort_by(f32::total_cmp);
+    let floor = seen_diag.get(seen_diag.len() / 2).copied().unwrap_or(0.0) / 3.0;
+    let lambda: Vec<Rgb> = diag
+        .iter()
+        .map(|d| d.max(Rgb::splat(floor)) * SMOOTHING)
+        .collect();
     // Neighbours within each chart (4-connected).
     let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); n];
     for &[x0, y0, w, h] in charts {
@@ -434,10 +480,32 @@ pub fn error(
 }
 
 /// Fills the unseen texels of each chart by pull–push (Gortler et al. 1996) from its seen
-/// ones; a chart with no seen texel gets `fallback`. Texels outside every chart (the gaps) take
+/// ones; a chart with no seen texel gets the mean of its object's seen texels, or `fallback`
+/// (the group's mean) if the object has none. Texels outside every chart (the gaps) take
 /// the value of the nearest chart texel row-wise, so the preview image has no black seams.
 pub fn fill_unseen(atlas: &Atlas, texels: &mut [Rgb], seen: &[bool], fallback: Rgb) {
-    for [x0, y0, w, h] in atlas.chart_rects() {
+    // Per object, the mean of its seen texels: a chart seen nowhere (a book's top, its sides)
+    // more likely shares its own object's colours than the group's.
+    let rects = atlas.chart_rects();
+    let objects = atlas.chart_objects();
+    let mut object_mean: std::collections::HashMap<u32, (Rgb, usize)> = Default::default();
+    for (&[x0, y0, w, h], &o) in rects.iter().zip(&objects) {
+        let e = object_mean.entry(o).or_insert((Rgb::ZERO, 0));
+        for y in 0..h {
+            for x in 0..w {
+                let i = (y0 + y) * atlas.width + x0 + x;
+                if seen[i] {
+                    e.0 += texels[i];
+                    e.1 += 1;
+                }
+            }
+        }
+    }
+    for (&[x0, y0, w, h], o) in rects.iter().zip(&objects) {
+        let fallback = match object_mean.get(o) {
+            Some(&(sum, n)) if n > 0 => sum / n as f32,
+            _ => fallback,
+        };
         let mut img = vec![(Rgb::ZERO, 0.0f32); w * h];
         for y in 0..h {
             for x in 0..w {

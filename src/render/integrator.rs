@@ -48,11 +48,31 @@ pub fn bsdf_at(material: &Material, hit: &SurfaceHit, variant: WardVariant) -> (
             },
             hit.frame.rotated(*theta),
         ),
-        Material::Textured { texture, scale } => (
+        Material::Textured {
+            texture,
+            scale,
+            varnish: None,
+        } => (
             Bsdf::Diffuse {
                 rho_d: *scale * texture.at(hit),
             },
             hit.frame,
+        ),
+        Material::Textured {
+            texture,
+            scale,
+            varnish: Some(v),
+        } => (
+            Bsdf::Ward {
+                rho_d: *scale * texture.at(hit),
+                rho_s: v.rho_s,
+                lobe: WardLobe {
+                    alpha_x: v.alpha_x,
+                    alpha_y: v.alpha_y,
+                    variant,
+                },
+            },
+            hit.frame.rotated(v.theta),
         ),
         Material::Black => (Bsdf::Black, hit.frame),
     }

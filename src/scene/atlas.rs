@@ -209,6 +209,18 @@ impl Atlas {
         ])
     }
 
+    /// The texel whose square holds a surface point (None off the group or outside its chart):
+    /// for box-filtering a reference texture onto the atlas.
+    pub fn texel_at(&self, object: u32, p: Vec3, ng: Vec3) -> Option<u32> {
+        let c = self.chart(object, ng)?;
+        let fx = ((p.dot(c.u) - c.s_min) / self.texel).floor();
+        let fy = ((c.t_max - p.dot(c.v)) / self.texel).floor();
+        if fx < 0.0 || fy < 0.0 || fx >= c.w as f32 || fy >= c.h as f32 {
+            return None;
+        }
+        Some(((c.y0 + fy as u32) as usize * self.width + (c.x0 + fx as u32) as usize) as u32)
+    }
+
     /// The texture's value at a surface point (black off the group).
     pub fn lookup(&self, texels: &[Rgb], object: u32, p: Vec3, ng: Vec3) -> Rgb {
         match self.taps(object, p, ng) {
@@ -217,6 +229,22 @@ impl Atlas {
                 .fold(Rgb::ZERO, |a, &(i, w)| a + texels[i as usize] * w),
             None => Rgb::ZERO,
         }
+    }
+
+    /// The scene object each chart belongs to, in the order of [`Atlas::chart_rects`].
+    pub fn chart_objects(&self) -> Vec<u32> {
+        let mut out = vec![u32::MAX; self.charts.len()];
+        for (object, &s) in self.slot.iter().enumerate() {
+            if s == u32::MAX {
+                continue;
+            }
+            for &c in &self.chart_of[s as usize * 6..s as usize * 6 + 6] {
+                if let Some(o) = out.get_mut(c as usize) {
+                    *o = object as u32;
+                }
+            }
+        }
+        out
     }
 
     /// The texel rectangles of the charts (x0, y0, w, h), for per-chart hole filling.

@@ -657,13 +657,15 @@ fn energy(rho_d: Rgb, rho_s: Rgb, keys: &str) -> Result<(), String> {
     Ok(())
 }
 
-/// Turns a material table into a material; the message says what is wrong.
-fn build_material(m: &MaterialSpec, cx_dir: &Ctx) -> Result<Material, String> {
-    build_material_in(m, &cx_dir.dir)
-}
-
-/// Same, resolving texture paths against `dir`.
-pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, String> {
+/// A Ward lobe's (αx, αy, θ in radians) from a material table's keys: `alpha` (isotropic) or
+/// `alpha_x` and `alpha_y`, with an optional `theta_deg`.
+fn lobe(
+    alpha: Option<f32>,
+    alpha_x: Option<f32>,
+    alpha_y: Option<f32>,
+    theta_deg: Option<f32>,
+    what: &str,
+) -> Result<(f32, f32, f32), String> {
     let alpha_ok = |a: f32, key: &str| {
         if a > 0.0 && a.is_finite() {
             Ok(a)
@@ -671,6 +673,29 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
             Err(format!("`{key}` must be positive, got {a}"))
         }
     };
+    let (ax, ay) = match (alpha, alpha_x, alpha_y) {
+        (Some(a), None, None) => (alpha_ok(a, "alpha")?, alpha_ok(a, "alpha")?),
+        (None, Some(x), Some(y)) => (alpha_ok(x, "alpha_x")?, alpha_ok(y, "alpha_y")?),
+        _ => {
+            return Err(format!(
+                "{what} takes either `alpha` (isotropic) or both `alpha_x` and `alpha_y`"
+            ))
+        }
+    };
+    let theta = theta_deg.unwrap_or(0.0);
+    if !theta.is_finite() {
+        return Err("`theta_deg` must be finite".into());
+    }
+    Ok((ax, ay, theta.to_radians()))
+}
+
+/// Turns a material table into a material; the message says what is wrong.
+fn build_material(m: &MaterialSpec, cx_dir: &Ctx) -> Result<Material, String> {
+    build_material_in(m, &cx_dir.dir)
+}
+
+/// Same, resolving texture paths against `dir`.
+pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, String> {
     Ok(match m {
         MaterialSpec::Diffuse { rho_d } => {
             let rho_d = color(rho_d, "rho_d")?;
@@ -695,15 +720,7 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
             alpha_y,
             theta_deg,
         } => {
-            let (ax, ay) = match (alpha, alpha_x, alpha_y) {
-                (Some(a), None, None) => (alpha_ok(*a, "alpha")?, alpha_ok(*a, "alpha")?),
-                (None, Some(x), Some(y)) => (alpha_ok(*x, "alpha_x")?, alpha_ok(*y, "alpha_y")?),
-                _ => return Err("a ward material takes either `alpha` (isotropic) or both `alpha_x` and `alpha_y`".into()),
-            };
-            let theta = theta_deg.unwrap_or(0.0);
-            if !theta.is_finite() {
-                return Err("`theta_deg` must be finite".into());
-            }
+            let (ax, ay, theta) = lobe(*alpha, *alpha_x, *alpha_y, *theta_deg, "a ward material")?;
             let (rho_d, rho_s) = (color(rho_d, "rho_d")?, color(rho_s, "rho_s")?);
             energy(rho_d, rho_s, "`rho_d` + `rho_s`")?;
             Material::Ward {
@@ -711,7 +728,7 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
                 rho_s,
                 alpha_x: ax,
                 alpha_y: ay,
-                theta: theta.to_radians(),
+                theta,
             }
         }
         MaterialSpec::Textured {
@@ -719,7 +736,33 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
             scale,
             mapping,
             texel_size,
+            rho_s,
+            alpha,
+            alpha_x,
+            alpha_y,
+            theta_deg,
         } => {
+            let varnish = match rho_s {
+                Some(rho_s) => {
+                    let (alpha_x, alpha_y, theta) =
+                        lobe(*alpha, *alpha_x, *alpha_y, *theta_deg, "a varnish")?;
+                    let rho_s = color(rho_s, "rho_s")?;
+                    energy(Rgb::ZERO, rho_s, "`rho_s`")?;
+                    Some(crate::scene::Varnish {
+                        rho_s,
+                        alpha_x,
+                        alpha_y,
+                        theta,
+                    })
+                }
+                None if alpha.is_some() || alpha_x.is_some() || alpha_y.is_some() => {
+                    return Err(
+                        "a textured material's `alpha` goes with `rho_s` (the varnish's lobe)"
+                            .into(),
+                    )
+                }
+                None => None,
+            };
             match (mapping.as_deref(), texel_size) {
                 (None | Some("uv"), None) => {}
                 (Some("atlas"), Some(t)) if t.is_finite() && *t > 0.0 => {}
@@ -754,6 +797,7 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
                     Some(s) => color(s, "scale")?,
                     None => Rgb::ONE,
                 },
+                varnish,
             }
         }
         MaterialSpec::Black => Material::Black,

@@ -25,6 +25,16 @@ impl WardVariant {
     }
 }
 
+/// A uniform Ward lobe over a textured diffuse term: ρs, αx, αy and θ (radians) as in
+/// [`Material::Ward`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Varnish {
+    pub rho_s: Rgb,
+    pub alpha_x: f32,
+    pub alpha_y: f32,
+    pub theta: f32,
+}
+
 #[derive(Clone, Debug)]
 pub enum Material {
     /// Lambert: f = ρd / π.
@@ -41,8 +51,13 @@ pub enum Material {
         alpha_y: f32,
         theta: f32,
     },
-    /// Lambert with ρd(u, v) = scale × texture(u, v).
-    Textured { texture: Arc<Texture>, scale: Rgb },
+    /// Lambert with ρd(u, v) = scale × texture(u, v), and optionally a uniform Ward lobe on
+    /// top (a varnish: glossy posters, lacquered wood).
+    Textured {
+        texture: Arc<Texture>,
+        scale: Rgb,
+        varnish: Option<Varnish>,
+    },
     /// Reflects nothing (emitters by default).
     Black,
 }
@@ -63,6 +78,9 @@ impl Material {
             Material::Mirror { rho_s }
             | Material::DiffuseMirror { rho_s, .. }
             | Material::Ward { rho_s, .. } => *rho_s,
+            Material::Textured {
+                varnish: Some(v), ..
+            } => v.rho_s,
             _ => Rgb::ZERO,
         }
     }

@@ -15,7 +15,7 @@ pub mod write;
 pub use camera::Camera;
 pub use error::SceneError;
 pub use load::load_scene;
-pub use material::{Material, WardVariant};
+pub use material::{Material, Varnish, WardVariant};
 
 use crate::geometry::packet::{Packet, LANES};
 use crate::geometry::{Bvh, Hit, Ray};

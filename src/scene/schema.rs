@@ -43,6 +43,9 @@
 //! center = [0, 0.5, 0]
 //! radius = 0.5
 //! segments = 64                 # optional: triangles around (8-1024), half as many pole to pole
+//! # a texture over the mesh's UVs (or `mapping = "atlas"`, `texel_size = 0.01`: the group's
+//! # chart atlas, as `recover` writes it), optionally varnished with a uniform Ward lobe:
+//! # material = { type = "textured", texture = "desk.png", rho_s = 0.06, alpha = 0.12 }
 //! ```
 
 use serde::{Deserialize, Serialize};
@@ -260,6 +263,18 @@ pub enum MaterialSpec {
         mapping: Option<String>,
         #[serde(default, skip_serializing_if = "Option::is_none")]
         texel_size: Option<f32>,
+        /// An optional uniform Ward lobe on top of the texture (a varnish): `rho_s` with
+        /// `alpha` or `alpha_x`/`alpha_y`/`theta_deg`, as in a ward material.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        rho_s: Option<Color>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        alpha: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        alpha_x: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        alpha_y: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        theta_deg: Option<f32>,
     },
     Black,
 }

@@ -36,16 +36,26 @@ pub fn material_spec(m: &Material) -> MaterialSpec {
                 theta_deg: (!iso).then_some(theta.to_degrees()),
             }
         }
-        Material::Textured { texture, scale } => {
+        Material::Textured {
+            texture,
+            scale,
+            varnish,
+        } => {
             let atlas = match &texture.mapping {
                 super::texture::Mapping::Atlas(a) => Some(a.texel),
                 super::texture::Mapping::Uv => None,
             };
+            let iso = varnish.is_some_and(|v| v.alpha_x == v.alpha_y && v.theta == 0.0);
             MaterialSpec::Textured {
                 texture: texture.path.to_string_lossy().into_owned(),
                 scale: Some(c(*scale)),
                 mapping: atlas.map(|_| "atlas".to_string()),
                 texel_size: atlas,
+                rho_s: varnish.map(|v| c(v.rho_s)),
+                alpha: varnish.filter(|_| iso).map(|v| v.alpha_x),
+                alpha_x: varnish.filter(|_| !iso).map(|v| v.alpha_x),
+                alpha_y: varnish.filter(|_| !iso).map(|v| v.alpha_y),
+                theta_deg: varnish.filter(|_| !iso).map(|v| v.theta.to_degrees()),
             }
         }
         Material::Black => MaterialSpec::Black,

@@ -1,0 +1,487 @@
+//! End-to-end textures (issue 21, §5.2 of the notes): the bundled poster scene's photo rendered
+//! by matfit with its true textures, recovered blind. The recovered texels are scored against
+//! the true reflectance box-filtered onto the recovered atlas (each texel the mean of the true
+//! texture over the texel's square, sampled at 16+ points per texel on the true surface), over
+//! the texels the photo sees and whose square lies wholly on the surface. The same score for the
+//! texture cut straight from the photo (each texel the mean photo pixel landing in it, scaled by
+//! the one factor that best fits the truth) shows what dividing the light out buys.
+
+use crate::recover::{run_keeping_photo, scaled, state};
+use matfit::fit::Level;
+use matfit::io::image::Image;
+use matfit::math::{Rgb, Vec2, Vec3};
+use matfit::render::aov::index_buffers;
+use matfit::render::film::{render, RenderOptions};
+use matfit::scene::atlas::Atlas;
+use matfit::scene::load::parse_scene;
+use matfit::scene::texture::Mapping;
+use matfit::scene::{Camera, Material, Scene};
+
+/// The recovered atlas and texels of a group (None if it is not textured).
+fn recovered(
+    rec: &matfit::fit::Recovery,
+    group: usize,
+) -> Option<(std::sync::Arc<Atlas>, Vec<Rgb>)> {
+    rec.scene
+        .objects
+        .iter()
+        .filter(|o| o.group == group)
+        .find_map(|o| match &o.material {
+            Material::Textured { texture, .. } => match &texture.mapping {
+                Mapping::Atlas(a) => Some((a.clone(), texture.texels.clone())),
+                Mapping::Uv => None,
+            },
+            _ => None,
+        })
+}
+
+/// The true reflectance of `group` box-filtered onto `atlas`: per texel the mean and the number
+/// of samples that landed in it.
+fn reference(truth: &Scene, group: usize, atlas: &Atlas) -> (Vec<Rgb>, Vec<u32>) {
+    let g = &*truth.geometry;
+    let n = atlas.width * atlas.height;
+    let (mut sum, mut count) = (vec![Rgb::ZERO; n], vec![0u32; n]);
+    for (oi, obj) in truth.objects.iter().enumerate() {
+        if obj.group != group {
+            continue;
+        }
+        let Material::Textured { texture, scale, .. } = &obj.material else {
+            panic!("{}: the truth is not textured", obj.name)
+        };
+        for tri in &g.tris[obj.tri_range.start as usize..obj.tri_range.end as usize] {
+            let [a, b, c] = tri.v.map(|i| i as usize);
+            let (pa, pb, pc) = (g.positions[a], g.positions[b], g.positions[c]);
+            let (ua, ub, uc) = (g.uvs[a], g.uvs[b], g.uvs[c]);
+            let ng = (pb - pa).cross(pc - pa).normalize();
+            let area = 0.5 * (pb - pa).cross(pc - pa).length();
+            // At least 16 samples per texel, stratified, uniform over the triangle.
+            let k = ((area / (atlas.texel * atlas.texel) * 16.0).sqrt().ceil() as usize).max(4);
+            for i in 0..k {
+                for j in 0..k {
+                    let (s, t) = ((i as f32 + 0.5) / k as f32, (j as f32 + 0.5) / k as f32);
+                    let r = s.sqrt();
+                    let (wa, wb, wc) = (1.0 - r, r * (1.0 - t), r * t);
+                    let p = pa * wa + pb * wb + pc * wc;
+                    let uv = ua * wa + ub * wb + uc * wc;
+                    if let Some(x) = atlas.texel_at(oi as u32, p, ng) {
+                        sum[x as usize] += *scale * texture.lookup(uv);
+                        count[x as usize] += 1;
+                    }
+                }
+            }
+        }
+    }
+    for (s, &c) in sum.iter_mut().zip(&count) {
+        if c > 0 {
+            *s /= c as f32;
+        }
+    }
+    (sum, count)
+}
+
+/// The texture cut straight from the photo: per texel, the mean of the photo's pixels whose
+/// centre's primary hit lands in it (None where none does).
+fn cut_from_photo(truth: &Scene, photo: &Image, group: usize, atlas: &Atlas) -> Vec<Option<Rgb>> {
+    let n = atlas.width * atlas.height;
+    let (mut sum, mut count) = (vec![Rgb::ZERO; n], vec![0u32; n]);
+    for y in 0..photo.height {
+        for x in 0..photo.width {
+            let ray = truth.camera.ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5));
+            let Some(hit) = truth.intersect(&ray, f32::INFINITY) else {
+                continue;
+            };
+            if truth.objects[hit.object as usize].group != group {
+                continue;
+            }
+            if let Some(t) = atlas.texel_at(hit.object, hit.p, hit.ng) {
+                sum[t as usize] += photo.get(x, y);
+                count[t as usize] += 1;
+            }
+        }
+    }
+    sum.iter()
+        .zip(&count)
+        .map(|(s, &c)| (c > 0).then(|| *s / c as f32))
+        .collect()
+}
+
+#[derive(Debug)]
+struct Score {
+    texels: usize,
+    /// 10 log10(1 / MSE), reflectance peak 1, over the channels.
+    psnr: f32,
+    /// Σ|recovered − true| / Σ true over the texels and channels.
+    rel_l1: f32,
+    /// (mean recovered − mean true) / mean true, per channel.
+    mean_bias: [f32; 3],
+}
+
+fn score(pairs: &[(Rgb, Rgb)]) -> Score {
+    let (mut se, mut l1, mut tsum) = (0.0f64, 0.0f64, 0.0f64);
+    let (mut ms, mut mt) = ([0.0f64; 3], [0.0f64; 3]);
+    for (r, t) in pairs {
+        for c in 0..3 {
+            let d = (r[c] - t[c]) as f64;
+            se += d * d;
+            l1 += d.abs();
+            tsum += t[c] as f64;
+            ms[c] += r[c] as f64;
+            mt[c] += t[c] as f64;
+        }
+    }
+    let mse = se / (3 * pairs.len().max(1)) as f64;
+    Score {
+        texels: pairs.len(),
+        psnr: (10.0 * (1.0 / mse.max(1e-12)).log10()) as f32,
+        rel_l1: (l1 / tsum.max(1e-12)) as f32,
+        mean_bias: std::array::from_fn(|c| ((ms[c] - mt[c]) / mt[c].max(1e-12)) as f32),
+    }
+}
+
+/// The recovered texture's and the cut texture's scores for `group`: over texels seen in the
+/// photo, fully on the surface (as many reference samples as the median texel) and reached by a
+/// photo pixel.
+fn scores(truth: &Scene, photo: &Image, rec: &matfit::fit::Recovery, name: &str) -> (Score, Score) {
+    let g = truth.group_index(name).unwrap();
+    let (atlas, texels) = recovered(rec, g).unwrap_or_else(|| panic!("{name}: not textured"));
+    let seen = &state(rec, name).texture.as_ref().unwrap().seen;
+    let (truth_texels, count) = reference(truth, g, &atlas);
+    let cut = cut_from_photo(truth, photo, g, &atlas);
+    // MATFIT_TEXTURE_DUMP=dir: per group, recovered | true | mask (white: seen; blue: on the
+    // surface) side by side, 4× enlarged, to look at.
+    if let Some(dir) = std::env::var_os("MATFIT_TEXTURE_DUMP") {
+        let k = 4;
+        let mut img = Image::new(atlas.width * 3 * k, atlas.height * k);
+        for t in 0..texels.len() {
+            let (x, y) = (t % atlas.width, t / atlas.width);
+            let seen_c = if seen[t] { Rgb::ONE } else { Rgb::ZERO };
+            for i in 0..k * k {
+                let (xx, yy) = (x * k + i % k, y * k + i / k);
+                img.set(xx, yy, texels[t]);
+                img.set(xx + atlas.width * k, yy, truth_texels[t]);
+                img.set(
+                    xx + 2 * atlas.width * k,
+                    yy,
+                    if count[t] > 0 {
+                        seen_c * 0.5 + Rgb::new(0.0, 0.0, 0.5)
+                    } else {
+                        seen_c
+                    },
+                );
+            }
+        }
+        img.write(&std::path::Path::new(&dir).join(format!("{name}.png")))
+            .unwrap();
+    }
+    let mut counts: Vec<u32> = count.iter().copied().filter(|&c| c > 0).collect();
+    counts.sort_unstable();
+    let full = counts[counts.len() / 2] * 9 / 10;
+    let keep: Vec<usize> = (0..texels.len())
+        .filter(|&t| seen[t] && count[t] >= full && cut[t].is_some())
+        .collect();
+    let rec_pairs: Vec<(Rgb, Rgb)> = keep.iter().map(|&t| (texels[t], truth_texels[t])).collect();
+    // The cut's best single scale against the truth (least squares over all channels).
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for &t in &keep {
+        let c = cut[t].unwrap();
+        for ch in 0..3 {
+            num += (c[ch] * truth_texels[t][ch]) as f64;
+            den += (c[ch] * c[ch]) as f64;
+        }
+    }
+    let k = (num / den.max(1e-12)) as f32;
+    let cut_pairs: Vec<(Rgb, Rgb)> = keep
+        .iter()
+        .map(|&t| (cut[t].unwrap() * k, truth_texels[t]))
+        .collect();
+    (score(&rec_pairs), score(&cut_pairs))
+}
+
+/// Per group, the mean radiance of the recovered scene over the truth's, both rendered with
+/// `change` applied (a new camera, a moved light), over the pixels whose 3×3 neighbourhood is
+/// all the group (edges mix groups).
+fn predicted(
+    truth: &Scene,
+    rec: &matfit::fit::Recovery,
+    change: impl Fn(&mut Scene),
+    spp: u32,
+) -> Vec<(String, f32)> {
+    let mut t = truth.clone();
+    change(&mut t);
+    let mut r = t.clone();
+    for (o, src) in r.objects.iter_mut().zip(&rec.scene.objects) {
+        if !o.is_emitter() {
+            o.material = src.material.clone();
+        }
+    }
+    let opts = RenderOptions {
+        spp,
+        seed: 9,
+        progress: false,
+    };
+    let (it, ir) = (render(&t, &t.camera, &opts), render(&r, &r.camera, &opts));
+    let ids = index_buffers(&t, &t.camera);
+    let (w, h) = (ids.width, ids.height);
+    let mut sums = vec![(Rgb::ZERO, Rgb::ZERO); t.groups.len()];
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let g = ids.group[y * w + x];
+            let inside = (0..9).all(|k| ids.group[(y + k / 3 - 1) * w + x + k % 3 - 1] == g);
+            if g >= 0 && inside {
+                let s = &mut sums[g as usize];
+                s.0 += ir.get(x, y);
+                s.1 += it.get(x, y);
+            }
+        }
+    }
+    let lum = |c: Rgb| c.x + c.y + c.z;
+    t.groups
+        .iter()
+        .zip(&sums)
+        .filter(|(_, s)| lum(s.1) > 0.0)
+        .map(|(g, s)| (g.name.clone(), lum(s.0) / lum(s.1) - 1.0))
+        .collect()
+}
+
+/// What the poster scene's recovery measures (printed by the tests).
+struct Figures {
+    rec: matfit::fit::Recovery,
+    /// Per textured group: the recovered texture's score and the cut texture's.
+    textures: Vec<(&'static str, Score, Score)>,
+    /// Per group: recovered / true − 1 of the mean radiance, from the photo's viewpoint, from
+    /// a new one, and under a moved lamp.
+    same: Vec<(String, f32)>,
+    view: Vec<(String, f32)>,
+    lit: Vec<(String, f32)>,
+}
+
+impl Figures {
+    fn texture(&self, group: &str) -> (&Score, &Score) {
+        let t = self.textures.iter().find(|t| t.0 == group).unwrap();
+        (&t.1, &t.2)
+    }
+}
+
+/// Recovers the poster scene at `scale` of its resolution from a `spp` photo and measures it.
+fn poster_scene(scale: f32, spp: u32) -> Figures {
+    let scene = scaled("scenes/poster/scene.toml", scale);
+    let (rec, photo, _) = run_keeping_photo(&scene, spp, Default::default());
+    for name in [
+        "poster",
+        "books",
+        "desk",
+        "walls",
+        "floor",
+        "left_wall",
+        "shelf",
+    ] {
+        let st = state(&rec, name);
+        eprintln!(
+            "{name:<10} {:<10} ε {:.4} ρd {:.4} ρs {:.4} αx {:.4} αy {:.4}",
+            st.level.name(),
+            st.error,
+            st.params.rho_d,
+            st.params.rho_s,
+            st.params.alpha_x,
+            st.params.alpha_y
+        );
+    }
+    let textures = ["poster", "books", "desk"]
+        .into_iter()
+        .filter(|&name| state(&rec, name).level == Level::Textured)
+        .map(|name| {
+            let (r, c) = scores(&scene, &photo, &rec, name);
+            eprintln!("{name:<7} recovered {r:?}\n{name:<7} cut       {c:?}");
+            (name, r, c)
+        })
+        .collect();
+    let same = predicted(&scene, &rec, |_| {}, 64);
+    // A new viewpoint (from the right, lower, nearer the desk) and a moved lamp (0.9 m to the
+    // right, 0.5 m higher: above the books).
+    let c = &scene.camera;
+    let view = Camera::look_at(
+        c.width,
+        c.height,
+        Vec3::new(0.9, 1.2, -1.9),
+        Vec3::new(-0.6, 1.0, -5.0),
+        Vec3::Y,
+        50.0,
+    )
+    .unwrap();
+    let view = predicted(&scene, &rec, |s| s.camera = view.clone(), 64);
+    let moved = {
+        let p = crate::common::root().join("scenes/poster/scene.toml");
+        let text = std::fs::read_to_string(&p)
+            .unwrap()
+            .replace("corner = [-0.2, 1.7, -4.99]", "corner = [0.7, 2.2, -4.99]");
+        parse_scene(&text, &p).unwrap()
+    };
+    let lit = predicted(&scene, &rec, |s| s.geometry = moved.geometry.clone(), 64);
+    for (what, v) in [
+        ("photo's view", &same),
+        ("new view", &view),
+        ("moved lamp", &lit),
+    ] {
+        let line: Vec<String> = v
+            .iter()
+            .map(|(g, e)| format!("{g} {:+.2}%", e * 100.0))
+            .collect();
+        eprintln!("{what:<12} recovered/true − 1: {}", line.join(", "));
+    }
+    Figures {
+        rec,
+        textures,
+        same,
+        view,
+        lit,
+    }
+}
+
+/// At half the resolution (240×180) and a 256-spp photo (CI). Measured: poster 27.1 dB,
+/// Σ|Δ|/Σ 6.3%, mean within 0.4% (cut from the photo: 20.0 dB, 19.4%, mean off by 10–20%);
+/// desk 44.2 dB, 1.5%, mean within 1.4%, varnish ρs 0.110–0.111 (true 0.1), α 0.087 (true
+/// 0.08); books 25.4 dB (cut 23.5), mean +1.4 to +3.5%; renders of the recovered scene from
+/// the photo's viewpoint, a new one and under a moved lamp within 1% per group but the desk
+/// (−2.1% from the new viewpoint) and the books (+7 to +9%: their spines are 8–11 pixels wide
+/// here and the band around them hides their margins, filled from their bright labels).
+#[test]
+fn poster_scene_textures_are_recovered_as_reflectance() {
+    let f = poster_scene(0.5, 256);
+    for (name, level) in [
+        ("poster", Level::Textured),
+        ("books", Level::Textured),
+        ("desk", Level::Textured),
+        ("walls", Level::Diffuse),
+        ("floor", Level::Diffuse),
+        ("left_wall", Level::Diffuse),
+        ("shelf", Level::Diffuse),
+    ] {
+        assert_eq!(state(&f.rec, name).level, level, "{name}");
+    }
+    let (poster, cut) = f.texture("poster");
+    // Most of the poster's texels are scored (3177 of its ~4100 here).
+    assert!(poster.texels > 2500, "{poster:?}");
+    assert!(
+        poster.psnr > 25.0 && poster.psnr > cut.psnr + 5.0,
+        "{poster:?} {cut:?}"
+    );
+    assert!(
+        poster.rel_l1 < 0.08 && poster.rel_l1 < cut.rel_l1 / 2.0,
+        "{poster:?}"
+    );
+    assert!(
+        poster.mean_bias.iter().all(|b| b.abs() < 0.01),
+        "{poster:?}"
+    );
+    let (desk, cut) = f.texture("desk");
+    assert!(
+        desk.psnr > 40.0 && desk.psnr > cut.psnr + 10.0,
+        "{desk:?} {cut:?}"
+    );
+    assert!(
+        desk.rel_l1 < 0.025 && desk.mean_bias.iter().all(|b| b.abs() < 0.025),
+        "{desk:?}"
+    );
+    let (books, cut) = f.texture("books");
+    assert!(
+        books.psnr > cut.psnr && books.mean_bias.iter().all(|b| b.abs() < 0.05),
+        "{books:?}"
+    );
+    // The desk keeps its varnish (true ρs 0.1, α 0.08), the poster has none.
+    let desk = state(&f.rec, "desk");
+    assert!(
+        desk.texture.as_ref().unwrap().base.is_ward(),
+        "the desk lost its varnish"
+    );
+    assert!(!state(&f.rec, "poster")
+        .texture
+        .as_ref()
+        .unwrap()
+        .base
+        .is_ward());
+    let rho_s = desk.params.rho_s;
+    assert!(
+        (rho_s - Rgb::splat(0.1)).abs().max_element() < 0.015,
+        "{rho_s}"
+    );
+    assert!(
+        (desk.params.alpha_x / 0.08 - 1.0).abs() < 0.15,
+        "{:?}",
+        desk.params
+    );
+    // Renders of the recovered scene against the truth's, per group.
+    for which in [&f.same, &f.view, &f.lit] {
+        for (g, e) in which {
+            let tol = match g.as_str() {
+                "books" => 0.12,
+                "desk" => 0.03,
+                _ => 0.015,
+            };
+            assert!(e.abs() < tol, "{g}: {e}");
+        }
+    }
+}
+
+/// The acceptance figures of issue 21 at full resolution (480×360, 1024-spp photo), printed;
+/// a few minutes on two cores:
+///   cargo test --profile ci --test tests texture::poster_scene_at_full_resolution -- --ignored --nocapture
+#[test]
+#[ignore]
+fn poster_scene_at_full_resolution() {
+    let f = poster_scene(1.0, 1024);
+    for name in ["poster", "books", "desk"] {
+        assert_eq!(state(&f.rec, name).level, Level::Textured, "{name}");
+    }
+}
+
+/// A varnish over a uniform texture is the Ward material of the same values: the same image but
+/// for rounding (the renderer builds the same BSDF), and it survives a write and a re-read.
+#[test]
+fn a_varnished_uniform_texture_renders_as_ward() {
+    let d = tempfile::tempdir().unwrap();
+    let mut tex = Image::new(2, 2);
+    tex.data
+        .iter_mut()
+        .for_each(|t| *t = Rgb::new(0.3, 0.2, 0.1));
+    tex.write(&d.path().join("t.pfm")).unwrap();
+    let scene = |material: &str| {
+        let text =
+            crate::common::SMALL_SCENE.replace("{ type = \"diffuse\", rho_d = 0.5 }", material);
+        let p = crate::common::write(d.path(), "scene.toml", &text);
+        parse_scene(&text, &p).unwrap()
+    };
+    let ward = scene(
+        "{ type = \"ward\", rho_d = [0.3, 0.2, 0.1], rho_s = 0.2, alpha_x = 0.1, alpha_y = 0.2, theta_deg = 30 }",
+    );
+    let varnished = scene(
+        "{ type = \"textured\", texture = \"t.pfm\", rho_s = 0.2, alpha_x = 0.1, alpha_y = 0.2, theta_deg = 30 }",
+    );
+    let opts = RenderOptions {
+        spp: 8,
+        seed: 1,
+        progress: false,
+    };
+    let (a, b) = (
+        render(&ward, &ward.camera, &opts),
+        render(&varnished, &varnished.camera, &opts),
+    );
+    // Equal but for the last bits of the bilinear lookup (0.3·(1 − f) + 0.3·f).
+    let worst = a
+        .data
+        .iter()
+        .zip(&b.data)
+        .map(|(x, y)| ((*x - *y).abs() / x.max(Rgb::splat(1e-3))).max_element())
+        .fold(0.0f32, f32::max);
+    assert!(a.mean().x > 0.0);
+    assert!(worst < 1e-5, "pixels differ by up to {worst} (relative)");
+    // Written back (as `recover` writes recovered.toml) and read again: the same varnish.
+    let dest = d.path().join("again.toml");
+    let text = matfit::scene::write::scene_to_toml(&varnished, &dest);
+    let again = parse_scene(&text, &dest).unwrap();
+    let varnish = |s: &Scene| match &s.objects[0].material {
+        Material::Textured { varnish, .. } => *varnish,
+        m => panic!("{m:?}"),
+    };
+    assert!(varnish(&varnished).is_some());
+    assert_eq!(varnish(&again), varnish(&varnished));
+}
