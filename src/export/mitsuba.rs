@@ -241,13 +241,8 @@ fn bsdf_xml(m: &Material, name: &str, warnings: &mut Vec<String>) -> String {
             ));
             diffuse(*rho_d)
         }
-        Material::Textured {
-            texture,
-            scale,
-            varnish,
-        } => {
-            let n = texture.texels.len().max(1) as f32;
-            let mean = texture.texels.iter().copied().sum::<Rgb>() / n * *scale;
+        Material::Textured { varnish, .. } => {
+            let mean = m.rho_d();
             warnings.push(format!(
                 "object '{name}': textures are not exported; diffuse with the texture's mean \
                  {:?}{}",

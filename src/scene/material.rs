@@ -63,12 +63,17 @@ pub enum Material {
 }
 
 impl Material {
-    /// The diffuse albedo where it is uniform (used for the default of unseen groups etc.).
+    /// The diffuse albedo where it is uniform; a texture's mean over its texels (what a table
+    /// that has one number per group shows).
     pub fn rho_d(&self) -> Rgb {
         match self {
             Material::Diffuse { rho_d }
             | Material::DiffuseMirror { rho_d, .. }
             | Material::Ward { rho_d, .. } => *rho_d,
+            Material::Textured { texture, scale, .. } => {
+                let n = texture.texels.len().max(1) as f32;
+                texture.texels.iter().copied().sum::<Rgb>() / n * *scale
+            }
             _ => Rgb::ZERO,
         }
     }
