@@ -63,24 +63,30 @@ pub struct RecoveryLoop<'a> {
     atlases: Vec<Option<Arc<Atlas>>>,
     /// Per group at level 7, its current texture as the renderer reads it.
     textures: Vec<Option<Arc<Texture>>>,
-    /// Per group, the pixels a texture of it is fitted from (`texture_pixels`).
-    texture_pixels: Vec<Vec<usize>>,
+    /// Per group, the pixels a texture of it is fitted from (`texture_pixels`), found when a
+    /// group first needs them.
+    texture_pixels: std::cell::OnceCell<Vec<Vec<usize>>>,
 }
 
-/// The pixels a textured group is fitted from: its usable pixels and those the mask's edge test
-/// removed. Near a group's boundary a strong photo edge is taken for the neighbour's surface
-/// showing through a misregistered model; on a textured group it is mostly the texture's own
-/// strokes (a poster's dark band and its lettering next to its frame, a book spine's label: on
-/// the poster scene the test removes half of the books' pixels), and a texel only the removed
-/// pixels see could only be guessed. The band around the boundary stays removed.
+/// The pixels a textured group is fitted from: its usable pixels, those the mask's edge test
+/// removed and the pure pixels of the band. Near a group's boundary a strong photo edge is taken
+/// for the neighbour's surface showing through a misregistered model, and the band guards
+/// against the same; on a textured group the edges are mostly the texture's own strokes (a
+/// poster's dark band and its lettering next to its frame, a book spine's label), and the band
+/// hides the texels along the outline (a book spine's margins), which could then only be
+/// guessed. The model is registered to the photo before masking (`photo/register.rs`), so a
+/// pixel the object covers wholly (`photo/coverage.rs`) sees that object in the photo too;
+/// pixels that mix two objects stay out.
 fn texture_pixels(scene: &Scene, mask: &UsableMask) -> Vec<Vec<usize>> {
     use crate::photo::mask::Reject;
     let ib = crate::render::aov::index_buffers(scene, &scene.camera);
+    let pure = crate::photo::coverage::pure_pixels(scene, &scene.camera, &ib);
     let mut out = vec![Vec::new(); scene.groups.len()];
     for (i, (&g, r)) in mask.group.iter().zip(&mask.reason).enumerate() {
         let g = match r {
             Reject::None => g,
             Reject::Edge => ib.group.get(i).copied().unwrap_or(-1),
+            Reject::Band if pure.get(i) == Some(&true) => ib.group.get(i).copied().unwrap_or(-1),
             _ => -1,
         };
         if g >= 0 {
@@ -184,10 +190,16 @@ impl<'a> RecoveryLoop<'a> {
             unseen: Vec::new(),
             atlases,
             textures,
-            texture_pixels: texture_pixels(scene, mask),
+            texture_pixels: std::cell::OnceCell::new(),
         };
         r.pixel_lists = r.choose_all(cap);
         r
+    }
+
+    /// Per group, the pixels a texture of it is fitted from ([`texture_pixels`]).
+    fn texture_pixels(&self) -> &[Vec<usize>] {
+        self.texture_pixels
+            .get_or_init(|| texture_pixels(self.scene, &self.mask))
     }
 
     /// How many groups each global iteration fits.
@@ -250,7 +262,7 @@ impl<'a> RecoveryLoop<'a> {
             ..cache_opts.clone()
         };
         if self.states[g].level == Level::Textured {
-            choose_pixels(&self.texture_pixels[g], w, &all)
+            choose_pixels(&self.texture_pixels()[g], w, &all)
         } else {
             choose_pixels(&self.mask.pixels_of(g), w, cache_opts)
         }
@@ -278,7 +290,7 @@ impl<'a> RecoveryLoop<'a> {
             }
             let tg = Instant::now();
             let textured = self.states[g].level == Level::Textured;
-            if textured && self.pixel_lists[g].0.len() < self.texture_pixels[g].len() {
+            if textured && self.pixel_lists[g].0.len() < self.texture_pixels()[g].len() {
                 let cache_opts = CacheOptions {
                     max_pixels: self.cap,
                     ..opts.cache.clone()
