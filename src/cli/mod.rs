@@ -300,6 +300,8 @@ fn positive_f32(s: &str) -> Result<f32, String> {
 impl FitArgs {
     fn options(&self) -> matfit::fit::RecoverOptions {
         let d = matfit::fit::RecoverOptions::default();
+        // --no-textures: thresholds no group can reach.
+        let textures_off = self.no_textures.then_some(f32::MAX);
         matfit::fit::RecoverOptions {
             seed: self.seed,
             max_iterations: self.max_iterations.max(1),
@@ -311,16 +313,8 @@ impl FitArgs {
             },
             hierarchy: matfit::fit::hierarchy::HierarchyOptions {
                 thresholds: matfit::fit::level::Thresholds {
-                    texture_error: if self.no_textures {
-                        f32::MAX
-                    } else {
-                        self.texture_error
-                    },
-                    texture_detail: if self.no_textures {
-                        f32::MAX
-                    } else {
-                        self.texture_detail
-                    },
+                    texture_error: textures_off.unwrap_or(self.texture_error),
+                    texture_detail: textures_off.unwrap_or(self.texture_detail),
                     ..d.hierarchy.thresholds.clone()
                 },
                 ..d.hierarchy.clone()

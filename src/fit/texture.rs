@@ -233,7 +233,7 @@ pub fn fit_textured(
 ) -> Option<(LevelFit, TextureState)> {
     let rows = cache.texels.as_ref()?;
     let n = atlas.width * atlas.height;
-    let (lobe, evals) = if base.is_ward() {
+    let (mut lobe, mut evals) = if base.is_ward() {
         let f = fit_level(cache, base, params, variant);
         (f.params, f.evals)
     } else {
@@ -245,19 +245,13 @@ pub fn fit_textured(
             0,
         )
     };
-    let specs: Vec<PixelSpec> = pixel_specs(cache, spec_of(base, &lobe), variant, false);
-    let spec: Vec<Rgb> = specs.iter().map(|s| lobe.rho_s * s.s).collect();
-    let spec_half: Vec<[Rgb; 2]> = specs
-        .iter()
-        .map(|s| s.s_half.map(|h| lobe.rho_s * h))
-        .collect();
+    let (mut spec, mut spec_half) = specular(cache, base, &lobe, variant);
     let (start, iterations) = match start {
         Some(t) if t.len() == n => (t.to_vec(), ITERATIONS),
         _ => (vec![lobe.rho_d; n], FIRST_ITERATIONS),
     };
     let charts = atlas.chart_rects();
     let mut texels = solve(cache, rows, &spec, &start, iterations, &charts, atlas.width);
-    let (mut lobe, mut spec, mut spec_half, mut evals) = (lobe, spec, spec_half, evals);
     if base.is_ward() {
         // One alternation: the lobe refitted on what the texture leaves (the photo minus the
         // texture's diffuse radiance: its ρd comes out near zero), then the texture under it.
@@ -273,12 +267,7 @@ pub fn fit_textured(
             rho_d: lobe.rho_d,
             ..f.params
         };
-        let specs = pixel_specs(cache, spec_of(base, &lobe), variant, false);
-        spec = specs.iter().map(|s| lobe.rho_s * s.s).collect();
-        spec_half = specs
-            .iter()
-            .map(|s| s.s_half.map(|h| lobe.rho_s * h))
-            .collect();
+        (spec, spec_half) = specular(cache, base, &lobe, variant);
         texels = solve(
             cache,
             rows,
@@ -297,12 +286,11 @@ pub fn fit_textured(
         texel: atlas.texel,
         texels: Vec::new(),
         seen,
-        charted: atlas.chart_rects().iter().map(|r| r[2] * r[3]).sum(),
+        charted: charts.iter().map(|r| r[2] * r[3]).sum(),
     };
-    state.texels = texels.clone();
-    let mean = state.mean();
-    fill_unseen(atlas, &mut texels, &state.seen, mean);
     state.texels = texels;
+    let mean = state.mean();
+    fill_unseen(atlas, &mut state.texels, &state.seen, mean);
     let st = error(cache, rows, &state.texels, &spec, &spec_half);
     let fit = LevelFit {
         level: Level::Textured,
@@ -317,6 +305,23 @@ pub fn fit_textured(
         evals: evals + iterations as u32,
     };
     Some((fit, state))
+}
+
+/// The lobe's specular radiance ρs·S per cached pixel, for all samples and each half (zero for
+/// a diffuse base: ρs is zero there).
+fn specular(
+    cache: &GroupCache,
+    base: Level,
+    lobe: &GroupParams,
+    variant: WardVariant,
+) -> (Vec<Rgb>, Vec<[Rgb; 2]>) {
+    let specs: Vec<PixelSpec> = pixel_specs(cache, spec_of(base, lobe), variant, false);
+    let spec = specs.iter().map(|s| lobe.rho_s * s.s).collect();
+    let half = specs
+        .iter()
+        .map(|s| s.s_half.map(|h| lobe.rho_s * h))
+        .collect();
+    (spec, half)
 }
 
 /// The per-pixel model of a texture (and a specular term): Σ_t A_pt ρ_t + spec_p, for all

@@ -62,17 +62,16 @@ pub fn bsdf_at(material: &Material, hit: &SurfaceHit, variant: WardVariant) -> (
             texture,
             scale,
             varnish: Some(v),
-        } => (
-            Bsdf::Ward {
+        } => bsdf_at(
+            &Material::Ward {
                 rho_d: *scale * texture.at(hit),
                 rho_s: v.rho_s,
-                lobe: WardLobe {
-                    alpha_x: v.alpha_x,
-                    alpha_y: v.alpha_y,
-                    variant,
-                },
+                alpha_x: v.alpha_x,
+                alpha_y: v.alpha_y,
+                theta: v.theta,
             },
-            hit.frame.rotated(v.theta),
+            hit,
+            variant,
         ),
         Material::Black => (Bsdf::Black, hit.frame),
     }

@@ -26,14 +26,14 @@ pub fn material_spec(m: &Material) -> MaterialSpec {
             alpha_y,
             theta,
         } => {
-            let iso = alpha_x == alpha_y && *theta == 0.0;
+            let [alpha, alpha_x, alpha_y, theta_deg] = lobe_keys(*alpha_x, *alpha_y, *theta);
             MaterialSpec::Ward {
                 rho_d: c(*rho_d),
                 rho_s: c(*rho_s),
-                alpha: iso.then_some(*alpha_x),
-                alpha_x: (!iso).then_some(*alpha_x),
-                alpha_y: (!iso).then_some(*alpha_y),
-                theta_deg: (!iso).then_some(theta.to_degrees()),
+                alpha,
+                alpha_x,
+                alpha_y,
+                theta_deg,
             }
         }
         Material::Textured {
@@ -45,20 +45,33 @@ pub fn material_spec(m: &Material) -> MaterialSpec {
                 super::texture::Mapping::Atlas(a) => Some(a.texel),
                 super::texture::Mapping::Uv => None,
             };
-            let iso = varnish.is_some_and(|v| v.alpha_x == v.alpha_y && v.theta == 0.0);
+            let [alpha, alpha_x, alpha_y, theta_deg] = match varnish {
+                Some(v) => lobe_keys(v.alpha_x, v.alpha_y, v.theta),
+                None => [None; 4],
+            };
             MaterialSpec::Textured {
                 texture: texture.path.to_string_lossy().into_owned(),
                 scale: Some(c(*scale)),
                 mapping: atlas.map(|_| "atlas".to_string()),
                 texel_size: atlas,
                 rho_s: varnish.map(|v| c(v.rho_s)),
-                alpha: varnish.filter(|_| iso).map(|v| v.alpha_x),
-                alpha_x: varnish.filter(|_| !iso).map(|v| v.alpha_x),
-                alpha_y: varnish.filter(|_| !iso).map(|v| v.alpha_y),
-                theta_deg: varnish.filter(|_| !iso).map(|v| v.theta.to_degrees()),
+                alpha,
+                alpha_x,
+                alpha_y,
+                theta_deg,
             }
         }
         Material::Black => MaterialSpec::Black,
+    }
+}
+
+/// A Ward lobe's keys (`alpha`, `alpha_x`, `alpha_y`, `theta_deg`): `alpha` alone where it is
+/// isotropic, the other three where it is not.
+fn lobe_keys(alpha_x: f32, alpha_y: f32, theta: f32) -> [Option<f32>; 4] {
+    if alpha_x == alpha_y && theta == 0.0 {
+        [Some(alpha_x), None, None, None]
+    } else {
+        [None, Some(alpha_x), Some(alpha_y), Some(theta.to_degrees())]
     }
 }
 
