@@ -95,7 +95,7 @@ pub struct Thresholds {
     /// The texture threshold of Algorithm 1 on ε itself: a group whose best uniform model
     /// misses by at least this much tries level 7 whatever its fine detail. Shelves of book
     /// spines, tiles: a texture of large flat patches whose edges the usable-pixel mask removes
-    /// leaves no fine detail, only an ε no BRDF can lower (0.45 on the poster scene's books).
+    /// leaves no fine detail, only an ε no BRDF can lower.
     /// Far above what a mirror or a glossy lobe leaves when fitted at a neighbouring level.
     #[serde(default = "texture_error")]
     pub texture_error: f32,
