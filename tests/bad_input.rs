@@ -215,7 +215,8 @@ fn a_group_with_no_usable_pixels_gets_a_warning_and_a_stated_default() {
     assert_eq!(code, 0, "{err}");
     assert!(
         err.contains("group 'sticker': no usable pixels")
-            && err.contains("given the default diffuse reflectance 1"),
+            && err.contains("estimated from the light it reflects")
+            && err.contains("--white-unseen"),
         "{err}"
     );
     let res: serde_json::Value =
@@ -230,10 +231,15 @@ fn a_group_with_no_usable_pixels_gets_a_warning_and_a_stated_default() {
     assert_eq!(g["status"], "default", "{g}");
     assert!(g["visible_pixels"].as_u64().unwrap() > 0, "{g}");
     assert_eq!(g["usable_pixels"], 0, "{g}");
+    // Two pixels wide, its light does not measurably reach the floor: the stated default.
     assert!(
-        g["note"].as_str().unwrap().contains("default diffuse"),
+        g["note"]
+            .as_str()
+            .unwrap()
+            .contains("area-weighted mean albedo"),
         "{g}"
     );
+    assert_eq!(g["unseen"]["rule"], "scene_mean", "{g}");
 }
 
 /// A photo whose values are finite but so large that sums over a group overflow (a raw dump

@@ -268,10 +268,13 @@ pub struct FitArgs {
     /// Samples per pixel of the final render (at least 2: its two halves give the noise floor).
     #[arg(long, value_name = "N", default_value_t = 64, value_parser = clap::value_parser!(u32).range(2..))]
     final_spp: u32,
-    /// Estimate the diffuse reflectance of groups no usable pixel shows (a ceiling out of view)
-    /// from the light they reflect onto the seen groups, instead of the default white.
-    /// Experimental: off by default (on figure6, whose hidden ceiling is white, it comes out low).
+    /// Give groups no usable pixel shows (a ceiling out of view) white, ρd 1 (the notes'
+    /// footnote 5), instead of estimating their diffuse reflectance from the light they reflect
+    /// onto the seen groups (the default).
     #[arg(long)]
+    white_unseen: bool,
+    /// The default since the estimate became reliable; kept so that older commands still run.
+    #[arg(long, hide = true, conflicts_with = "white_unseen")]
     estimate_unseen: bool,
     /// Texture threshold on ε (Algorithm 1 of the notes): a group whose best uniform model
     /// misses by at least this much tries level 7, a texture.
@@ -308,7 +311,7 @@ impl FitArgs {
             final_spp: self.final_spp.max(2),
             first_pixels: self.first_pixels,
             unseen: matfit::fit::unseen::UnseenOptions {
-                enabled: self.estimate_unseen,
+                enabled: !self.white_unseen,
                 ..d.unseen.clone()
             },
             hierarchy: matfit::fit::hierarchy::HierarchyOptions {

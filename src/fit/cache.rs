@@ -113,6 +113,35 @@ pub struct GroupCache {
     pub texels: Option<TexelRows>,
     /// The image's width (pixel indices are row-major in it); 0 where unknown.
     pub width: usize,
+    /// The light each pixel receives by way of the tracked unseen groups (when asked for).
+    pub unseen: Option<UnseenShares>,
+}
+
+/// How each pixel of a cache changes with the diffuse reflectance of the unseen groups it
+/// tracks (`fit/unseen.rs`): the indirect rays are traced a second time through the scene with
+/// one such group's ρd moved ([`UnseenProbe`]), with the same random numbers, so the difference
+/// is the derivative of every sample's weight, light that bounced there any number of times and
+/// anywhere along the path included (a Lambert surface's ρd does not change the directions a
+/// path samples; only Russian roulette, which reads the path's throughput, can end a path
+/// differently).
+#[derive(Clone, Debug, Default)]
+pub struct UnseenShares {
+    /// The tracked groups.
+    pub groups: Vec<usize>,
+    /// Per cached pixel, then per tracked group (`pixel * groups.len() + j`): ∂/∂ρd_u (per
+    /// channel) of `CachePixel::d_half`.
+    pub d_half: Vec<[Rgb; 2]>,
+    /// Per sample of `GroupCache::samples`, then per tracked group: ∂c/∂ρd_u (empty when the
+    /// cache keeps no samples).
+    pub dc: Vec<Rgb>,
+}
+
+/// An unseen group a cache build measures the derivative along: the path tracer of the scene
+/// with the group's ρd moved by `step` (per channel, nonzero).
+pub struct UnseenProbe<'a> {
+    pub group: usize,
+    pub moved: &'a PathTracer<'a>,
+    pub step: Rgb,
 }
 
 /// The textured form of D: a pixel's diffuse radiance is Σ_t ρ_t w_t over the texels its
@@ -225,10 +254,12 @@ pub fn build(
     photo: &[Rgb],
     needs: CacheNeeds,
     atlas: Option<&Atlas>,
+    unseen: &[UnseenProbe],
     opts: &CacheOptions,
     seed: u64,
 ) -> GroupCache {
     let cam = &scene.camera;
+    let k = unseen.len();
     let atlas = atlas.filter(|_| needs.texels);
     let w = cam.width as usize;
     let (nl, ni) = (opts.light_samples.max(1), opts.indirect_samples.max(1));
@@ -331,16 +362,29 @@ pub fn build(
                     });
                 }
             }
+            let moved: Vec<Vec<Rgb>> = unseen
+                .iter()
+                .map(|u| indirect_radiance(u.moved, rays.clone()))
+                .collect();
             let traced = indirect_radiance(pt, rays);
             let mut rows: [Vec<(u32, Rgb)>; 2] = [Vec::new(), Vec::new()];
+            let mut shares = vec![[Rgb::ZERO; 2]; k];
+            let mut dcs: [Vec<Rgb>; 2] = [Vec::new(), Vec::new()];
+            let mut dc = vec![Rgb::ZERO; k];
             for e in entries {
                 let c = match e.weight {
-                    Weight::Known(c) => c,
+                    Weight::Known(c) => {
+                        dc.fill(Rgb::ZERO);
+                        c
+                    }
                     Weight::Path {
                         job,
                         emitted,
                         scale,
                     } => {
+                        for (d, (m, u)) in dc.iter_mut().zip(moved.iter().zip(unseen)) {
+                            *d = (m[job] - traced[job]) * scale / u.step;
+                        }
                         let mut li = traced[job];
                         if let Some(le) = emitted {
                             li += le;
@@ -352,6 +396,11 @@ pub fn build(
                     continue;
                 }
                 d_half[e.half] += c * INV_PI;
+                for (s, d) in shares.iter_mut().zip(&dc) {
+                    if d.is_finite() {
+                        s[e.half] += *d * INV_PI;
+                    }
+                }
                 if let Some(taps) = e.taps {
                     for (t, w) in taps {
                         if w > 0.0 {
@@ -361,6 +410,10 @@ pub fn build(
                 }
                 if needs.lobe_samples {
                     samples[e.half].push(Sample::new(e.wo, e.wi, c));
+                    dcs[e.half].extend(
+                        dc.iter()
+                            .map(|d| if d.is_finite() { *d } else { Rgb::ZERO }),
+                    );
                 }
             }
             let mut mirror_half = [Rgb::ZERO; 2];
@@ -402,16 +455,32 @@ pub fn build(
                 end: 0,
                 tile,
             };
-            (px, samples, stray, rows.map(merge_rows))
+            let shares = shares.into_iter().map(|h| [h[0] * 2.0, h[1] * 2.0]);
+            (
+                px,
+                samples,
+                stray,
+                rows.map(merge_rows),
+                (shares.collect(), dcs),
+            )
         })
         .collect();
     let mut cache = GroupCache {
         tiles: n_tiles,
         texels: atlas.map(|_| TexelRows::default()),
         width: w,
+        unseen: (k > 0).then(|| UnseenShares {
+            groups: unseen.iter().map(|u| u.group).collect(),
+            ..Default::default()
+        }),
         ..Default::default()
     };
-    for (mut px, [s0, s1], stray, [r0, r1]) in per_pixel {
+    for (mut px, [s0, s1], stray, [r0, r1], (shares, [t0, t1])) in per_pixel {
+        if let Some(u) = cache.unseen.as_mut() {
+            u.d_half.extend(shares);
+            u.dc.extend(t0);
+            u.dc.extend(t1);
+        }
         if let Some(t) = cache.texels.as_mut() {
             let a = t.rows.len() as u32;
             t.rows.extend(r0);
@@ -430,8 +499,15 @@ pub fn build(
     cache
 }
 
-/// A cached pixel as built: the pixel, its samples and texel rows per half, and its stray rays.
-type BuiltPixel = (CachePixel, [Vec<Sample>; 2], usize, [Vec<(u32, Rgb)>; 2]);
+/// A cached pixel as built: the pixel, its samples and texel rows per half, its stray rays, and
+/// its derivatives along the unseen groups (of D, and of each kept sample's weight per half).
+type BuiltPixel = (
+    CachePixel,
+    [Vec<Sample>; 2],
+    usize,
+    [Vec<(u32, Rgb)>; 2],
+    (Vec<[Rgb; 2]>, [Vec<Rgb>; 2]),
+);
 
 /// One half's texel rows with each texel once, in texel order (the sums are taken in a fixed
 /// order, so they are the same on any thread count).

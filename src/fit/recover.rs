@@ -339,6 +339,7 @@ emission = 5.0
                 stray: 0,
                 texels: None,
                 width: 0,
+                unseen: None,
             };
             let mut any_bad = false;
             for level in Level::FITTED {

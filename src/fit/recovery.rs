@@ -10,7 +10,7 @@
 //! a group's cache already sees the groups refitted before it in the same iteration: this
 //! converges in fewer iterations than updating all groups at the end (bench/README.md).
 
-use super::cache::{build, choose_pixels, CacheOptions};
+use super::cache::{build, choose_pixels, CacheOptions, UnseenProbe};
 use super::checkpoint::{Checkpoint, CHECKPOINT_VERSION};
 use super::error::{block_tile, block_tiles, tiled_error, PixelTerms};
 use super::hierarchy::{Event, GroupState, Motion, Status};
@@ -284,6 +284,13 @@ impl<'a> RecoveryLoop<'a> {
         let before: Vec<GroupParams> = self.states.iter().map(|s| s.params).collect();
         let climber = schedule::climb_turn(&self.states, self.settled, &opts.hierarchy);
         let variant = self.scene.render.ward_variant;
+        // Unseen groups whose light every cache tracks, and the seen groups' shares of it.
+        let tracked = if opts.unseen.enabled {
+            super::unseen::unseen_groups(&self.states)
+        } else {
+            Vec::new()
+        };
+        let mut shares = Vec::new();
         for g in 0..self.states.len() {
             if !self.states[g].is_fitted() {
                 continue;
@@ -308,6 +315,21 @@ impl<'a> RecoveryLoop<'a> {
             };
             let (px, tiles, n_tiles) = &self.pixel_lists[g];
             let pt = PathTracer::new(&self.current);
+            let moved: Vec<(Scene, Rgb)> = tracked
+                .iter()
+                .map(|&u| super::unseen::moved_scene(&self.current, &self.states[u]))
+                .collect();
+            let moved_pt: Vec<PathTracer> = moved.iter().map(|(s, _)| PathTracer::new(s)).collect();
+            let probes: Vec<UnseenProbe> = tracked
+                .iter()
+                .zip(&moved)
+                .zip(&moved_pt)
+                .map(|((&group, (_, step)), pt)| UnseenProbe {
+                    group,
+                    moved: pt,
+                    step: *step,
+                })
+                .collect();
             let atlas = self.atlases[g].as_deref();
             let cache = build(
                 &self.current,
@@ -319,6 +341,7 @@ impl<'a> RecoveryLoop<'a> {
                 &self.photo.image.data,
                 self.states[g].cache_needs(self.settled),
                 atlas,
+                &probes,
                 &cache_opts,
                 hash_seed(&[opts.seed, it as u64, g as u64]),
             );
@@ -332,6 +355,7 @@ impl<'a> RecoveryLoop<'a> {
                 self.settled,
                 climber == Some(g),
             );
+            shares.extend(super::unseen::shares(&cache, g, &self.states[g], variant));
             let secs = tg.elapsed().as_secs_f64();
             for e in events {
                 if let Event::Fit { evals: n, .. } = e {
@@ -354,11 +378,11 @@ impl<'a> RecoveryLoop<'a> {
         let (estimates, unseen_moved) = super::unseen::update(
             &mut self.current,
             &mut self.states,
-            self.photo,
-            &self.mask,
+            &shares,
+            &tracked,
             &opts.unseen,
             &mut self.unseen_history,
-            hash_seed(&[opts.seed, it as u64, u64::MAX]),
+            it + 1 >= opts.max_iterations,
         );
         self.unseen = estimates;
         let moves: Vec<Option<f32>> = self
@@ -510,9 +534,12 @@ fn initial_states(scene: &Scene, mask: &UsableMask, opts: &RecoverOptions) -> Ve
                 // Grey until the first estimate, after global iteration 0 (unseen.rs).
                 let mut s = GroupState::new(&grp.name, Status::Default, GroupParams::default());
                 s.note = Some(format!(
-                    "no usable pixels ({} visible): ρd estimated from the light it reflects",
+                    "no usable pixels ({} visible): its ρd is estimated from the light it \
+                     reflects onto the seen groups (the seen groups' mean albedo where the photo \
+                     does not determine it; --white-unseen gives it white)",
                     mask.stats[g].visible
                 ));
+                tracing::warn!("group '{}': {}", grp.name, s.note.as_ref().unwrap());
                 s
             } else if mask.stats[g].usable == 0 {
                 let mut s = GroupState::new(

@@ -12,6 +12,7 @@ use crate::math::{Rgb, Sampler};
 
 /// An indirect ray leaving a surface: where it lands (already intersected by the caller,
 /// `Scene::intersect_hit`), and the sampler its path goes on drawing from.
+#[derive(Clone)]
 pub struct IndirectRay {
     pub ray: Ray,
     pub hit: Option<Hit>,
