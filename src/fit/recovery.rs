@@ -416,6 +416,11 @@ impl<'a> RecoveryLoop<'a> {
                 s.average = None;
                 s.moves.clear();
             }
+        } else if unseen_moved > 2.0 * opts.tolerance {
+            // So did fits made before an unseen group's ρd moved by more than its noise.
+            for s in self.states.iter_mut() {
+                s.average = None;
+            }
         }
         self.settled = schedule::settled(level_changed, &motions);
         let all_confirmed = self.states.iter().all(|s| {

@@ -183,10 +183,15 @@ pub fn shares(
         su: vec![[Rgb::ZERO; 2]; k],
     };
     let mut tiles = vec![empty; cache.tiles];
+    // Per tile: its pixels, and those that measured the derivatives.
+    let mut counts = vec![(0u32, 0u32); cache.tiles];
     let mut moved: Vec<Sample> = Vec::new();
     for (i, p) in cache.pixels.iter().enumerate() {
         let t = &mut tiles[p.tile as usize];
         t.photo += p.photo;
+        let probed = tracked.probed.get(i).copied().unwrap_or(true);
+        counts[p.tile as usize].0 += 1;
+        counts[p.tile as usize].1 += probed as u32;
         for h in 0..2 {
             t.d[h] += p.d_half[h];
             for j in 0..k {
@@ -199,7 +204,7 @@ pub fn shares(
                     let (a, b) = (range.start as usize, range.end as usize);
                     // A half's sums estimate the whole as twice their value (as d_half).
                     t.s[h] += lobe_sums(&cache.samples[a..b], lobe, false).0 * 2.0;
-                    for j in 0..k {
+                    for j in (0..k).filter(|_| probed) {
                         moved.clear();
                         moved.extend((a..b).map(|s| Sample {
                             c: tracked.dc[s * k + j],
@@ -216,6 +221,17 @@ pub fn shares(
             (None, _) => {}
             // A lobe without its samples' derivatives: no estimate from this group.
             (Some(_), _) => return None,
+        }
+    }
+    // The derivatives summed over the probed pixels, scaled to the whole tile.
+    for (t, &(all, probed)) in tiles.iter_mut().zip(&counts) {
+        let f = if probed > 0 {
+            all as f32 / probed as f32
+        } else {
+            0.0
+        };
+        for v in t.du.iter_mut().chain(t.su.iter_mut()) {
+            *v = [v[0] * f, v[1] * f];
         }
     }
     tiles.retain(|t| t.photo.max_element() > 0.0);
@@ -551,6 +567,11 @@ pub struct History {
     /// Per unseen group, per channel: how many determined proposals there have been in all.
     #[serde(default)]
     count: Vec<[u32; 3]>,
+    /// Per unseen group, per channel: the running estimate, not clipped to ρd ≤ 1 (the scene
+    /// gets it clipped). Noisy proposals around a white surface's 1 would, clipped, average
+    /// below it.
+    #[serde(default)]
+    state: Vec<[Option<f32>; 3]>,
 }
 
 impl History {
@@ -580,6 +601,18 @@ impl History {
         first * (3.0 / n).clamp(0.25, 1.0)
     }
 
+    /// The running estimate of group `j` in channel `c` (None before the first).
+    fn state(&self, j: usize, c: usize) -> Option<f32> {
+        self.state.get(j).and_then(|s| s[c])
+    }
+
+    fn set_state(&mut self, j: usize, c: usize, v: f32) {
+        if self.state.len() <= j {
+            self.state.resize(j + 1, [None; 3]);
+        }
+        self.state[j][c] = Some(v);
+    }
+
     /// The σ to report for group `j` in channel `c`; None before its first determined proposal.
     fn sigma(&self, j: usize, c: usize) -> Option<f32> {
         let r = self.runs.get(j).map(|r| &r[c]).filter(|r| !r.is_empty())?;
@@ -594,6 +627,10 @@ impl History {
         Some(scatter.max(single))
     }
 }
+
+/// The largest running estimate: above 1 only so that noise around a white surface averages
+/// to 1 (see `History::state`).
+const RHO_MAX: f32 = 1.5;
 
 /// The smallest ρd an estimate moves an unseen group to: its shares vanish at 0, and the next
 /// iteration could not measure it again.
@@ -633,7 +670,7 @@ pub fn update(
                 [Some(a), Some(b)] => 0.5 * (a.0[j] - b.0[j]).abs(),
                 _ => f64::INFINITY,
             };
-            proposal[j][c] = (rho0[j][c] as f64 + delta[j]).clamp(0.0, 1.0) as f32;
+            proposal[j][c] = (rho0[j][c] as f64 + delta[j]).clamp(0.0, RHO_MAX as f64) as f32;
             sigma[j][c] = s[j].max(split) as f32;
         }
     }
@@ -676,7 +713,10 @@ pub fn update(
             }
             if now && !last {
                 let step = history.step(j, c, opts.damping);
-                value[c] = rho0[j][c] + (proposal[j][c] - rho0[j][c]) * step;
+                let from = history.state(j, c).unwrap_or(rho0[j][c]);
+                let to = (from + (proposal[j][c] - from) * step).clamp(RHO_FLOOR, RHO_MAX);
+                history.set_state(j, c, to);
+                value[c] = to.min(1.0);
             }
             match history.sigma(j, c) {
                 Some(s) => sigma_j[c] = if now { s } else { s.max(sigma[j][c].min(1.0)) },
