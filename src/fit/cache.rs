@@ -77,6 +77,8 @@ enum Weight {
         job: usize,
         emitted: Option<Rgb>,
         scale: f32,
+        /// The group the path's first segment lands on (`u32::MAX`: none).
+        from: u32,
     },
 }
 
@@ -115,6 +117,10 @@ pub struct GroupCache {
     pub width: usize,
     /// The light each pixel receives by way of the tracked unseen groups (when asked for).
     pub unseen: Option<UnseenShares>,
+    /// Per group of the scene, the share of the cached light (all channels' sum) whose indirect
+    /// ray first landed on that group: how much this group is lit by each other one
+    /// (`schedule::climbers`).
+    pub light_from: Vec<f32>,
 }
 
 /// How each pixel of a cache changes with the diffuse reflectance of the unseen groups it
@@ -346,6 +352,10 @@ pub fn build(
                     // Emission at the first hit, MIS-weighted against light sampling; the rest
                     // of the path as the path tracer computes it.
                     let h2 = scene.intersect_hit(&r, f32::INFINITY);
+                    let from = h2.map_or(u32::MAX, |h| {
+                        let o = scene.geometry.tris[h.prim as usize].object;
+                        scene.objects[o as usize].group as u32
+                    });
                     let mut emitted = None;
                     if let Some(h2) = h2.map(|h| scene.surface_hit(&r, &h)) {
                         let o2 = &scene.objects[h2.object as usize];
@@ -363,6 +373,7 @@ pub fn build(
                             job: rays.len(),
                             emitted,
                             scale: wi.z / (pm * ni as f32),
+                            from,
                         },
                         taps,
                     });
@@ -383,7 +394,10 @@ pub fn build(
             let mut shares = vec![[Rgb::ZERO; 2]; k];
             let mut dcs: [Vec<Rgb>; 2] = [Vec::new(), Vec::new()];
             let mut dc = vec![Rgb::ZERO; k];
+            let mut light_from = vec![0.0f32; scene.groups.len()];
+            let mut light_total = 0.0f32;
             for e in entries {
+                let mut first = u32::MAX;
                 let c = match e.weight {
                     Weight::Known(c) => {
                         dc.fill(Rgb::ZERO);
@@ -393,7 +407,9 @@ pub fn build(
                         job,
                         emitted,
                         scale,
+                        from,
                     } => {
+                        first = from;
                         dc.fill(Rgb::ZERO);
                         for (d, (m, u)) in dc.iter_mut().zip(moved.iter().zip(unseen)) {
                             *d = (m[job] - traced[job]) * scale / u.step;
@@ -407,6 +423,11 @@ pub fn build(
                 };
                 if !(c.is_finite()) || c.max_element() <= 0.0 {
                     continue;
+                }
+                let lum = c.x + c.y + c.z;
+                light_total += lum;
+                if let Some(f) = light_from.get_mut(first as usize) {
+                    *f += lum;
                 }
                 d_half[e.half] += c * INV_PI;
                 for (s, d) in shares.iter_mut().zip(&dc) {
@@ -475,6 +496,7 @@ pub fn build(
                 stray,
                 rows.map(merge_rows),
                 (shares.collect(), dcs, probed),
+                (light_from, light_total),
             )
         })
         .collect();
@@ -488,7 +510,14 @@ pub fn build(
         }),
         ..Default::default()
     };
-    for (mut px, [s0, s1], stray, [r0, r1], (shares, [t0, t1], probed)) in per_pixel {
+    let mut light_total = 0.0f64;
+    cache.light_from = vec![0.0; scene.groups.len()];
+    for (mut px, [s0, s1], stray, [r0, r1], (shares, [t0, t1], probed), (from, total)) in per_pixel
+    {
+        light_total += total as f64;
+        for (a, b) in cache.light_from.iter_mut().zip(from) {
+            *a += b;
+        }
         if let Some(u) = cache.unseen.as_mut() {
             u.probed.push(probed);
             u.d_half.extend(shares);
@@ -510,18 +539,25 @@ pub fn build(
         cache.pixels.push(px);
         cache.stray += stray;
     }
+    if light_total > 0.0 {
+        for f in cache.light_from.iter_mut() {
+            *f = (*f as f64 / light_total) as f32;
+        }
+    }
     cache
 }
 
 /// A cached pixel as built: the pixel, its samples and texel rows per half, its stray rays, and
 /// its derivatives along the unseen groups (of D, and of each kept sample's weight per half) and
-/// whether it measured them.
+/// whether it measured them, and the light its samples received by way of each group (and in
+/// all).
 type BuiltPixel = (
     CachePixel,
     [Vec<Sample>; 2],
     usize,
     [Vec<(u32, Rgb)>; 2],
     (Vec<[Rgb; 2]>, [Vec<Rgb>; 2], bool),
+    (Vec<f32>, f32),
 );
 
 /// One half's texel rows with each texel once, in texel order (the sums are taken in a fixed

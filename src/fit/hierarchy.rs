@@ -8,7 +8,8 @@
 //!   first iteration at ℓ, the rest of the scene still moving, or another group's turn?
 //!   (those rules across groups: `schedule.rs`)
 //!       ── yes ──► wait (a group must not climb to explain light that a neighbour's stale
-//!       model is missing: one group climbs at a time, the worst ε / threshold first)
+//!       model is missing: groups that light each other climb one at a time, the worst
+//!       ε / threshold first)
 //!                 │ no
 //!   climb (hierarchical principle): try ℓ+1, ℓ+2, … 6 on the same cache, in order.
 //!   A level is kept only if it lowers ε by a clear margin: by the fraction `margin` of the
@@ -99,7 +100,7 @@ pub struct GroupState {
     pub average: Option<(GroupParams, u32, f32)>,
     /// Global iterations since this group last found a higher level that earned its place
     /// but had to wait for another group's turn (0: not waiting). The longest waiting group
-    /// climbs first, so no group holds the turn (see `recover::climber`).
+    /// climbs first, so no group holds the turn (see `schedule::climbers`).
     #[serde(default)]
     pub waiting: u32,
     /// The higher level it is waiting for.
@@ -112,6 +113,11 @@ pub struct GroupState {
     /// Level 7's texture (and the level of the lobe on top of it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub texture: Option<super::texture::TextureState>,
+    /// Per group of the scene, the share of this group's light that last bounced there
+    /// (`GroupCache::light_from` of its latest cache): which groups' models its fit depends on
+    /// (`schedule::climbers`). Empty before its first cache.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub lit_by: Vec<f32>,
 }
 
 /// What happened to a group in one global iteration.
@@ -186,6 +192,7 @@ impl GroupState {
             pending: None,
             moves: Vec::new(),
             texture: None,
+            lit_by: Vec::new(),
         }
     }
 
@@ -441,7 +448,8 @@ impl GroupState {
 
     /// One global iteration for this group, given its freshly built cache. `may_climb`: whether
     /// the group may try the higher levels now (the rest of the scene has settled); `may_move`:
-    /// whether it may also move to one (one group at a time, the worst first; see `schedule.rs`).
+    /// whether it may also move to one (groups that light each other one at a time, the worst
+    /// first; see `schedule.rs`).
     /// A try that finds no better level confirms the group; one that finds a better level
     /// without leave to move changes nothing and is tried again later.
     /// `atlas`: the group's texture atlas, for level 7 (None: the group cannot be textured).

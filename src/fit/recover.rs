@@ -340,6 +340,7 @@ emission = 5.0
                 texels: None,
                 width: 0,
                 unseen: None,
+                light_from: Vec::new(),
             };
             let mut any_bad = false;
             for level in Level::FITTED {

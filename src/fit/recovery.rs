@@ -282,7 +282,7 @@ impl<'a> RecoveryLoop<'a> {
         let levels_before: Vec<_> = self.states.iter().map(|s| s.level).collect();
         self.iterations = it + 1;
         let before: Vec<GroupParams> = self.states.iter().map(|s| s.params).collect();
-        let climber = schedule::climb_turn(&self.states, self.settled, &opts.hierarchy);
+        let climbers = schedule::climbers(&self.states, self.settled, &opts.hierarchy);
         let variant = self.scene.render.ward_variant;
         // Unseen groups whose light every cache tracks, and the seen groups' shares of it.
         let tracked = if opts.unseen.enabled {
@@ -353,9 +353,10 @@ impl<'a> RecoveryLoop<'a> {
                 variant,
                 &opts.hierarchy,
                 self.settled,
-                climber == Some(g),
+                climbers.contains(&g),
             );
             shares.extend(super::unseen::shares(&cache, g, &self.states[g], variant));
+            self.states[g].lit_by = cache.light_from.clone();
             let secs = tg.elapsed().as_secs_f64();
             for e in events {
                 if let Event::Fit { evals: n, .. } = e {

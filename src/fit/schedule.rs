@@ -4,10 +4,12 @@
 //!
 //! A group must not climb to explain light that a neighbour's stale model is missing, so groups
 //! try higher levels only after an iteration that changed no level and in which every group's
-//! parameters either stopped moving or move only within their own noise, and at most one group
-//! moves per iteration: the one that has waited longest for its turn, then the one furthest
-//! above its level's threshold. Turns rotate, so no group holds them; and when the iterations
-//! run out, every group still analysing is decided (`GroupState::decide_at_end`).
+//! parameters either stopped moving or move only within their own noise. The first to move is
+//! the one that has waited longest for its turn, then the one furthest above its level's
+//! threshold; others move in the same iteration only if no group moving lights them, nor they
+//! it, by more than [`INDEPENDENT`] of its light (they cannot be explaining each other's
+//! missing light). Turns rotate, so no group holds them; and when the iterations run out, every
+//! group still analysing is decided (`GroupState::decide_at_end`).
 
 use super::hierarchy::{GroupState, HierarchyOptions, Motion, Status};
 
@@ -35,19 +37,44 @@ pub fn climb_priority(state: &GroupState, opts: &HierarchyOptions) -> Option<f32
         .then(|| state.error / thr)
 }
 
-/// The group that may move to a higher level this iteration, if any: none until the scene has
+/// Two groups may climb in the same iteration when neither receives more than this share of
+/// its cached light by way of the other (`GroupState::lit_by`).
+pub const INDEPENDENT: f32 = 0.02;
+
+/// Whether groups `a` and `b` light each other by at most [`INDEPENDENT`] of their light, both
+/// ways. Unknown (no cache yet) counts as dependent.
+fn independent(states: &[GroupState], a: usize, b: usize) -> bool {
+    let share = |g: usize, h: usize| states[g].lit_by.get(h).copied();
+    matches!((share(a, b), share(b, a)), (Some(x), Some(y)) if x <= INDEPENDENT && y <= INDEPENDENT)
+}
+
+/// The groups that may move to a higher level this iteration: none until the scene has
 /// settled, then among those with a [`climb_priority`] the one that has waited longest since it
 /// found a better level (`GroupState::waiting`), then the highest priority (the later group on
-/// ties). The waiting count makes turns rotate: one group that keeps finding better levels
-/// cannot hold the turn while another waits.
-pub fn climb_turn(states: &[GroupState], settled: bool, opts: &HierarchyOptions) -> Option<usize> {
+/// ties); then, in the same order, every other one independent of all those already chosen.
+/// The waiting count makes turns rotate: one group that keeps finding better levels cannot hold
+/// the turn while another waits.
+pub fn climbers(states: &[GroupState], settled: bool, opts: &HierarchyOptions) -> Vec<usize> {
     if !settled {
-        return None;
+        return Vec::new();
     }
-    (0..states.len())
+    let mut candidates: Vec<(usize, u32, f32)> = (0..states.len())
         .filter_map(|g| climb_priority(&states[g], opts).map(|p| (g, states[g].waiting, p)))
-        .max_by(|a, b| a.1.cmp(&b.1).then(a.2.total_cmp(&b.2)))
-        .map(|(g, _, _)| g)
+        .collect();
+    // Best first: longest waiting, then highest priority, then the later group.
+    candidates.sort_by(|a, b| b.1.cmp(&a.1).then(b.2.total_cmp(&a.2)).then(b.0.cmp(&a.0)));
+    let mut chosen: Vec<usize> = Vec::new();
+    for (g, _, _) in candidates {
+        if chosen.iter().all(|&c| independent(states, g, c)) {
+            chosen.push(g);
+        }
+    }
+    chosen
+}
+
+/// The first of [`climbers`]: the group whose turn it is.
+pub fn climb_turn(states: &[GroupState], settled: bool, opts: &HierarchyOptions) -> Option<usize> {
+    climbers(states, settled, opts).first().copied()
 }
 
 #[cfg(test)]
@@ -102,5 +129,30 @@ mod tests {
             states[1 - g].waiting += 1;
         }
         assert_eq!(turns, [0, 1, 0, 1]);
+    }
+
+    /// Groups that light each other take turns; a group that neither lights nor is lit by the
+    /// one whose turn it is climbs in the same iteration.
+    #[test]
+    fn groups_that_do_not_light_each_other_climb_together() {
+        let opts = HierarchyOptions::default();
+        let mut states = [
+            group(Status::Analysing, Level::Diffuse, 0.3, 3),
+            group(Status::Analysing, Level::Diffuse, 0.2, 3),
+            group(Status::Analysing, Level::Diffuse, 0.1, 3),
+        ];
+        // 0 and 1 light each other (10%); 2 gets 1% from each and gives each 0.5%.
+        states[0].lit_by = vec![0.0, 0.10, 0.005];
+        states[1].lit_by = vec![0.10, 0.0, 0.005];
+        states[2].lit_by = vec![0.01, 0.01, 0.0];
+        assert_eq!(climbers(&states, true, &opts), [0, 2]);
+        // 2 now gets 5% of its light from 0: it waits for its own turn.
+        states[2].lit_by[0] = 0.05;
+        assert_eq!(climbers(&states, true, &opts), [0]);
+        // Without a cache yet, nothing is known: one climber.
+        states[2].lit_by.clear();
+        states[2].lit_by.clear();
+        assert_eq!(climbers(&states, true, &opts), [0]);
+        assert!(climbers(&states, false, &opts).is_empty());
     }
 }
