@@ -13,4 +13,5 @@ mod render_physics;
 mod resume;
 mod scene_errors;
 mod texture;
+mod uncertainty;
 mod unseen;

@@ -118,6 +118,9 @@ pub struct GroupState {
     /// (`schedule::climbers`). Empty before its first cache.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub lit_by: Vec<f32>,
+    /// The 1σ of its parameters at its level, from its latest cache (`uncertainty.rs`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma: Option<GroupParams>,
 }
 
 /// What happened to a group in one global iteration.
@@ -193,6 +196,7 @@ impl GroupState {
             moves: Vec::new(),
             texture: None,
             lit_by: Vec::new(),
+            sigma: None,
         }
     }
 
@@ -463,6 +467,26 @@ impl GroupState {
         may_climb: bool,
         may_move: bool,
     ) -> Vec<Event> {
+        let events = self.fit_and_climb(cache, atlas, variant, opts, may_climb, may_move);
+        // At the level it ends at (a climb fits the new level on this cache too).
+        let fits = match (&self.average, self.status) {
+            (Some(a), Status::Confirmed) => a.1,
+            _ => 1,
+        };
+        self.sigma = super::uncertainty::sigma(cache, self.level, &self.params, variant, fits);
+        events
+    }
+
+    /// [`GroupState::step`] but the parameters' σ.
+    fn fit_and_climb(
+        &mut self,
+        cache: &GroupCache,
+        atlas: Option<&Atlas>,
+        variant: WardVariant,
+        opts: &HierarchyOptions,
+        may_climb: bool,
+        may_move: bool,
+    ) -> Vec<Event> {
         let mut events = Vec::new();
         let (fit, texture) = self.fit_current(cache, atlas, variant);
         events.push(Event::Fit {
@@ -559,7 +583,9 @@ impl GroupState {
         let mut texture = None;
         while let Some(next) = level.next() {
             if next == Level::Textured {
-                let gross = best.error >= opts.thresholds.texture_error;
+                // Gross: by the threshold beyond the noise floor (a small group's ε can reach the
+                // threshold on its cache's noise alone).
+                let gross = best.error - best.noise_floor >= opts.thresholds.texture_error;
                 if !gross && detail(best.level, &best.params) < opts.thresholds.texture_detail {
                     break;
                 }

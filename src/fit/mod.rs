@@ -15,6 +15,7 @@ pub mod recovery;
 pub mod schedule;
 pub mod solve;
 pub mod texture;
+pub mod uncertainty;
 pub mod unseen;
 
 pub use level::Level;

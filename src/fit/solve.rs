@@ -207,6 +207,42 @@ pub fn levenberg_marquardt<const N: usize>(
     (x, lin.cost, evals)
 }
 
+/// Inverse of a small symmetric positive matrix by Gauss–Jordan; None when singular.
+pub fn invert(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
+    let n = a.len();
+    let scale = (0..n).map(|i| a[i][i].abs()).fold(0.0, f64::max);
+    if !(scale > 0.0) || !scale.is_finite() {
+        return None;
+    }
+    let mut m: Vec<Vec<f64>> = a.to_vec();
+    let mut inv: Vec<Vec<f64>> = (0..n)
+        .map(|i| (0..n).map(|j| (i == j) as u8 as f64).collect())
+        .collect();
+    for c in 0..n {
+        let p = (c..n).max_by(|&i, &j| m[i][c].abs().total_cmp(&m[j][c].abs()))?;
+        if m[p][c].abs() <= 1e-12 * scale {
+            return None;
+        }
+        m.swap(c, p);
+        inv.swap(c, p);
+        let d = m[c][c];
+        for j in 0..n {
+            m[c][j] /= d;
+            inv[c][j] /= d;
+        }
+        for i in 0..n {
+            if i != c {
+                let f = m[i][c];
+                for j in 0..n {
+                    m[i][j] -= f * m[c][j];
+                    inv[i][j] -= f * inv[c][j];
+                }
+            }
+        }
+    }
+    Some(inv)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -402,7 +402,9 @@ pub fn solve_channel(
                 }
                 row[u] *= 1.0 + mu;
             }
-            let Some(inv) = invert(&damped) else { break };
+            let Some(inv) = super::solve::invert(&damped) else {
+                break;
+            };
             let step: Vec<f64> = (0..n)
                 .map(|u| (0..n).map(|v| inv[u][v] * b[v]).sum())
                 .collect();
@@ -464,49 +466,13 @@ pub fn solve_channel(
             row[u] = 1.0;
         }
     }
-    let inv = invert(&a)?;
+    let inv = super::solve::invert(&a)?;
     // 1 / (A⁻¹_uu A_uu) is the share of column u the other columns do not explain.
     if (tau0..n).any(|u| !(inv[u][u] * a[u][u] < 1e6)) {
         return None;
     }
     let sigma = (tau0..n).map(|u| inv[u][u].max(0.0).sqrt()).collect();
     Some((x[tau0..].to_vec(), sigma))
-}
-
-/// Inverse of a small symmetric positive matrix by Gauss–Jordan; None when singular.
-fn invert(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
-    let n = a.len();
-    let scale = (0..n).map(|i| a[i][i].abs()).fold(0.0, f64::max);
-    if !(scale > 0.0) || !scale.is_finite() {
-        return None;
-    }
-    let mut m: Vec<Vec<f64>> = a.to_vec();
-    let mut inv: Vec<Vec<f64>> = (0..n)
-        .map(|i| (0..n).map(|j| (i == j) as u8 as f64).collect())
-        .collect();
-    for c in 0..n {
-        let p = (c..n).max_by(|&i, &j| m[i][c].abs().total_cmp(&m[j][c].abs()))?;
-        if m[p][c].abs() <= 1e-12 * scale {
-            return None;
-        }
-        m.swap(c, p);
-        inv.swap(c, p);
-        let d = m[c][c];
-        for j in 0..n {
-            m[c][j] /= d;
-            inv[c][j] /= d;
-        }
-        for i in 0..n {
-            if i != c {
-                let f = m[i][c];
-                for j in 0..n {
-                    m[i][j] -= f * m[c][j];
-                    inv[i][j] -= f * inv[c][j];
-                }
-            }
-        }
-    }
-    Some(inv)
 }
 
 /// The seen (fitted) groups' area-weighted mean albedo ρd + ρs, per channel; grey 0.5 when no

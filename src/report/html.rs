@@ -22,7 +22,10 @@ pub fn report(res: &Results) -> String {
         let params: Vec<String> = g
             .params
             .iter()
-            .map(|(k, v)| format!("{k} = {}", value(v)))
+            .map(|(k, v)| match g.sigma.get(k) {
+                Some(sd) => format!("{k} = {} ± {}", value(v), value(sd)),
+                None => format!("{k} = {}", value(v)),
+            })
             .collect();
         let pct = |x: Option<f32>| x.map_or("–".to_string(), |e| format!("{:.2}%", 100.0 * e));
         rows += &format!(

@@ -38,6 +38,10 @@ pub struct GroupResult {
     pub band_width: usize,
     pub edge_test: bool,
     pub params: BTreeMap<&'static str, Value>,
+    /// The 1σ of each parameter in `params` (same units), from the group's last cache
+    /// (`fit/uncertainty.rs`); absent where not fitted or not computable.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub sigma: BTreeMap<&'static str, Value>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub note: Option<String>,
     /// For a group with no usable pixels: which rule gave its ρd, its 1σ and the remedy.
@@ -139,6 +143,12 @@ pub fn results(rec: &Recovery) -> Results {
                 band_width: st.band_width,
                 edge_test: st.edge_test,
                 params: params.named(named_at).into_iter().collect(),
+                sigma: match (s.status, &s.sigma) {
+                    (Status::Analysing | Status::Confirmed, Some(sd)) => {
+                        sd.named(named_at).into_iter().collect()
+                    }
+                    _ => BTreeMap::new(),
+                },
                 note: s.note.clone(),
                 unseen: rec.unseen.iter().find(|u| u.group == g).cloned(),
                 texture,

@@ -1,0 +1,165 @@
+//! The 1σ of a group's fitted parameters (issue 20: no inverse renderer tells its user how far
+//! to trust a number). The model of a group's tile T in channel c is linear in ρd, ρs and,
+//! locally, in the lobe's shape:
+//!
+//!   L_Tc = ρd_c D_Tc + ρs_c S_Tc(ln αx, ln αy, θ)
+//!
+//! (D, S the cache's sums over the tile's pixels, ∂S from `render::bsdf::ward`). With the
+//! residuals r_Tc = photo_Tc − L_Tc weighted 1/(the channel's mean tile)², as ε weighs them,
+//! the Gauss–Newton covariance of all free parameters together is s² (JᵀWJ)⁻¹ with
+//! s² = Σ w r² / (rows − parameters): the residual scatter holds the photo's noise, the cache's
+//! and whatever the model misses, so a level that fits badly reports wide error bars. The
+//! parameters reported are a mean of `fits` global iterations' fits, each on its own cache: the
+//! cache's share of s² (from its two independent halves, Σ w ((L₀ − L₁)/2)²) shrinks by that
+//! count, the photo's and the model's do not.
+
+use super::cache::GroupCache;
+use super::level::Level;
+use super::objective::{pixel_specs, Spec};
+use super::params::GroupParams;
+use crate::math::Rgb;
+use crate::scene::WardVariant;
+
+/// The 1σ of every parameter free at `level` (in the parameters' own units: ρ absolute, α
+/// absolute, θ radians; zero where not free), for `params` fitted on `cache`. None for the
+/// textured level (its texels are their own problem), without tiles, or when the normal matrix
+/// is singular.
+pub fn sigma(
+    cache: &GroupCache,
+    level: Level,
+    params: &GroupParams,
+    variant: WardVariant,
+    fits: u32,
+) -> Option<GroupParams> {
+    let (alpha_y, theta) = match level {
+        Level::Isotropic => (params.alpha_x, 0.0),
+        _ => (params.alpha_y, params.theta),
+    };
+    let spec = match level {
+        Level::Diffuse => Spec::None,
+        Level::PerfectSpecular | Level::Specular | Level::DiffuseSpecular => Spec::Mirror,
+        Level::Isotropic | Level::Anisotropic => Spec::Lobe {
+            alpha_x: params.alpha_x,
+            alpha_y,
+            theta,
+        },
+        Level::Textured => return None,
+    };
+    let has_d = !matches!(level, Level::PerfectSpecular | Level::Specular);
+    let has_s = !matches!(level, Level::Diffuse | Level::PerfectSpecular);
+    // The lobe's free shape parameters: ln α (both axes at once) or ln αx, ln αy, θ.
+    let shape: &[[f32; 3]] = match level {
+        Level::Isotropic => &[[1.0, 1.0, 0.0]],
+        Level::Anisotropic => &[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        _ => &[],
+    };
+    let specs = pixel_specs(cache, spec, variant, !shape.is_empty());
+    let n_tiles = cache.tiles;
+    if n_tiles == 0 {
+        return None;
+    }
+    // Per tile: photo, D, S, ∂S/∂(ln αx, ln αy, θ), and the model's half difference (L₀ − L₁)/2.
+    let rd = if has_d { params.rho_d } else { Rgb::ZERO };
+    let rs = if has_s { params.rho_s } else { Rgb::ZERO };
+    let mut tiles = vec![(Rgb::ZERO, Rgb::ZERO, Rgb::ZERO, [Rgb::ZERO; 3], Rgb::ZERO); n_tiles];
+    for (p, s) in cache.pixels.iter().zip(&specs) {
+        let t = &mut tiles[p.tile as usize];
+        t.0 += p.photo;
+        t.1 += p.d;
+        t.2 += s.s;
+        for k in 0..3 {
+            t.3[k] += (s.ds_half[0][k] + s.ds_half[1][k]) * 0.5;
+        }
+        t.4 += (rd * (p.d_half[0] - p.d_half[1]) + rs * (s.s_half[0] - s.s_half[1])) * 0.5;
+    }
+    tiles.retain(|t| t.0.max_element() > 0.0);
+    // Columns: ρd per channel, ρs per channel, then the shape parameters.
+    let col_d = |c: usize| c;
+    let col_s = |c: usize| 3 * has_d as usize + c;
+    let col_shape = 3 * (has_d as usize + has_s as usize);
+    let n = col_shape + shape.len();
+    if n == 0 || tiles.len() * 3 <= n {
+        return None;
+    }
+    let mean: Vec<f64> = (0..3)
+        .map(|c| tiles.iter().map(|t| t.0[c] as f64).sum::<f64>() / tiles.len() as f64)
+        .collect();
+    let mut a = vec![vec![0.0f64; n]; n];
+    let (mut chi2, mut cache_noise, mut rows) = (0.0f64, 0.0f64, 0usize);
+    let mut jac: Vec<(usize, f64)> = Vec::with_capacity(n);
+    for t in &tiles {
+        for c in 0..3 {
+            if !(mean[c] > 0.0) {
+                continue;
+            }
+            let w = 1.0 / (mean[c] * mean[c]);
+            let (rd, rs) = (params.rho_d[c] as f64, params.rho_s[c] as f64);
+            let (d, s) = (t.1[c] as f64, t.2[c] as f64);
+            let r =
+                t.0[c] as f64 - if has_d { rd * d } else { 0.0 } - if has_s { rs * s } else { 0.0 };
+            jac.clear();
+            if has_d {
+                jac.push((col_d(c), d));
+            }
+            if has_s {
+                jac.push((col_s(c), s));
+            }
+            for (i, mix) in shape.iter().enumerate() {
+                let ds: f64 = (0..3).map(|k| mix[k] as f64 * t.3[k][c] as f64).sum();
+                jac.push((col_shape + i, rs * ds));
+            }
+            chi2 += w * r * r;
+            cache_noise += w * (t.4[c] as f64).powi(2);
+            rows += 1;
+            for &(u, ju) in &jac {
+                for &(v, jv) in &jac {
+                    a[u][v] += w * ju * jv;
+                }
+            }
+        }
+    }
+    if rows <= n {
+        return None;
+    }
+    // A column nothing constrains (a channel the group is black in) is pinned, its σ left 0.
+    let mut pinned = vec![false; n];
+    for (u, row) in a.iter_mut().enumerate() {
+        if !(row[u] > 0.0) {
+            row[u] = 1.0;
+            pinned[u] = true;
+        }
+    }
+    let inv = super::solve::invert(&a)?;
+    let s2_all = chi2 / (rows - n) as f64;
+    let s2_cache = (cache_noise / rows as f64).min(s2_all);
+    let s2 = s2_all - s2_cache + s2_cache / (fits.max(1) as f64).sqrt();
+    let sd = |u: usize| -> f32 {
+        if pinned[u] {
+            0.0
+        } else {
+            (s2 * inv[u][u]).max(0.0).sqrt() as f32
+        }
+    };
+    let mut out = GroupParams::zero_sums();
+    for c in 0..3 {
+        if has_d {
+            out.rho_d[c] = sd(col_d(c));
+        }
+        if has_s {
+            out.rho_s[c] = sd(col_s(c));
+        }
+    }
+    match level {
+        Level::Isotropic => {
+            out.alpha_x = params.alpha_x * sd(col_shape);
+            out.alpha_y = out.alpha_x;
+        }
+        Level::Anisotropic => {
+            out.alpha_x = params.alpha_x * sd(col_shape);
+            out.alpha_y = params.alpha_y * sd(col_shape + 1);
+            out.theta = sd(col_shape + 2);
+        }
+        _ => {}
+    }
+    Some(out)
+}
