@@ -117,7 +117,7 @@ fn columns(m: &Material) -> (String, String, String) {
 /// (as the recovered scene holds them, fixed groups included) and ε of the final render.
 pub fn recovered(rec: &Recovery) -> String {
     let sc: &Scene = &rec.scene;
-    let rows: Vec<[String; 8]> = rec
+    let rows: Vec<[String; 9]> = rec
         .groups
         .iter()
         .enumerate()
@@ -143,6 +143,10 @@ pub fn recovered(rec: &Recovery) -> String {
                 }
                 _ => ("-".into(), "-".into()),
             };
+            let sigma = match (&st.sigma, st.status) {
+                (Some(sd), Status::Analysing | Status::Confirmed) => uncertainty(st, sd),
+                _ => "-".into(),
+            };
             [
                 st.name.clone(),
                 level,
@@ -150,12 +154,15 @@ pub fn recovered(rec: &Recovery) -> String {
                 rd,
                 rs,
                 lobe,
+                sigma,
                 e,
                 n,
             ]
         })
         .collect();
-    let head = ["group", "level", "status", "ρd", "ρs", "lobe", "ε", "noise"];
+    let head = [
+        "group", "level", "status", "ρd", "ρs", "lobe", "1σ", "ε", "noise",
+    ];
     let mut w = head.map(|h| h.chars().count());
     for r in &rows {
         for (i, c) in r.iter().enumerate() {
@@ -167,7 +174,7 @@ pub fn recovered(rec: &Recovery) -> String {
         for (i, c) in cells.iter().enumerate() {
             let pad = w[i] - c.chars().count();
             // Numbers of the last two columns right-aligned, text left-aligned.
-            if i >= 6 {
+            if i >= 7 {
                 s.push_str(&" ".repeat(pad));
                 s.push_str(c);
             } else {
@@ -189,8 +196,21 @@ pub fn recovered(rec: &Recovery) -> String {
     out.push_str(
         "ε: Σ|synthetic − photo| / Σ photo over the group's usable pixels and channels, final \
          render (as report.html and results.json `error`); noise: the same ε between two \
-         independent halves of the render's samples, the floor below which ε cannot go.\n",
+         independent halves of the render's samples, the floor below which ε cannot go. 1σ: \
+         the largest standard uncertainty of the group's reflectances (any channel) and of its \
+         roughness (relative); every parameter's is in results.json `sigma`.\n",
     );
+    out
+}
+
+/// The 1σ column: the largest σ of ρd and ρs over the channels, and α's relative σ.
+fn uncertainty(st: &matfit::fit::hierarchy::GroupState, sd: &matfit::fit::GroupParams) -> String {
+    let rho = sd.rho_d.max_element().max(sd.rho_s.max_element());
+    let mut out = format!("ρ {rho:.3}");
+    if st.level.is_ward() {
+        let rel = (sd.alpha_x / st.params.alpha_x).max(sd.alpha_y / st.params.alpha_y);
+        out += &format!(", α {:.1}%", 100.0 * rel);
+    }
     out
 }
 
