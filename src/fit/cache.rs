@@ -25,6 +25,7 @@ use crate::render::PathTracer;
 use crate::scene::atlas::Atlas;
 use crate::scene::Scene;
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// How many samples the cache draws.
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize, PartialEq)]
@@ -107,7 +108,8 @@ pub struct CachePixel {
 #[derive(Clone, Debug, Default)]
 pub struct GroupCache {
     pub pixels: Vec<CachePixel>,
-    pub samples: Vec<Sample>,
+    /// Shared: a cache copied to refit on other target values (`texture.rs`) keeps its samples.
+    pub samples: Arc<[Sample]>,
     pub tiles: usize,
     /// Jittered primary rays that left the group (counted, dropped).
     pub stray: usize,
@@ -178,11 +180,14 @@ impl GroupCache {
     /// lights (see `hierarchy::predicts`).
     pub fn split_tiles(&self) -> [GroupCache; 2] {
         let mut out: [GroupCache; 2] = Default::default();
+        let mut samples: [Vec<Sample>; 2] = Default::default();
         for p in &self.pixels {
-            let c = &mut out[(p.tile % 2) as usize];
-            let base = c.samples.len() as u32;
-            c.samples
-                .extend_from_slice(&self.samples[p.start as usize..p.end as usize]);
+            let (c, samples) = (
+                &mut out[(p.tile % 2) as usize],
+                &mut samples[(p.tile % 2) as usize],
+            );
+            let base = samples.len() as u32;
+            samples.extend_from_slice(&self.samples[p.start as usize..p.end as usize]);
             c.pixels.push(CachePixel {
                 start: base,
                 mid: base + (p.mid - p.start),
@@ -193,6 +198,9 @@ impl GroupCache {
         }
         out[0].tiles = self.tiles.div_ceil(2);
         out[1].tiles = self.tiles / 2;
+        for (c, s) in out.iter_mut().zip(samples) {
+            c.samples = s.into();
+        }
         out
     }
 }
@@ -511,6 +519,7 @@ pub fn build(
         ..Default::default()
     };
     let mut light_total = 0.0f64;
+    let mut samples: Vec<Sample> = Vec::new();
     cache.light_from = vec![0.0; scene.groups.len()];
     for (mut px, [s0, s1], stray, [r0, r1], (shares, [t0, t1], probed), (from, total)) in per_pixel
     {
@@ -531,14 +540,15 @@ pub fn build(
             t.rows.extend(r1);
             t.ranges.push([a, b, t.rows.len() as u32]);
         }
-        px.start = cache.samples.len() as u32;
-        cache.samples.extend(s0);
-        px.mid = cache.samples.len() as u32;
-        cache.samples.extend(s1);
-        px.end = cache.samples.len() as u32;
+        px.start = samples.len() as u32;
+        samples.extend(s0);
+        px.mid = samples.len() as u32;
+        samples.extend(s1);
+        px.end = samples.len() as u32;
         cache.pixels.push(px);
         cache.stray += stray;
     }
+    cache.samples = samples.into();
     if light_total > 0.0 {
         for f in cache.light_from.iter_mut() {
             *f = (*f as f64 / light_total) as f32;
@@ -601,6 +611,7 @@ pub(crate) fn synthetic_cache(
         tiles,
         ..Default::default()
     };
+    let mut samples: Vec<Sample> = Vec::new();
     let sun = Vec3::new(0.3, -0.2, 0.9).normalize();
     let draw = |rng: &mut TestRng, wo: Vec3, count: usize| -> Vec<(Vec3, Vec3, Rgb)> {
         (0..count)
@@ -613,11 +624,11 @@ pub(crate) fn synthetic_cache(
     };
     for i in 0..n {
         let wo = Vec3::new(rng.f32() - 0.5, rng.f32() - 0.5, 0.4 + rng.f32()).normalize();
-        let start = cache.samples.len() as u32;
+        let start = samples.len() as u32;
         let raw = draw(&mut rng, wo, 2 * per_half);
         let mut d_half = [Rgb::ZERO; 2];
         for (k, &(wo, wi, c)) in raw.iter().enumerate() {
-            cache.samples.push(Sample::new(wo, wi, c));
+            samples.push(Sample::new(wo, wi, c));
             d_half[k / per_half] += c * INV_PI;
         }
         let m = Rgb::splat(0.5 + rng.f32());
@@ -637,5 +648,6 @@ pub(crate) fn synthetic_cache(
         p.photo = photo(&p, &reference);
         cache.pixels.push(p);
     }
+    cache.samples = samples.into();
     cache
 }

@@ -334,7 +334,7 @@ emission = 5.0
             pixels[7].mirror = Rgb::splat(poison);
             let cache = GroupCache {
                 pixels,
-                samples: vec![sample; 32],
+                samples: vec![sample; 32].into(),
                 tiles: 4,
                 stray: 0,
                 texels: None,

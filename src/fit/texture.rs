@@ -256,7 +256,14 @@ pub fn fit_textured(
         // One alternation: the lobe refitted on what the texture leaves (the photo minus the
         // texture's diffuse radiance: its ρd comes out near zero), then the texture under it.
         // The uniform fit's lobe absorbs part of the texture's contrast; this one does not.
-        let mut rest = cache.clone();
+        // The pixels copied, the samples shared; the texel rows are not needed for a lobe.
+        let mut rest = GroupCache {
+            pixels: cache.pixels.clone(),
+            samples: cache.samples.clone(),
+            tiles: cache.tiles,
+            width: cache.width,
+            ..Default::default()
+        };
         for (p, px) in rest.pixels.iter_mut().enumerate() {
             let [h0, h1] = model(rows, &texels, p);
             px.photo -= h0 + h1;
