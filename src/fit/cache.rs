@@ -142,6 +142,9 @@ pub struct UnseenShares {
     /// Per sample of `GroupCache::samples`, then per tracked group: ∂c/∂ρd_u (empty when the
     /// cache keeps no samples).
     pub dc: Vec<Rgb>,
+    /// Per cached pixel, then per tracked group: ∂/∂ρd_u of `CachePixel::mirror_half` (zero
+    /// where the cache traces no mirror radiance).
+    pub mirror_half: Vec<[Rgb; 2]>,
     /// Per cached pixel: whether its derivatives were measured (every [`DERIVATIVE_STRIDE`]-th
     /// pixel; the others' are zero).
     pub probed: Vec<bool>,
@@ -459,6 +462,8 @@ pub fn build(
                 }
             }
             let mut mirror_half = [Rgb::ZERO; 2];
+            // ∂(mirror radiance)/∂ρd_u per tracked group, per half (probed pixels only).
+            let mut dmirror = vec![[Rgb::ZERO; 2]; if probed { k } else { 0 }];
             if needs.mirror {
                 let m = opts.mirror_samples.max(2).div_ceil(2);
                 let mut n_half = [0u32; 2];
@@ -476,13 +481,24 @@ pub fn build(
                     if r.dot(ng) <= 0.0 {
                         continue;
                     }
-                    let l = pt.trace(Ray::new(offset_origin(hit.p, ng, r), r), &mut sm, 1, true);
+                    let reflected = Ray::new(offset_origin(hit.p, ng, r), r);
+                    let before = sm.clone();
+                    let l = pt.trace(reflected, &mut sm, 1, true);
                     if l.is_finite() {
                         mirror_half[half] += l;
+                        for (d, u) in dmirror.iter_mut().zip(unseen) {
+                            let lm = u.moved.trace(reflected, &mut before.clone(), 1, true);
+                            if lm.is_finite() {
+                                d[half] += (lm - l) / u.step;
+                            }
+                        }
                     }
                 }
                 for h in 0..2 {
                     mirror_half[h] /= n_half[h].max(1) as f32;
+                    for d in dmirror.iter_mut() {
+                        d[h] /= n_half[h].max(1) as f32;
+                    }
                 }
             }
             let px = CachePixel {
@@ -503,7 +519,7 @@ pub fn build(
                 samples,
                 stray,
                 rows.map(merge_rows),
-                (shares.collect(), dcs, probed),
+                (shares.collect(), dcs, probed, dmirror),
                 (light_from, light_total),
             )
         })
@@ -521,7 +537,8 @@ pub fn build(
     let mut light_total = 0.0f64;
     let mut samples: Vec<Sample> = Vec::new();
     cache.light_from = vec![0.0; scene.groups.len()];
-    for (mut px, [s0, s1], stray, [r0, r1], (shares, [t0, t1], probed), (from, total)) in per_pixel
+    for (mut px, [s0, s1], stray, [r0, r1], (shares, [t0, t1], probed, dm), (from, total)) in
+        per_pixel
     {
         light_total += total as f64;
         for (a, b) in cache.light_from.iter_mut().zip(from) {
@@ -529,6 +546,14 @@ pub fn build(
         }
         if let Some(u) = cache.unseen.as_mut() {
             u.probed.push(probed);
+            // Unprobed pixels, and caches without mirror radiance, hold zeros.
+            let k = u.groups.len();
+            u.mirror_half.extend(
+                dm.iter()
+                    .copied()
+                    .chain(std::iter::repeat([Rgb::ZERO; 2]))
+                    .take(k),
+            );
             u.d_half.extend(shares);
             u.dc.extend(t0);
             u.dc.extend(t1);
@@ -566,7 +591,7 @@ type BuiltPixel = (
     [Vec<Sample>; 2],
     usize,
     [Vec<(u32, Rgb)>; 2],
-    (Vec<[Rgb; 2]>, [Vec<Rgb>; 2], bool),
+    (Vec<[Rgb; 2]>, [Vec<Rgb>; 2], bool, Vec<[Rgb; 2]>),
     (Vec<f32>, f32),
 );
 

@@ -6,8 +6,10 @@
 //! Every cache measures how its pixels change with each unseen group's ρd_u: its indirect rays
 //! are traced again through the scene with ρd_u moved, with the same random numbers
 //! (`cache::UnseenShares`), which gives ∂D/∂ρd_u and ∂S/∂ρd_u with the light that bounced on u
-//! any number of times and anywhere along the path. Per channel, a tile T of a seen group g is
-//! then, to first order in the change δ_u of ρd_u,
+//! any number of times and anywhere along the path; a mirror's cache does the same for the
+//! radiance along its reflection, so a surface seen only in a mirror is fitted from its image
+//! there (∂S/∂ρd_u of the mirror levels). Per channel, a tile T of a seen group g is then, to
+//! first order in the change δ_u of ρd_u,
 //!
 //!   photo_T ≈ ρd_g (D_T + Σ_u δ_u ∂D_T/∂ρd_u) + ρs_g (S_T + Σ_u δ_u ∂S_T/∂ρd_u),
 //!
@@ -126,17 +128,19 @@ pub struct TileShare {
 #[derive(Clone, Debug)]
 pub struct GroupShares {
     pub group: usize,
-    /// Whether ρs is free at the group's level (false: ρs is held at its value, 0 for Lambert).
+    /// Whether ρd is free at the group's level (false: held at its value, 0 for a mirror).
+    pub diffuse: bool,
+    /// Whether ρs is free at the group's level (false: held at its value, 0 for Lambert, 1 for
+    /// a perfect mirror).
     pub specular: bool,
     pub rho_d: Rgb,
     pub rho_s: Rgb,
     pub tiles: Vec<TileShare>,
 }
 
-/// The tiles of `cache` split into the unseen groups' shares and the rest, for the group's
-/// fitted model in `state`. None when the cache tracks no unseen group, or when the level's
-/// model is not ρd·D + ρs·S with a ρd to refit: mirrors (their mirror radiance is not split)
-/// and textures (a texture can take any shape, so it says nothing about the unseen light).
+/// The tiles of `cache` with their derivatives along the unseen groups, for the group's fitted
+/// model in `state`. None when the cache tracks no unseen group, or for a texture (a texture
+/// can take any shape, so it says nothing about the unseen light).
 pub fn shares(
     cache: &GroupCache,
     group: usize,
@@ -148,7 +152,7 @@ pub fn shares(
     let level = state.level;
     let spec = match level {
         Level::Diffuse => Spec::None,
-        Level::DiffuseSpecular => Spec::Mirror,
+        Level::PerfectSpecular | Level::Specular | Level::DiffuseSpecular => Spec::Mirror,
         Level::Isotropic | Level::Anisotropic => Spec::Lobe {
             alpha_x: state.params.alpha_x,
             alpha_y: if level == Level::Isotropic {
@@ -217,6 +221,12 @@ pub fn shares(
             (None, Spec::Mirror) => {
                 t.s[0] += p.mirror_half[0];
                 t.s[1] += p.mirror_half[1];
+                for j in (0..k).filter(|_| probed) {
+                    if let Some(dm) = tracked.mirror_half.get(i * k + j) {
+                        t.su[j][0] += dm[0];
+                        t.su[j][1] += dm[1];
+                    }
+                }
             }
             (None, _) => {}
             // A lobe without its samples' derivatives: no estimate from this group.
@@ -237,7 +247,8 @@ pub fn shares(
     tiles.retain(|t| t.photo.max_element() > 0.0);
     Some(GroupShares {
         group,
-        specular: level != Level::Diffuse,
+        diffuse: !matches!(level, Level::PerfectSpecular | Level::Specular),
+        specular: !matches!(level, Level::Diffuse | Level::PerfectSpecular),
         rho_d: state.params.rho_d,
         rho_s: state.params.rho_s,
         tiles,
@@ -287,20 +298,25 @@ pub fn solve_channel(
     c: usize,
     tiles: Tiles,
 ) -> Option<(Vec<f64>, Vec<f64>)> {
-    // Unknowns: per group ρd then (if free) ρs; then the k δs.
-    let mut offset = Vec::with_capacity(groups.len());
+    // Unknowns: per group ρd and ρs where free; then the k δs. A fixed one reads its value.
+    let mut offset: Vec<(Option<usize>, Option<usize>)> = Vec::with_capacity(groups.len());
     let mut n = 0usize;
     for g in groups {
-        offset.push(n);
-        n += 1 + g.specular as usize;
+        let od = g.diffuse.then_some(n);
+        n += g.diffuse as usize;
+        let os = g.specular.then_some(n);
+        n += g.specular as usize;
+        offset.push((od, os));
     }
     let tau0 = n;
     n += k;
     let mut x = vec![0.0f64; n];
-    for (g, &o) in groups.iter().zip(&offset) {
-        x[o] = g.rho_d[c] as f64;
-        if g.specular {
-            x[o + 1] = g.rho_s[c] as f64;
+    for (g, &(od, os)) in groups.iter().zip(&offset) {
+        if let Some(o) = od {
+            x[o] = g.rho_d[c] as f64;
+        }
+        if let Some(o) = os {
+            x[o] = g.rho_s[c] as f64;
         }
     }
     // First pass: per group 1/(mean tile photo)², each tile's residual relative, as ε. Second
@@ -333,25 +349,17 @@ pub fn solve_channel(
     let visit = |x: &[f64], weight: &[f64], f: &mut TileVisit| {
         let mut idx: Vec<usize> = Vec::with_capacity(2 + k);
         let mut jac: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
-        for (gi, ((g, &o), &w)) in groups.iter().zip(&offset).zip(weight).enumerate() {
+        for (gi, ((g, &(od, os)), &w)) in groups.iter().zip(&offset).zip(weight).enumerate() {
             if w == 0.0 {
                 continue;
             }
-            let (rd, rs) = (
-                x[o],
-                if g.specular {
-                    x[o + 1]
-                } else {
-                    g.rho_s[c] as f64
-                },
-            );
+            let rd = od.map_or(g.rho_d[c] as f64, |o| x[o]);
+            let rs = os.map_or(g.rho_s[c] as f64, |o| x[o]);
             for (_, t) in g.tiles.iter().enumerate().filter(|(i, _)| tiles.keeps(*i)) {
                 idx.clear();
                 idx.extend((0..k).map(|j| tau0 + j));
-                idx.push(o);
-                if g.specular {
-                    idx.push(o + 1);
-                }
+                idx.extend(od);
+                idx.extend(os);
                 let mut r = [0.0f64; 2];
                 for h in 0..2 {
                     let (mut d, mut s) = (t.d[h][c] as f64, t.s[h][c] as f64);
@@ -362,8 +370,10 @@ pub fn solve_channel(
                         s += x[tau0 + j] * su;
                         jac[h].push(rd * du + rs * su);
                     }
-                    jac[h].push(d);
-                    if g.specular {
+                    if od.is_some() {
+                        jac[h].push(d);
+                    }
+                    if os.is_some() {
                         jac[h].push(s);
                     }
                     r[h] = rd * d + rs * s - t.photo[c] as f64;
@@ -437,7 +447,7 @@ pub fn solve_channel(
         .map(|((g, &w), &p)| {
             // The group's residual variance per tile (its own fitted unknowns discounted).
             let m = kept(g) as f64;
-            let own = if g.specular { 2.0 } else { 1.0 };
+            let own = (g.diffuse as usize + g.specular as usize) as f64;
             let var = p / (m - own).max(1.0);
             if w > 0.0 && m > own {
                 w / var.max(1e-12)
@@ -800,6 +810,7 @@ mod tests {
                     .collect();
                 GroupShares {
                     group: g,
+                    diffuse: true,
                     specular: truth[g].1 > 0.0,
                     rho_d: Rgb::splat(truth[g].0 * 1.04),
                     rho_s: Rgb::splat(truth[g].1 * 0.95),
