@@ -114,7 +114,7 @@ def matfit_render(exe, scene, out, spp, seed, threads):
 def group_names(exe, scene):
     """Group names in index order, from `matfit info`."""
     out = subprocess.run([exe, "info", scene], check=True, capture_output=True, text=True).stdout
-    return [l.split()[1] for l in out.splitlines() if l.startswith("group ")]
+    return [l.split()[1].rstrip(":") for l in out.splitlines() if l.startswith("group ")]
 
 
 def mitsuba_render(mi, dr, variant, xml_path, xml_text, spp, seed, threads, **params):

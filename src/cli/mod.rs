@@ -412,7 +412,11 @@ pub fn run(cmd: Command) -> Result<()> {
                         seed: seed.unwrap_or(sc.render.seed),
                         progress: true,
                     };
-                    (render(&sc, &sc.camera, &opts), format!("{spp} spp"))
+                    let t = Instant::now();
+                    let img = render(&sc, &sc.camera, &opts);
+                    // bench/ reads this (MATFIT_LOG=info): the render alone, to 10 ms.
+                    tracing::info!("rendered in {:.2} s", t.elapsed().as_secs_f64());
+                    (img, format!("{spp} spp"))
                 }
                 other => (
                     aov_image(&sc, &sc.camera, other, ext == "png"),
