@@ -7,6 +7,7 @@ mod export;
 mod fuzz_replay;
 mod geometry;
 mod low_resolution;
+mod mirrors;
 mod photo;
 mod recover;
 mod render_physics;

@@ -106,14 +106,14 @@ fn cut_from_photo(truth: &Scene, photo: &Image, group: usize, atlas: &Atlas) -> 
 }
 
 #[derive(Debug)]
-struct Score {
-    texels: usize,
+pub(crate) struct Score {
+    pub texels: usize,
     /// 10 log10(1 / MSE), reflectance peak 1, over the channels.
-    psnr: f32,
+    pub psnr: f32,
     /// Σ|recovered − true| / Σ true over the texels and channels.
-    rel_l1: f32,
+    pub rel_l1: f32,
     /// (mean recovered − mean true) / mean true, per channel.
-    mean_bias: [f32; 3],
+    pub mean_bias: [f32; 3],
 }
 
 fn score(pairs: &[(Rgb, Rgb)]) -> Score {
@@ -141,7 +141,12 @@ fn score(pairs: &[(Rgb, Rgb)]) -> Score {
 /// The recovered texture's and the cut texture's scores for `group`: over texels seen in the
 /// photo, fully on the surface (as many reference samples as the median texel) and reached by a
 /// photo pixel.
-fn scores(truth: &Scene, photo: &Image, rec: &matfit::fit::Recovery, name: &str) -> (Score, Score) {
+pub(crate) fn scores(
+    truth: &Scene,
+    photo: &Image,
+    rec: &matfit::fit::Recovery,
+    name: &str,
+) -> (Score, Score) {
     let g = truth.group_index(name).unwrap();
     let (atlas, texels) = recovered(rec, g).unwrap_or_else(|| panic!("{name}: not textured"));
     let seen = &state(rec, name).texture.as_ref().unwrap().seen;

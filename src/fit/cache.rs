@@ -208,11 +208,19 @@ impl GroupCache {
     }
 }
 
+/// How many more mirror samples a group at a mirror level draws (`CacheNeeds::mirror_fitted`).
+pub const MIRROR_LEVEL_FACTOR: u32 = 4;
+
 /// Which parts a cache needs: D alone suffices for a group confirmed at level 1.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub struct CacheNeeds {
     pub lobe_samples: bool,
     pub mirror: bool,
+    /// The group is at a mirror level: its ρs is fitted from the mirror radiance, so that is
+    /// traced with `MIRROR_LEVEL_FACTOR` × the samples (a ρs 0.7 mirror facing another came out
+    /// 0.676–0.694 with 16 samples, 0.702–0.703 with 64; a climbing group only needs the level
+    /// decided, and keeps 16).
+    pub mirror_fitted: bool,
     /// The texel rows of D (a textured group, or one that may climb to the textured level).
     pub texels: bool,
 }
@@ -465,7 +473,12 @@ pub fn build(
             // ∂(mirror radiance)/∂ρd_u per tracked group, per half (probed pixels only).
             let mut dmirror = vec![[Rgb::ZERO; 2]; if probed { k } else { 0 }];
             if needs.mirror {
-                let m = opts.mirror_samples.max(2).div_ceil(2);
+                let factor = if needs.mirror_fitted {
+                    MIRROR_LEVEL_FACTOR
+                } else {
+                    1
+                };
+                let m = (opts.mirror_samples * factor).max(2).div_ceil(2);
                 let mut n_half = [0u32; 2];
                 for (half, k) in (0..2usize).flat_map(|h| (0..m).map(move |k| (h, k))) {
                     let mut sm = Sampler::new(seed ^ (0x6D69_7272 * (half as u64 + 1)), p as u64);

@@ -264,6 +264,7 @@ impl GroupState {
         CacheNeeds {
             lobe_samples: may_climb || level.is_ward() || varnished,
             mirror: may_climb || level.is_mirror(),
+            mirror_fitted: level.is_mirror(),
             texels: may_climb || textured,
         }
     }
