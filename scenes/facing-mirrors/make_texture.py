@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""Writes the facing-mirrors scene's book cover, its ground-truth reflectance texture (8-bit sRGB
-PNG, decoded to linear reflectance by matfit). Procedural and deterministic, so it carries no
-licence of its own: the same file as in the repository comes out of
+"""Writes the facing-mirrors scene's book cover and painting, their ground-truth reflectance
+textures (8-bit sRGB PNG, decoded to linear reflectance by matfit). Procedural and deterministic, so it carries no
+licence of its own: the same files as in the repository come out of
 
     python3 scenes/facing-mirrors/make_texture.py
 
@@ -57,5 +57,21 @@ def cover(x, y):
     return c
 
 
+def painting(x, y):
+    """A 64 × 48 painting: a sky going from blue to pale, a red sun, green hills with a dark
+    outline, a cream frame."""
+    u, v = (x + 0.5) / 64, (y + 0.5) / 48
+    if u < 0.05 or u > 0.95 or v < 0.066 or v > 0.934:
+        return (0.70, 0.62, 0.45)  # frame
+    c = (0.10 + 0.5 * v, 0.25 + 0.4 * v, 0.65)  # sky
+    if (u - 0.68) ** 2 + (v - 0.3) ** 2 < 0.11 ** 2:
+        c = (0.80, 0.08, 0.04)  # sun
+    hill = 0.62 + 0.08 * ((u * 7.0) % 2.0 - 1.0) ** 2
+    if v > hill:
+        c = (0.10, 0.45, 0.12) if v > hill + 0.04 else (0.03, 0.05, 0.03)
+    return c
+
+
 if __name__ == "__main__":
     write_png("book.png", 48, 64, cover)
+    write_png("painting.png", 64, 48, painting)

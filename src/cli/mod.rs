@@ -288,6 +288,11 @@ pub struct FitArgs {
     /// Never climb to level 7 (textures): uniform materials only, as before textures existed.
     #[arg(long)]
     no_textures: bool,
+    /// Fit mirrors only against a render of what they reflect, never against the photo's
+    /// image of a group still being analysed (§5.1 of the notes' pseudo-textures, on by
+    /// default; log.jsonl's `hypotheses` events show what they chose).
+    #[arg(long)]
+    no_pseudo_textures: bool,
 }
 
 /// A finite number > 0, for thresholds.
@@ -310,6 +315,7 @@ impl FitArgs {
             max_iterations: self.max_iterations.max(1),
             final_spp: self.final_spp.max(2),
             first_pixels: self.first_pixels,
+            pseudo_textures: !self.no_pseudo_textures,
             unseen: matfit::fit::unseen::UnseenOptions {
                 enabled: !self.white_unseen,
                 ..d.unseen.clone()

@@ -15,6 +15,7 @@
 //!
 //! Samples are split into two halves (even and odd sample index) to measure the noise floor.
 
+use super::pseudo::{PseudoMirror, PseudoTextures};
 use crate::geometry::{offset_origin, Ray};
 #[cfg(test)]
 use crate::math::PI;
@@ -123,6 +124,9 @@ pub struct GroupCache {
     /// ray first landed on that group: how much this group is lit by each other one
     /// (`schedule::climbers`).
     pub light_from: Vec<f32>,
+    /// The mirror radiance with the groups still being analysed read from the photo (§5.1,
+    /// `pseudo.rs`), when the build was asked for it.
+    pub pseudo: Option<PseudoMirror>,
 }
 
 /// How each pixel of a cache changes with the diffuse reflectance of the unseen groups it
@@ -226,6 +230,16 @@ pub struct CacheNeeds {
 }
 
 impl CacheNeeds {
+    /// Mirror samples per pixel and half.
+    pub fn mirror_samples_per_half(&self, opts: &CacheOptions) -> u32 {
+        let factor = if self.mirror_fitted {
+            MIRROR_LEVEL_FACTOR
+        } else {
+            1
+        };
+        (opts.mirror_samples * factor).max(2).div_ceil(2)
+    }
+
     /// The mixture's cosine weight: a group that only needs D (diffuse, not climbing) draws its
     /// indirect directions by cosine alone, which has the lowest variance for it.
     pub fn cosine_weight(&self) -> f32 {
@@ -289,6 +303,7 @@ pub fn build(
     needs: CacheNeeds,
     atlas: Option<&Atlas>,
     unseen: &[UnseenProbe],
+    pseudo: Option<&PseudoTextures>,
     opts: &CacheOptions,
     seed: u64,
 ) -> GroupCache {
@@ -470,15 +485,12 @@ pub fn build(
                 }
             }
             let mut mirror_half = [Rgb::ZERO; 2];
+            // The same with pseudo-textured hits read from the photo: sums, samples read, groups.
+            let mut read = ([Rgb::ZERO; 2], 0u32, Vec::<u32>::new());
             // ∂(mirror radiance)/∂ρd_u per tracked group, per half (probed pixels only).
             let mut dmirror = vec![[Rgb::ZERO; 2]; if probed { k } else { 0 }];
             if needs.mirror {
-                let factor = if needs.mirror_fitted {
-                    MIRROR_LEVEL_FACTOR
-                } else {
-                    1
-                };
-                let m = (opts.mirror_samples * factor).max(2).div_ceil(2);
+                let m = needs.mirror_samples_per_half(opts);
                 let mut n_half = [0u32; 2];
                 for (half, k) in (0..2usize).flat_map(|h| (0..m).map(move |k| (h, k))) {
                     let mut sm = Sampler::new(seed ^ (0x6D69_7272 * (half as u64 + 1)), p as u64);
@@ -497,6 +509,19 @@ pub fn build(
                     let reflected = Ray::new(offset_origin(hit.p, ng, r), r);
                     let before = sm.clone();
                     let l = pt.trace(reflected, &mut sm, 1, true);
+                    if let Some(ps) = pseudo {
+                        match ps.radiance(scene, &reflected) {
+                            Some((lp, g)) => {
+                                read.0[half] += lp;
+                                read.1 += 1;
+                                if !read.2.contains(&(g as u32)) {
+                                    read.2.push(g as u32);
+                                }
+                            }
+                            None if l.is_finite() => read.0[half] += l,
+                            None => {}
+                        }
+                    }
                     if l.is_finite() {
                         mirror_half[half] += l;
                         for (d, u) in dmirror.iter_mut().zip(unseen) {
@@ -509,6 +534,7 @@ pub fn build(
                 }
                 for h in 0..2 {
                     mirror_half[h] /= n_half[h].max(1) as f32;
+                    read.0[h] /= n_half[h].max(1) as f32;
                     for d in dmirror.iter_mut() {
                         d[h] /= n_half[h].max(1) as f32;
                     }
@@ -534,6 +560,7 @@ pub fn build(
                 rows.map(merge_rows),
                 (shares.collect(), dcs, probed, dmirror),
                 (light_from, light_total),
+                read,
             )
         })
         .collect();
@@ -550,9 +577,32 @@ pub fn build(
     let mut light_total = 0.0f64;
     let mut samples: Vec<Sample> = Vec::new();
     cache.light_from = vec![0.0; scene.groups.len()];
-    for (mut px, [s0, s1], stray, [r0, r1], (shares, [t0, t1], probed, dm), (from, total)) in
-        per_pixel
+    let mut read_mirror = pseudo.map(|_| PseudoMirror::default());
+    let mut read_samples = 0u64;
+    let mirror_samples = if needs.mirror {
+        2 * needs.mirror_samples_per_half(opts) as u64
+    } else {
+        0
+    };
+    for (
+        mut px,
+        [s0, s1],
+        stray,
+        [r0, r1],
+        (shares, [t0, t1], probed, dm),
+        (from, total),
+        (rh, rn, rg),
+    ) in per_pixel
     {
+        if let Some(r) = read_mirror.as_mut() {
+            r.half.push(rh);
+            read_samples += rn as u64;
+            for g in rg {
+                if !r.groups.contains(&(g as usize)) {
+                    r.groups.push(g as usize);
+                }
+            }
+        }
         light_total += total as f64;
         for (a, b) in cache.light_from.iter_mut().zip(from) {
             *a += b;
@@ -587,6 +637,11 @@ pub fn build(
         cache.stray += stray;
     }
     cache.samples = samples.into();
+    if let Some(mut r) = read_mirror {
+        r.groups.sort_unstable();
+        r.share = read_samples as f32 / (mirror_samples * cache.pixels.len() as u64).max(1) as f32;
+        cache.pseudo = Some(r);
+    }
     if light_total > 0.0 {
         for f in cache.light_from.iter_mut() {
             *f = (*f as f64 / light_total) as f32;
@@ -606,6 +661,7 @@ type BuiltPixel = (
     [Vec<(u32, Rgb)>; 2],
     (Vec<[Rgb; 2]>, [Vec<Rgb>; 2], bool, Vec<[Rgb; 2]>),
     (Vec<f32>, f32),
+    ([Rgb; 2], u32, Vec<u32>),
 );
 
 /// One half's texel rows with each texel once, in texel order (the sums are taken in a fixed

@@ -176,6 +176,18 @@ pub enum Event {
         error_before: f32,
         error_after: f32,
     },
+    /// §5.1 (`pseudo.rs`): the group's mirror level fitted with the groups it reflects that are
+    /// still being analysed rendered, and read from the photo (pseudo-textures); the one with
+    /// the smaller cost (`chose`: "rendered" or "pseudo_texture") is used in this iteration.
+    Hypotheses {
+        level: Level,
+        pseudo_textured: Vec<String>,
+        /// Share of the group's mirror samples read from the photo.
+        share: f32,
+        error_rendered: f32,
+        error_pseudo: f32,
+        chose: String,
+    },
 }
 
 impl GroupState {

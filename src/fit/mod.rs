@@ -10,6 +10,7 @@ pub mod level;
 pub mod mixture;
 pub mod objective;
 pub mod params;
+pub mod pseudo;
 pub mod recover;
 pub mod recovery;
 pub mod schedule;

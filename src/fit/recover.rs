@@ -79,10 +79,18 @@ pub struct RecoverOptions {
     /// run does not stop before the full number is reached. 0: `cache.max_pixels` throughout.
     #[serde(default)]
     pub first_pixels: usize,
+    /// §5.1 of the notes (`pseudo.rs`): a mirror is also fitted with the groups it reflects
+    /// that are still being analysed read from the photo, and the better hypothesis is used.
+    #[serde(default = "yes")]
+    pub pseudo_textures: bool,
     /// Samples per pixel of the final render.
     pub final_spp: u32,
     pub seed: u64,
     pub progress: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 impl Default for RecoverOptions {
@@ -97,6 +105,7 @@ impl Default for RecoverOptions {
             default_rho_d: 1.0,
             unseen: Default::default(),
             first_pixels: 1500,
+            pseudo_textures: true,
             final_spp: 64,
             seed: 0,
             progress: true,
@@ -341,6 +350,7 @@ emission = 5.0
                 width: 0,
                 unseen: None,
                 light_from: Vec::new(),
+                pseudo: None,
             };
             let mut any_bad = false;
             for level in Level::FITTED {

@@ -16,6 +16,7 @@ use super::error::{block_tile, block_tiles, tiled_error, PixelTerms};
 use super::hierarchy::{Event, GroupState, Motion, Status};
 use super::level::Level;
 use super::params::{largest_move, GroupParams};
+use super::pseudo::{self, PseudoTextures};
 use super::recover::{pixel_budget, LogLine, RecoverError, RecoverOptions, Recovery};
 use super::schedule;
 use crate::io::image::Image;
@@ -331,7 +332,23 @@ impl<'a> RecoveryLoop<'a> {
                 })
                 .collect();
             let atlas = self.atlases[g].as_deref();
-            let cache = build(
+            let needs = self.states[g].cache_needs(self.settled);
+            // §5.1: the groups still being analysed, as the mirror radiance may read them.
+            let analysing: Vec<bool> = self
+                .states
+                .iter()
+                .enumerate()
+                .map(|(i, s)| i != g && s.is_fitted() && s.status == Status::Analysing)
+                .collect();
+            let pseudo =
+                (opts.pseudo_textures && needs.mirror && analysing.contains(&true)).then(|| {
+                    PseudoTextures {
+                        groups: analysing,
+                        usable: &self.mask.group,
+                        photo: &self.photo.image.data,
+                    }
+                });
+            let mut cache = build(
                 &self.current,
                 &pt,
                 g,
@@ -339,13 +356,23 @@ impl<'a> RecoveryLoop<'a> {
                 tiles,
                 *n_tiles,
                 &self.photo.image.data,
-                self.states[g].cache_needs(self.settled),
+                needs,
                 atlas,
                 &probes,
+                pseudo.as_ref(),
                 &cache_opts,
                 hash_seed(&[opts.seed, it as u64, g as u64]),
             );
             self.cache_builds += 1;
+            let mut read = cache.pseudo.take().filter(|r| r.share >= pseudo::MIN_SHARE);
+            let mut took = false;
+            if let Some(r) = read.as_mut() {
+                if let Some((event, take)) = pseudo::choose(&mut cache, r, &self.states, g, variant)
+                {
+                    took = take;
+                    log(&self.line(it, g, event, 0.0));
+                }
+            }
             let st = &mut self.states[g];
             let events = st.step(
                 &cache,
@@ -355,6 +382,10 @@ impl<'a> RecoveryLoop<'a> {
                 self.settled,
                 climbers.contains(&g),
             );
+            if let (true, Some(r)) = (took, read.as_mut()) {
+                // The unseen groups' derivatives are those of the rendered mirror radiance.
+                cache.swap_mirror(r);
+            }
             shares.extend(super::unseen::shares(&cache, g, &self.states[g], variant));
             self.states[g].lit_by = cache.light_from.clone();
             let secs = tg.elapsed().as_secs_f64();
