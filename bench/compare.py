@@ -79,7 +79,7 @@ MODES = {
             dict(lr=0.05, spp=4, halflife=40, lr_min=0.002),
             dict(lr=0.05, spp=2, halflife=60, lr_min=0.001),
         ],
-        pilot=60.0, long_min=60.0, long_max=420.0, recover_args=[],
+        pilot=60.0, long_min=60.0, long_max=420.0, recover_args=["--white-unseen"],
     ),
     "quick": dict(
         res=(128, 96), eq_spp=16, budgets=(0.5, 2.0), ref_spp=512, mirror_spp=512,
@@ -87,7 +87,8 @@ MODES = {
             dict(lr=0.05, spp=4),
             dict(lr=0.05, spp=4, halflife=30, lr_min=0.002),
         ],
-        pilot=8.0, long_min=8.0, long_max=24.0, recover_args=["--final-spp", "16"],
+        pilot=8.0, long_min=8.0, long_max=24.0,
+        recover_args=["--white-unseen", "--final-spp", "16"],
     ),
 }
 EQ_RUNS = 3  # equal-spp timings: runs of each renderer, interleaved, median quoted
@@ -623,7 +624,8 @@ def markdown(meta, fw, inv, cross, cfg, svg_name):
     A("## 2. Inverse rendering\n")
     A(f"Photo: the reference image above. Unknowns: ρd (RGB) of the {len(inv['groups'])} "
       f"visible groups ({', '.join(inv['groups'])}), all starting from 0.5; the unseen "
-      f"ceiling keeps its ρd 1 in both tools (matfit's default for groups without pixels) and "
+      f"ceiling keeps its ρd 1, its truth, in both tools (matfit `--white-unseen`: by default "
+      f"matfit estimates it, one more unknown than Mitsuba has) and "
       f"the light is known. Error = max |recovered − true| over all channels of all these "
       f"groups. Times: matfit from process start; Mitsuba from scene loading, without JIT "
       f"compilation (its warm-up iterations took {inv['mitsuba_warmup']}). "
