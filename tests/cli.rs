@@ -447,3 +447,52 @@ fn outputs_keep_the_input_layout_and_fixed_groups_their_material() {
         "{rec}"
     );
 }
+
+#[test]
+fn the_report_is_one_file_with_its_pictures_plots_and_a_noise_free_error_map() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    write(dir, "scene.toml", SMALL_SCENE);
+    render_photo(dir, "photo.exr");
+    let mut args = vec!["recover", "scene.toml", "photo.exr", "-o", "out"];
+    args.extend(QUICK);
+    let (code, _, err) = run(&args, dir);
+    assert_eq!(code, 0, "{err}");
+    let html = std::fs::read_to_string(dir.join("out/report.html")).unwrap();
+    // One file: photo, synthetic and error map embedded as PNGs, no links to them.
+    use base64::Engine;
+    let pngs: Vec<Vec<u8>> = html
+        .split("src=\"data:image/png;base64,")
+        .skip(1)
+        .map(|s| {
+            base64::engine::general_purpose::STANDARD
+                .decode(s.split('"').next().unwrap())
+                .expect("valid base64")
+        })
+        .collect();
+    assert_eq!(pngs.len(), 3, "embedded pictures");
+    assert!(pngs.iter().all(|b| b.starts_with(b"\x89PNG\r\n\x1a\n")));
+    assert!(!html.contains("src=\"photo.png\""));
+    // The error map's colour bar, and the fitted group's convergence plot with its two series
+    // (the lamp has no fit, so no plot).
+    assert!(html.contains("id=\"colour-bar\""));
+    let plot = html
+        .split("data-group=\"floor\">")
+        .nth(1)
+        .expect("a plot for the floor");
+    let svg = plot.split("</svg>").next().unwrap();
+    assert!(svg.trim_start().starts_with("<svg"), "{svg}");
+    assert!(svg.matches("<polyline").count() >= 2, "{svg}");
+    assert!(!html.contains("data-group=\"lamp\""));
+    // The photo has 16 spp and the final render 2: per pixel, noise is tens of percent of the
+    // radiance, while the floor's model (diffuse, as the truth) is right. The map shows model
+    // error above the noise, so almost nothing is lit (the per-pixel map was mostly white).
+    let map = matfit::io::image::read_linear(&dir.join("out/error.png")).unwrap();
+    let lit = map.data.iter().filter(|c| c.max_element() > 0.05).count();
+    eprintln!("error map: {lit} of {} pixels lit", map.data.len());
+    assert!(
+        lit * 100 < map.data.len() * 3,
+        "{lit} of {} lit",
+        map.data.len()
+    );
+}

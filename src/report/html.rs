@@ -1,7 +1,65 @@
-//! The HTML report: photo | synthetic | error side by side, and the parameter table.
+//! The HTML report, one self-contained file (images embedded as data URIs, plots as inline
+//! SVG): photo | synthetic | model error with its colour bar, the parameter table, the
+//! convergence of every group, the textures.
 
 use super::Results;
 use crate::fit::params::Value;
+use base64::Engine;
+use std::path::Path;
+
+/// The file `rel` (relative to `dir`) as a data URI, or the relative link where it cannot be
+/// read (the page then still works next to its files).
+fn embedded(dir: &Path, rel: &str) -> String {
+    match std::fs::read(dir.join(rel)) {
+        Ok(bytes) => format!(
+            "data:image/png;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(bytes)
+        ),
+        Err(_) => esc(rel),
+    }
+}
+
+/// The error picture's colour bar: `super::false_colour`'s ramp (its stops as the PNG shows
+/// them), from 0 to `scale` and beyond.
+fn colour_bar(scale: f32) -> String {
+    let stops = [
+        (0.0, [0.0, 0.0, 0.0]),
+        (0.2, [0.0, 0.05, 0.6]),
+        (0.4, [0.0, 0.6, 0.1]),
+        (0.6, [0.9, 0.85, 0.0]),
+        (0.8, [0.9, 0.05, 0.0]),
+        (1.0, [1.0, 1.0, 1.0]),
+    ];
+    let grad: String = stops
+        .iter()
+        .map(|(o, [r, g, b])| {
+            format!(
+                "<stop offset=\"{o}\" stop-color=\"rgb({},{},{})\"/>",
+                (r * 255.0f32).round(),
+                (g * 255.0f32).round(),
+                (b * 255.0f32).round()
+            )
+        })
+        .collect();
+    let ticks: String = (0..=4)
+        .map(|k| {
+            let x = 24.0 + 300.0 * k as f32 / 4.0;
+            let v = 100.0 * scale * k as f32 / 4.0;
+            let label = if k == 4 {
+                format!("≥ {v:.1}%")
+            } else {
+                format!("{v:.1}%")
+            };
+            format!(
+                "<line x1=\"{x}\" y1=\"26\" x2=\"{x}\" y2=\"31\" stroke=\"black\"/><text x=\"{x}\" y=\"44\" font-size=\"11\" text-anchor=\"middle\">{}</text>",
+                esc(&label)
+            )
+        })
+        .collect();
+    format!(
+        "<svg id=\"colour-bar\" width=\"360\" height=\"50\" xmlns=\"http://www.w3.org/2000/svg\"><defs><linearGradient id=\"ramp\">{grad}</linearGradient></defs><rect x=\"24\" y=\"6\" width=\"300\" height=\"20\" fill=\"url(#ramp)\" stroke=\"#888\"/>{ticks}</svg>"
+    )
+}
 
 fn esc(s: &str) -> String {
     s.replace('&', "&amp;")
@@ -16,7 +74,9 @@ fn value(v: &Value) -> String {
     }
 }
 
-pub fn report(res: &Results) -> String {
+/// The page for the recovery whose outputs are in `dir`, with each group's convergence plot
+/// (`plots`: group, SVG) and the error picture's full scale.
+pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32) -> String {
     let mut rows = String::new();
     for g in &res.groups {
         let params: Vec<String> = g
@@ -49,7 +109,7 @@ pub fn report(res: &Results) -> String {
     {
         textures += &format!(
             "<figure><img src=\"{}\" alt=\"texture of {}\"><figcaption>{}: {}×{} texels of {:.4} (scene units), {} of {} seen in the photo ({:.0}%; the rest filled from their neighbours), lobe on top: {}; linear reflectance in <a href=\"{}\">{}</a></figcaption></figure>\n",
-            esc(&t.preview),
+            embedded(dir, &t.preview),
             esc(&g.name),
             esc(&g.name),
             t.width,
@@ -68,16 +128,36 @@ pub fn report(res: &Results) -> String {
             "<h2>Recovered textures (level 7)</h2>\n<p>Reflectance, the light that fell on them divided out (§5.2 of the notes); sRGB previews.</p>\n{textures}"
         );
     }
+    let mut convergence = String::new();
+    for (g, svg) in plots {
+        convergence += &format!(
+            "<figure class=\"plot\" data-group=\"{}\">{svg}</figure>\n",
+            esc(g)
+        );
+    }
+    if !convergence.is_empty() {
+        convergence = format!(
+            "<h2>Convergence</h2>\n<p>Per group, ε of each global iteration's fit on its cache (black) and the noise floor below which it cannot go (grey), log scale; red: the level it moved to, green: where it was confirmed (log.jsonl has every decision).</p>\n{convergence}"
+        );
+    }
+    let (photo, synthetic, error) = (
+        embedded(dir, "photo.png"),
+        embedded(dir, "synthetic.png"),
+        embedded(dir, "error.png"),
+    );
+    let bar = colour_bar(scale);
     format!(
         r#"<!doctype html>
 <html><head><meta charset="utf-8"><title>matfit recovery</title>
-<style>body{{font-family:sans-serif;margin:2em}} img{{max-width:32%;margin-right:1%;image-rendering:pixelated}} figure img{{min-width:256px;max-width:60%}}
+<style>body{{font-family:sans-serif;margin:2em}} img{{max-width:32%;margin-right:1%;image-rendering:pixelated}} figure img{{min-width:256px;max-width:60%}} figure.plot{{display:inline-block;margin:0.3em}}
 table{{border-collapse:collapse}} td,th{{border:1px solid #ccc;padding:4px 8px;font-size:90%}}</style></head>
 <body><h1>matfit recovery</h1>
-<p>photo | synthetic | relative error (black 0 → white ≥ 20%; grey: pixels not used)</p>
-<p><img src="photo.png" alt="photo"><img src="synthetic.png" alt="synthetic"><img src="error.png" alt="error"></p>
+<p>photo | synthetic | model error: per 8×8-pixel tile of each group, |Σ (synthetic − photo)| beyond three times what the pixels' scatter explains (the noise of both images), over the tile's radiance, so noise shows black (dark grey: pixels not used; error.exr has |synthetic − photo| per pixel)</p>
+<p><img src="{photo}" alt="photo"><img src="{synthetic}" alt="synthetic"><img src="{error}" alt="error"></p>
+{bar}
 <table><tr><th>group</th><th>level</th><th>status</th><th>ε</th><th>noise floor</th><th>usable px</th><th>parameters</th><th>note</th></tr>
 {rows}</table>
+{convergence}
 {textures}
 <p>{} global iterations, {} cache builds, {} objective evaluations; total {:.1} s, final render {:.1} s; Ward variant {}.</p>
 <p>ε: Σ|synthetic − photo| / Σ photo over the group's usable pixels and channels, final render; noise floor: the same between two independent halves of its samples. A note's <i>fit ε</i> (a fraction) is the same metric on the fitter's cache at its last fit, what the hierarchy decided on (results.json <code>fit_error</code>).</p>
