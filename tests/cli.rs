@@ -449,7 +449,7 @@ fn outputs_keep_the_input_layout_and_fixed_groups_their_material() {
 }
 
 #[test]
-fn the_report_is_one_file_with_its_pictures_plots_and_a_noise_free_error_map() {
+fn the_report_is_one_file_with_pictures_plots_inputs_and_a_noise_free_error_map() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
     write(dir, "scene.toml", SMALL_SCENE);
@@ -484,6 +484,16 @@ fn the_report_is_one_file_with_its_pictures_plots_and_a_noise_free_error_map() {
     assert!(svg.trim_start().starts_with("<svg"), "{svg}");
     assert!(svg.matches("<polyline").count() >= 2, "{svg}");
     assert!(!html.contains("data-group=\"lamp\""));
+    // The inputs, in the page and in results.json: enough to run it again.
+    assert!(html.contains("id=\"inputs\""));
+    let res: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("out/results.json")).unwrap())
+            .unwrap();
+    let inputs = &res["inputs"];
+    assert_eq!(inputs["scene"], "scene.toml", "{inputs}");
+    assert_eq!(inputs["photo"], "photo.exr", "{inputs}");
+    assert_eq!(inputs["exposure_rule"], "default", "{inputs}");
+    assert_eq!(inputs["options"]["max_iterations"], 2, "{inputs}");
     // The photo has 16 spp and the final render 2: per pixel, noise is tens of percent of the
     // radiance, while the floor's model (diffuse, as the truth) is right. The map shows model
     // error above the noise, so almost nothing is lit (the per-pixel map was mostly white).

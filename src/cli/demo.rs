@@ -242,6 +242,7 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
         );
     }
     model.camera = prepared.camera.clone();
+    let inputs = crate::cli::recover::inputs(&path, &photo_path, &prepared, false, &opts.recover);
     let rec = crate::cli::recover::run_recover(
         &model,
         &prepared.photo,
@@ -249,9 +250,15 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
         &opts.recover,
         &rec_dir,
         false,
+        &inputs,
     )?;
     let mut table = Vec::new();
     let worst = print_table(&scene, &rec, &mut table).map_err(|e| e.to_string())?;
+    matfit::report::add_to_report(
+        &rec_dir,
+        &format!("True vs recovered (the demo knows the truth; worst ρ error {worst:.4})"),
+        &String::from_utf8_lossy(&table),
+    )?;
     crate::outln!();
     crate::cli::out::print(format_args!("{}", String::from_utf8_lossy(&table)));
     crate::outln!();

@@ -464,13 +464,22 @@ pub fn run(cmd: Command) -> Result<()> {
             // Render through the camera registered to the photo.
             sc.camera = prepared.camera.clone();
             checks::on_interrupt_say_resume(resume_command());
+            let opts = fit.options();
+            let inputs = recover::inputs(
+                &scene,
+                &photo,
+                &prepared,
+                photo_args.exposure.is_some(),
+                &opts,
+            );
             let rec = recover::run_recover(
                 &sc,
                 &prepared.photo,
                 &prepared.mask,
-                &fit.options(),
+                &opts,
                 &output,
                 resume,
+                &inputs,
             )
             .map_err(anyhow::Error::msg)?;
             outln!();

@@ -12,7 +12,8 @@ use std::path::Path;
 
 /// Recovers `scene`'s materials from `photo`, writing log.jsonl as it goes, checkpoint.json
 /// after every global iteration, and every other output at the end into `out` (which must
-/// exist). With `resume`, continues from `out/checkpoint.json`.
+/// exist). With `resume`, continues from `out/checkpoint.json`. `inputs` go into
+/// results.json and report.html.
 pub fn run_recover(
     scene: &Scene,
     photo: &Photo,
@@ -20,6 +21,7 @@ pub fn run_recover(
     opts: &RecoverOptions,
     out: &Path,
     resume: bool,
+    inputs: &matfit::report::Inputs,
 ) -> Result<Recovery, String> {
     let log_path = out.join("log.jsonl");
     let ck_path = out.join("checkpoint.json");
@@ -99,6 +101,32 @@ pub fn run_recover(
     if let Some(e) = err.into_inner() {
         return Err(e);
     }
-    matfit::report::write_outputs(out, &rec, photo)?;
+    matfit::report::write_outputs(out, &rec, photo, Some(inputs))?;
     Ok(rec)
+}
+
+/// The record of a run's inputs for results.json and report.html.
+pub fn inputs(
+    scene: &Path,
+    photo: &Path,
+    prepared: &matfit::photo::PreparedPhoto,
+    exposure_given: bool,
+    opts: &RecoverOptions,
+) -> matfit::report::Inputs {
+    matfit::report::Inputs {
+        matfit: env!("CARGO_PKG_VERSION").to_string(),
+        scene: scene.display().to_string(),
+        photo: photo.display().to_string(),
+        exposure: prepared.photo.exposure,
+        exposure_rule: if prepared.calibration.is_some() {
+            "calibrated"
+        } else if exposure_given {
+            "given"
+        } else {
+            "default"
+        }
+        .to_string(),
+        registration_px: prepared.registration.as_ref().map(|r| [r.dx, r.dy]),
+        options: opts.clone(),
+    }
 }

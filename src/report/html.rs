@@ -146,6 +146,25 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
         embedded(dir, "error.png"),
     );
     let bar = colour_bar(scale);
+    let inputs = match &res.inputs {
+        Some(i) => {
+            let reg = i.registration_px.map_or("off".to_string(), |[dx, dy]| {
+                format!("model shifted by ({dx:.2}, {dy:.2}) px onto the photo")
+            });
+            let options = serde_json::to_string_pretty(&i.options).unwrap_or_default();
+            format!(
+                "<h2>Inputs</h2>\n<table id=\"inputs\"><tr><td>matfit</td><td>{}</td></tr><tr><td>scene</td><td>{}</td></tr><tr><td>photo</td><td>{}</td></tr><tr><td>exposure k</td><td>{} ({})</td></tr><tr><td>registration</td><td>{}</td></tr></table>\n<details><summary>options</summary><pre>{}</pre></details>\n",
+                esc(&i.matfit),
+                esc(&i.scene),
+                esc(&i.photo),
+                i.exposure,
+                esc(&i.exposure_rule),
+                esc(&reg),
+                esc(&options)
+            )
+        }
+        None => String::new(),
+    };
     format!(
         r#"<!doctype html>
 <html><head><meta charset="utf-8"><title>matfit recovery</title>
@@ -160,6 +179,7 @@ table{{border-collapse:collapse}} td,th{{border:1px solid #ccc;padding:4px 8px;f
 {convergence}
 {textures}
 <p>{} global iterations, {} cache builds, {} objective evaluations; total {:.1} s, final render {:.1} s; Ward variant {}.</p>
+{inputs}
 <p>ε: Σ|synthetic − photo| / Σ photo over the group's usable pixels and channels, final render; noise floor: the same between two independent halves of its samples. A note's <i>fit ε</i> (a fraction) is the same metric on the fitter's cache at its last fit, what the hierarchy decided on (results.json <code>fit_error</code>).</p>
 <p>The log of every decision is <a href="log.jsonl">log.jsonl</a>; the recovered scene is <a href="recovered.toml">recovered.toml</a>.</p>
 </body></html>
@@ -171,4 +191,15 @@ table{{border-collapse:collapse}} td,th{{border:1px solid #ccc;padding:4px 8px;f
         res.timing.final_render_s,
         res.ward_variant
     )
+}
+
+/// `page` with a section of preformatted `text` under `title` inserted after the parameter
+/// table (before the convergence plots, else at the end of the body).
+pub fn with_section(page: &str, title: &str, text: &str) -> String {
+    let section = format!("<h2>{}</h2>\n<pre>{}</pre>\n", esc(title), esc(text));
+    let at = page
+        .find("<h2>Convergence</h2>")
+        .or_else(|| page.rfind("</body>"))
+        .unwrap_or(page.len());
+    format!("{}{section}{}", &page[..at], &page[at..])
 }

@@ -76,8 +76,27 @@ pub struct Timing {
     pub final_render_s: f64,
 }
 
+/// What a recovery was run on and with: enough to run it again.
+#[derive(Clone, Debug, Serialize)]
+pub struct Inputs {
+    /// matfit's version.
+    pub matfit: String,
+    pub scene: String,
+    pub photo: String,
+    /// The factor the photo's values were divided by, and how it was found ("given",
+    /// "calibrated", "default").
+    pub exposure: f32,
+    pub exposure_rule: String,
+    /// The shift (pixels) registration found between model and photo (None: registration off).
+    pub registration_px: Option<[f32; 2]>,
+    pub options: crate::fit::RecoverOptions,
+}
+
 #[derive(Serialize)]
 pub struct Results {
+    /// None when the caller did not say (the library's own tests).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub inputs: Option<Inputs>,
     pub groups: Vec<GroupResult>,
     pub timing: Timing,
     pub iterations: u32,
@@ -157,6 +176,7 @@ pub fn results(rec: &Recovery) -> Results {
         })
         .collect();
     Results {
+        inputs: None,
         groups,
         timing: Timing {
             total_s: rec.total_s,
@@ -309,13 +329,19 @@ pub fn error_images(rec: &Recovery, photo: &Photo, scale: f32) -> (Image, Image)
 }
 
 /// Writes every output of a recovery into `dir` (which must exist).
-pub fn write_outputs(dir: &Path, rec: &Recovery, photo: &Photo) -> Result<(), String> {
+pub fn write_outputs(
+    dir: &Path,
+    rec: &Recovery,
+    photo: &Photo,
+    inputs: Option<&Inputs>,
+) -> Result<(), String> {
     let io = |p: &Path, e: std::io::Error| format!("cannot write {}: {e}", p.display());
     let scene_path = dir.join("recovered.toml");
     let scene = with_written_textures(rec, dir)?;
     let text = crate::scene::write::scene_to_toml(&scene, &scene_path);
     write_atomic(&scene_path, text.as_bytes()).map_err(|e| io(&scene_path, e))?;
-    let res = results(rec);
+    let mut res = results(rec);
+    res.inputs = inputs.cloned();
     let json = serde_json::to_string_pretty(&res).expect("results serialise");
     let rp = dir.join("results.json");
     write_atomic(&rp, json.as_bytes()).map_err(|e| io(&rp, e))?;
@@ -335,4 +361,14 @@ pub fn write_outputs(dir: &Path, rec: &Recovery, photo: &Photo) -> Result<(), St
     let hp = dir.join("report.html");
     write_atomic(&hp, page.as_bytes()).map_err(|e| io(&hp, e))?;
     Ok(())
+}
+
+/// Adds a section of preformatted `text` under `title` to `dir/report.html`, after the
+/// parameter table (the demo's true vs recovered values, which only it knows).
+pub fn add_to_report(dir: &Path, title: &str, text: &str) -> Result<(), String> {
+    let hp = dir.join("report.html");
+    let page =
+        std::fs::read_to_string(&hp).map_err(|e| format!("cannot read {}: {e}", hp.display()))?;
+    let page = html::with_section(&page, title, text);
+    write_atomic(&hp, page.as_bytes()).map_err(|e| format!("cannot write {}: {e}", hp.display()))
 }
