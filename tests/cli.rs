@@ -506,3 +506,82 @@ fn the_report_is_one_file_with_pictures_plots_inputs_and_a_noise_free_error_map(
         map.data.len()
     );
 }
+
+/// Chromium, for the report's browser test: `MATFIT_CHROMIUM` (set by .ci/run, which installs
+/// it), else `chromium` on the PATH.
+fn chromium() -> Option<String> {
+    let exe = std::env::var("MATFIT_CHROMIUM").unwrap_or_else(|_| "chromium".to_string());
+    let ok = std::process::Command::new(&exe)
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    ok.then_some(exe)
+}
+
+#[test]
+fn the_report_opens_in_a_browser_with_every_picture_and_plot() {
+    let Some(exe) = chromium() else {
+        // .ci/run installs it; a developer without it is told, not failed.
+        eprintln!("SKIPPED: no chromium (set MATFIT_CHROMIUM or install Debian's chromium)");
+        assert!(
+            std::env::var_os("MATFIT_CHROMIUM").is_none(),
+            "MATFIT_CHROMIUM is set but does not run"
+        );
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    write(dir, "scene.toml", SMALL_SCENE);
+    render_photo(dir, "photo.exr");
+    let mut args = vec!["recover", "scene.toml", "photo.exr", "-o", "out"];
+    args.extend(QUICK);
+    let (code, _, err) = run(&args, dir);
+    assert_eq!(code, 0, "{err}");
+    let page = format!("file://{}", dir.join("out/report.html").display());
+    let browser = |extra: &[&str]| {
+        let out = std::process::Command::new(&exe)
+            .args([
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--virtual-time-budget=5000",
+            ])
+            .arg(format!("--user-data-dir={}", dir.join("profile").display()))
+            .args(extra)
+            .arg(&page)
+            .output()
+            .expect("chromium runs");
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    // The DOM after the page's script ran: every picture decoded (the page counts them on
+    // load), the plot drawn, the table there.
+    let dom = browser(&["--dump-dom"]);
+    let loaded = dom
+        .split("data-images-loaded=\"")
+        .nth(1)
+        .and_then(|s| s.split('"').next())
+        .expect("the page's load count");
+    let (n, of) = loaded.split_once('/').unwrap();
+    assert_eq!(n, of, "pictures decoded: {loaded}");
+    assert!(n.parse::<usize>().unwrap() >= 4, "{loaded}");
+    assert!(dom.contains("data-group=\"floor\"") && dom.contains("<polyline"));
+    assert!(dom.contains("<th>group</th>") && dom.contains("<td>floor</td>"));
+    // A screenshot: the page is drawn, not blank.
+    let shot = dir.join("shot.png");
+    browser(&[
+        &format!("--screenshot={}", shot.display()),
+        "--window-size=1000,800",
+    ]);
+    let img = matfit::io::image::read_linear(&shot).unwrap();
+    let dark = img.data.iter().filter(|c| c.max_element() < 0.5).count();
+    assert!(
+        dark * 50 > img.data.len(),
+        "the screenshot is nearly blank: {dark} dark pixels of {}",
+        img.data.len()
+    );
+}

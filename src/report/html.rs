@@ -169,11 +169,16 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
         r#"<!doctype html>
 <html><head><meta charset="utf-8"><title>matfit recovery</title>
 <style>body{{font-family:sans-serif;margin:2em}} img{{max-width:32%;margin-right:1%;image-rendering:pixelated}} figure img{{min-width:256px;max-width:60%}} figure.plot{{display:inline-block;margin:0.3em}}
+#compare{{position:relative;display:inline-block;max-width:66%}} #compare img{{max-width:100%;width:100%;margin:0;display:block}} #over{{position:absolute;top:0;left:0;height:100%;width:50%;overflow:hidden}} #over img{{width:auto;max-width:none;height:100%}} #slider{{display:block;width:40%}}
 table{{border-collapse:collapse}} td,th{{border:1px solid #ccc;padding:4px 8px;font-size:90%}}</style></head>
 <body><h1>matfit recovery</h1>
 <p>photo | synthetic | model error: per 8×8-pixel tile of each group, |Σ (synthetic − photo)| beyond three times what the pixels' scatter explains (the noise of both images), over the tile's radiance, so noise shows black (dark grey: pixels not used; error.exr has |synthetic − photo| per pixel)</p>
 <p><img src="{photo}" alt="photo"><img src="{synthetic}" alt="synthetic"><img src="{error}" alt="error"></p>
 {bar}
+<h2>Before / after</h2>
+<p>The synthetic image over the photo: left of the edge the synthetic image, right of it the photo; drag the slider.</p>
+<div id="compare"><img class="under" src="{photo}" alt="photo"><div id="over"><img src="{synthetic}" alt="synthetic"></div></div>
+<input id="slider" type="range" min="0" max="100" value="50" aria-label="photo / synthetic">
 <table><tr><th>group</th><th>level</th><th>status</th><th>ε</th><th>noise floor</th><th>usable px</th><th>parameters</th><th>note</th></tr>
 {rows}</table>
 {convergence}
@@ -182,6 +187,19 @@ table{{border-collapse:collapse}} td,th{{border:1px solid #ccc;padding:4px 8px;f
 {inputs}
 <p>ε: Σ|synthetic − photo| / Σ photo over the group's usable pixels and channels, final render; noise floor: the same between two independent halves of its samples. A note's <i>fit ε</i> (a fraction) is the same metric on the fitter's cache at its last fit, what the hierarchy decided on (results.json <code>fit_error</code>).</p>
 <p>The log of every decision is <a href="log.jsonl">log.jsonl</a>; the recovered scene is <a href="recovered.toml">recovered.toml</a>.</p>
+<script>
+// The slider uncovers the synthetic image over the photo.
+const over = document.getElementById('over'), slider = document.getElementById('slider');
+const under = document.querySelector('#compare img.under');
+function place() {{ over.style.width = slider.value + '%'; over.firstElementChild.style.width = under.clientWidth + 'px'; }}
+slider.addEventListener('input', place); window.addEventListener('resize', place);
+// How many pictures decoded (read by the browser test).
+window.addEventListener('load', () => {{
+  place();
+  const imgs = [...document.images];
+  document.body.dataset.imagesLoaded = imgs.filter(i => i.complete && i.naturalWidth > 0).length + '/' + imgs.length;
+}});
+</script>
 </body></html>
 "#,
         res.iterations,
