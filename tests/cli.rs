@@ -459,7 +459,7 @@ fn the_report_is_one_file_with_pictures_plots_inputs_and_a_noise_free_error_map(
     let (code, _, err) = run(&args, dir);
     assert_eq!(code, 0, "{err}");
     let html = std::fs::read_to_string(dir.join("out/report.html")).unwrap();
-    // One file: photo, synthetic and error map embedded as PNGs, no links to them.
+    // One file: the pictures embedded as PNGs, no links to them.
     use base64::Engine;
     let pngs: Vec<Vec<u8>> = html
         .split("src=\"data:image/png;base64,")
@@ -470,7 +470,8 @@ fn the_report_is_one_file_with_pictures_plots_inputs_and_a_noise_free_error_map(
                 .expect("valid base64")
         })
         .collect();
-    assert_eq!(pngs.len(), 3, "embedded pictures");
+    // Photo, synthetic, error map, and the slider's photo and synthetic.
+    assert_eq!(pngs.len(), 5, "embedded pictures");
     assert!(pngs.iter().all(|b| b.starts_with(b"\x89PNG\r\n\x1a\n")));
     assert!(!html.contains("src=\"photo.png\""));
     // The error map's colour bar, and the fitted group's convergence plot with its two series
