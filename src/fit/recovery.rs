@@ -528,8 +528,21 @@ impl<'a> RecoveryLoop<'a> {
             .map(|g| image_error(&self.mask, g, &synthetic, &a, &b, &self.photo.image))
             .collect();
         let total_s = self.t0.elapsed().as_secs_f64();
+        let mut states = self.states;
+        for st in states.iter_mut().filter(|s| s.is_fitted()) {
+            let weak = st
+                .sigma
+                .as_ref()
+                .and_then(|sd| super::uncertainty::weak_lobe(st.params_level(), &st.params, sd));
+            if let Some(w) = weak {
+                st.note = Some(match st.note.take() {
+                    Some(n) => format!("{n}; {w}"),
+                    None => w,
+                });
+            }
+        }
         Recovery {
-            groups: self.states,
+            groups: states,
             pixel_stats: self.mask.stats.clone(),
             unseen: self.unseen,
             scene: self.current,

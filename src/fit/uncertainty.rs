@@ -20,6 +20,32 @@ use super::params::GroupParams;
 use crate::math::Rgb;
 use crate::scene::WardVariant;
 
+/// Above this relative 1σ, a Ward lobe's ρs or α is reported as weakly determined.
+pub const WEAK_LOBE: f32 = 0.5;
+
+/// The note for a group whose Ward lobe the photo hardly determines (issue 20): its ρs or α has
+/// a 1σ above [`WEAK_LOBE`] of its value, which happens when its pixels show little specular
+/// reflection of a light or a bright surface. None for other levels or a determined lobe.
+pub fn weak_lobe(level: Level, params: &GroupParams, sigma: &GroupParams) -> Option<String> {
+    if !level.is_ward() {
+        return None;
+    }
+    let rho = sigma.rho_s.max_element() / params.rho_s.max_element().max(1e-6);
+    let alpha = (sigma.alpha_x / params.alpha_x.max(1e-6)).max(if level == Level::Anisotropic {
+        sigma.alpha_y / params.alpha_y.max(1e-6)
+    } else {
+        0.0
+    });
+    (rho > WEAK_LOBE || alpha > WEAK_LOBE).then(|| {
+        format!(
+            "ρs and α weakly determined (1σ: ρs ±{:.0}%, α ±{:.0}%): its pixels show little \
+             specular reflection of a light or a bright surface; read them as a range",
+            100.0 * rho,
+            100.0 * alpha
+        )
+    })
+}
+
 /// The 1σ of every parameter free at `level` (in the parameters' own units: ρ absolute, α
 /// absolute, θ radians; zero where not free), for `params` fitted on `cache`. None for the
 /// textured level (its texels are their own problem), without tiles, or when the normal matrix
@@ -162,4 +188,43 @@ pub fn sigma(
         _ => {}
     }
     Some(out)
+}
+
+#[cfg(test)]
+mod weak_lobe_tests {
+    use super::*;
+
+    #[test]
+    fn a_lobe_with_wide_error_bars_is_flagged_and_a_tight_one_is_not() {
+        let p = GroupParams {
+            rho_s: Rgb::splat(0.2),
+            alpha_x: 0.1,
+            alpha_y: 0.2,
+            ..GroupParams::default()
+        };
+        let tight = GroupParams {
+            rho_s: Rgb::splat(0.01),
+            alpha_x: 0.005,
+            alpha_y: 0.01,
+            ..GroupParams::default()
+        };
+        assert_eq!(weak_lobe(Level::Isotropic, &p, &tight), None);
+        let wide_alpha = GroupParams {
+            alpha_y: 0.15,
+            ..tight
+        };
+        // αy counts only where it is free.
+        assert_eq!(weak_lobe(Level::Isotropic, &p, &wide_alpha), None);
+        let note = weak_lobe(Level::Anisotropic, &p, &wide_alpha).unwrap();
+        assert!(note.contains("α ±75%"), "{note}");
+        let wide_rho = GroupParams {
+            rho_s: Rgb::new(0.01, 0.15, 0.01),
+            ..tight
+        };
+        assert!(weak_lobe(Level::Isotropic, &p, &wide_rho)
+            .unwrap()
+            .contains("ρs ±75%"));
+        // Not a Ward level: nothing to say.
+        assert_eq!(weak_lobe(Level::Diffuse, &p, &wide_rho), None);
+    }
 }
