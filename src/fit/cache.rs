@@ -508,9 +508,11 @@ pub fn build(
                     }
                     let reflected = Ray::new(offset_origin(hit.p, ng, r), r);
                     let before = sm.clone();
-                    let l = pt.trace(reflected, &mut sm, 1, true);
+                    // One intersection for the three uses (the moved scenes share the geometry).
+                    let first = scene.intersect_hit(&reflected, f32::INFINITY);
+                    let l = pt.trace_from(reflected, first, &mut sm, 1, true);
                     if let Some(ps) = pseudo {
-                        match ps.radiance(scene, &reflected) {
+                        match first.and_then(|h| ps.radiance(scene, &reflected, &h)) {
                             Some((lp, g)) => {
                                 read.0[half] += lp;
                                 read.1 += 1;
@@ -525,7 +527,9 @@ pub fn build(
                     if l.is_finite() {
                         mirror_half[half] += l;
                         for (d, u) in dmirror.iter_mut().zip(unseen) {
-                            let lm = u.moved.trace(reflected, &mut before.clone(), 1, true);
+                            let lm =
+                                u.moved
+                                    .trace_from(reflected, first, &mut before.clone(), 1, true);
                             if lm.is_finite() {
                                 d[half] += (lm - l) / u.step;
                             }

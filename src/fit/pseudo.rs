@@ -23,7 +23,7 @@ use super::cache::GroupCache;
 use super::fitter::fit_level;
 use super::hierarchy::{Event, GroupState};
 use super::level::Level;
-use crate::geometry::Ray;
+use crate::geometry::{Hit, Ray};
 use crate::math::{Rgb, Vec2, Vec3};
 use crate::scene::Scene;
 use crate::scene::WardVariant;
@@ -66,11 +66,11 @@ impl GroupCache {
 }
 
 impl PseudoTextures<'_> {
-    /// The photo's radiance of the first surface `ray` hits, if that surface belongs to a
-    /// pseudo-textured group and the camera sees that very point on usable pixels of it (the
+    /// The photo's radiance at `hit`, the first surface `ray` meets, if that surface belongs to
+    /// a pseudo-textured group and the camera sees that very point on usable pixels of it (the
     /// group, as the second value).
-    pub fn radiance(&self, scene: &Scene, ray: &Ray) -> Option<(Rgb, usize)> {
-        let hit = scene.intersect(ray, f32::INFINITY)?;
+    pub fn radiance(&self, scene: &Scene, ray: &Ray, hit: &Hit) -> Option<(Rgb, usize)> {
+        let hit = scene.surface_hit(ray, hit);
         let group = scene.objects[hit.object as usize].group;
         if !self.groups.get(group).copied().unwrap_or(false) {
             return None;
@@ -243,23 +243,24 @@ emission = 10.0
             .ray(Vec2::new(px as f32 + 0.5, py as f32 + 0.5));
         let p = scene.intersect(&cam_ray, f32::INFINITY).unwrap().p;
         let from = Vec3::new(1.5, 2.0, 1.0);
+        let first = |r: &Ray| scene.intersect_hit(r, f32::INFINITY).unwrap();
         let ray = Ray::new(from, (p - from).normalize());
         let pt = PseudoTextures {
             groups: (0..scene.groups.len()).map(|g| g == floor).collect(),
             usable: &usable,
             photo: &photo.data,
         };
-        let (l, g) = pt.radiance(&scene, &ray).unwrap();
+        let (l, g) = pt.radiance(&scene, &ray, &first(&ray)).unwrap();
         assert_eq!(g, floor);
         let want = photo.data[py * w + px];
         assert!((l - want).abs().max_element() < 1e-4, "{l:?} vs {want:?}");
         // The wall is not pseudo-textured: a ray onto it reads nothing.
         let wall = Ray::new(from, (Vec3::new(0.0, 1.5, -2.0) - from).normalize());
-        assert!(pt.radiance(&scene, &wall).is_none());
+        assert!(pt.radiance(&scene, &wall, &first(&wall)).is_none());
         // A floor point hidden from the camera (behind it) reads nothing.
         let behind = Vec3::new(0.0, 0.0, 2.8);
         let hidden = Ray::new(from, (behind - from).normalize());
-        assert!(pt.radiance(&scene, &hidden).is_none());
+        assert!(pt.radiance(&scene, &hidden, &first(&hidden)).is_none());
         // Nor does a point on a pixel that is not usable.
         let mut none = usable.clone();
         none.iter_mut().for_each(|g| *g = -1);
@@ -267,6 +268,6 @@ emission = 10.0
             usable: &none,
             ..pt
         };
-        assert!(masked.radiance(&scene, &ray).is_none());
+        assert!(masked.radiance(&scene, &ray, &first(&ray)).is_none());
     }
 }
