@@ -10,6 +10,18 @@ fn render_photo(dir: &Path, name: &str) {
     assert_eq!(code, 0, "{err}");
 }
 
+/// `scene` written to `dir/scene.toml`, its 16-spp photo rendered, and a quick recovery of it
+/// into `dir/out`, which must succeed; returns what it printed.
+fn recover_quickly(dir: &Path, scene: &str) -> String {
+    write(dir, "scene.toml", scene);
+    render_photo(dir, "photo.exr");
+    let mut args = vec!["recover", "scene.toml", "photo.exr", "-o", "out"];
+    args.extend(QUICK);
+    let (code, out, err) = run(&args, dir);
+    assert_eq!(code, 0, "{err}");
+    out
+}
+
 #[test]
 fn a_closed_pipe_ends_quietly() {
     let scene = root().join("scenes/glossy/scene.toml");
@@ -399,12 +411,7 @@ fn outputs_keep_the_input_layout_and_fixed_groups_their_material() {
          edge_v = [0.0, 1.0, 0.0]\nmaterial = {{ type = \"mirror\", rho_s = 0.8 }}  # kept\n\n\
          [[group]]\nname = \"shelf\"\nfixed = true\n"
     );
-    write(dir, "scene.toml", &text);
-    render_photo(dir, "photo.exr");
-    let mut args = vec!["recover", "scene.toml", "photo.exr", "-o", "out"];
-    args.extend(QUICK);
-    let (code, out, err) = run(&args, dir);
-    assert_eq!(code, 0, "{err}");
+    let out = recover_quickly(dir, &text);
     let shelf_row = out
         .lines()
         .find(|l| l.starts_with("shelf "))
@@ -452,12 +459,7 @@ fn outputs_keep_the_input_layout_and_fixed_groups_their_material() {
 fn the_report_is_one_file_with_pictures_plots_inputs_and_a_noise_free_error_map() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    write(dir, "scene.toml", SMALL_SCENE);
-    render_photo(dir, "photo.exr");
-    let mut args = vec!["recover", "scene.toml", "photo.exr", "-o", "out"];
-    args.extend(QUICK);
-    let (code, _, err) = run(&args, dir);
-    assert_eq!(code, 0, "{err}");
+    recover_quickly(dir, SMALL_SCENE);
     let html = std::fs::read_to_string(dir.join("out/report.html")).unwrap();
     // One file: the pictures embedded as PNGs, no links to them.
     use base64::Engine;
@@ -532,12 +534,7 @@ fn the_report_opens_in_a_browser_with_every_picture_and_plot() {
     };
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    write(dir, "scene.toml", SMALL_SCENE);
-    render_photo(dir, "photo.exr");
-    let mut args = vec!["recover", "scene.toml", "photo.exr", "-o", "out"];
-    args.extend(QUICK);
-    let (code, _, err) = run(&args, dir);
-    assert_eq!(code, 0, "{err}");
+    recover_quickly(dir, SMALL_SCENE);
     let page = format!("file://{}", dir.join("out/report.html").display());
     let browser = |extra: &[&str]| {
         let out = std::process::Command::new(&exe)
