@@ -220,10 +220,9 @@ pub const MIRROR_LEVEL_FACTOR: u32 = 4;
 pub struct CacheNeeds {
     pub lobe_samples: bool,
     pub mirror: bool,
-    /// The group is at a mirror level: its ρs is fitted from the mirror radiance, so that is
-    /// traced with `MIRROR_LEVEL_FACTOR` × the samples (a ρs 0.7 mirror facing another came out
-    /// 0.676–0.694 with 16 samples, 0.702–0.703 with 64; a climbing group only needs the level
-    /// decided, and keeps 16).
+    /// The group is at a mirror level: its ρs is fitted from the mirror radiance, whose noise
+    /// then sets its error, so that is traced with `MIRROR_LEVEL_FACTOR` × the samples (a
+    /// climbing group only needs the level decided).
     pub mirror_fitted: bool,
     /// The texel rows of D (a textured group, or one that may climb to the textured level).
     pub texels: bool,

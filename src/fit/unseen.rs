@@ -688,10 +688,9 @@ pub fn update(
                 history.add(j, c, proposal[j][c], sigma[j][c]);
             }
             // A weaker proposal still carries information once the channel has an estimate:
-            // it moves it by its precision relative to a determined one's, (max_sigma / σ)²
-            // (one determined proposal of 0.86 ± 0.07 for a white ceiling, then 0.97 ± 0.12,
-            // 1.13 ± 0.10, 1.35 ± 0.18 left unused, froze it at 0.80). A proposal at a bound
-            // of the solve is not an estimate.
+            // it moves it by its precision relative to a determined one's, (max_sigma / σ)², so
+            // one lucky determined proposal cannot freeze a poorly determined channel. A
+            // proposal at a bound of the solve is not an estimate.
             let inside = proposal[j][c] > 0.0 && proposal[j][c] < RHO_MAX;
             let weight = if now {
                 1.0

@@ -275,8 +275,7 @@ pub const ERROR_SCALE: f32 = 0.1;
 /// photo summed over the tile, less three times what the scatter of r within the tile explains
 /// (√(n·var r) per channel: the noise of both images, pixel by pixel), over the tile's photo
 /// radiance. Monte Carlo noise, in the final render or in the photo, then shows black and a
-/// wrong model shows; false colour, full scale at `scale`. (Per pixel, noise alone turned 43%
-/// of the demo's picture white.)
+/// wrong model shows; false colour, full scale at `scale`.
 pub fn error_images(rec: &Recovery, photo: &Photo, scale: f32) -> (Image, Image) {
     let (w, h) = (rec.synthetic.width, rec.synthetic.height);
     let tile_of = |i: usize| (i / w / MAP_TILE, (i % w) / MAP_TILE);
