@@ -3,6 +3,7 @@
 
 pub mod bench;
 pub mod checks;
+pub mod composite;
 pub mod demo;
 pub mod out;
 pub mod recover;
@@ -17,6 +18,7 @@ use matfit::math::Rgb;
 use matfit::photo::{PhotoArgs, Response};
 use matfit::render::aov::{aov_image, Aov};
 use matfit::render::film::{render, RenderOptions};
+use matfit::scene::edit::{load_edited, Edit, EditFlags};
 use matfit::scene::{load_scene, Scene};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -65,6 +67,35 @@ pub enum Command {
         /// mirror), the normal, the depth (scene units) or the UV.
         #[arg(long, value_enum, default_value = "beauty")]
         aov: AovArg,
+        #[command(flatten)]
+        edits: EditCli,
+    },
+    /// Render an edited scene into the photo by differential rendering (Debevec 1998): a new
+    /// object's shadows and reflections fall on the photographed surfaces.
+    Composite {
+        /// The recovered scene (`recover`'s recovered.toml), whose camera is the photo's.
+        #[arg(help = "The recovered scene (recover's recovered.toml): its camera is the photo's")]
+        scene: PathBuf,
+        #[arg(help = PHOTO_HELP)]
+        photo: PathBuf,
+        /// Output image: .png (sRGB), or .exr, .hdr, .pfm (linear, the photo's units).
+        #[arg(short, long)]
+        output: PathBuf,
+        #[command(flatten)]
+        edits: EditCli,
+        /// Samples per pixel of each of the two renders [default: the scene's [render] spp].
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+        spp: Option<u32>,
+        /// Random seed of both renders [default: the scene's [render] seed].
+        #[arg(long, value_name = "S")]
+        seed: Option<u64>,
+        /// Response curve of an 8/16-bit photo: srgb, linear, gamma:G or table:FILE.
+        #[arg(long, default_value = "srgb", value_parser = Response::parse)]
+        response: Response,
+        /// Exposure factor k of the photo (its linear values = k × radiance) [default: the one
+        /// in results.json beside SCENE, else 1].
+        #[arg(long, value_name = "K")]
+        exposure: Option<f32>,
     },
     /// Recover the materials of a scene's groups from a photograph.
     Recover {
@@ -179,6 +210,63 @@ impl From<AovArg> for Aov {
             AovArg::Depth => Aov::Depth,
             AovArg::Uv => Aov::Uv,
         }
+    }
+}
+
+/// Edits of the scene before rendering (`render` and `composite`): edit files and flags,
+/// applied in that order (edit file format: `matfit::scene::edit`, README "Editing").
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct EditCli {
+    /// Apply the edit file FILE (TOML: remove, camera, object, material, move, light);
+    /// repeatable, applied in order.
+    #[arg(long = "edit", value_name = "FILE")]
+    pub files: Vec<PathBuf>,
+    /// Remove an object, or every object of a group (repeatable).
+    #[arg(long, value_name = "NAME")]
+    pub remove: Vec<String>,
+    /// Translate an object or group: NAME=DX,DY,DZ (scene units; repeatable).
+    #[arg(long = "move", value_name = "NAME=DX,DY,DZ")]
+    pub moves: Vec<String>,
+    /// Rescale a light's emission: NAME=K or NAME=R,G,B (repeatable).
+    #[arg(long, value_name = "NAME=K")]
+    pub scale_light: Vec<String>,
+    /// Replace a group's material: GROUP='{ type = "diffuse", rho_d = 0.5 }' (repeatable).
+    #[arg(long, value_name = "GROUP={...}")]
+    pub material: Vec<String>,
+    /// Add an object, as an inline TOML table of a scene file's [[object]] keys
+    /// ('{ name = "ball", group = "ball", shape = "sphere", center = [0, 0.3, 0], radius = 0.3 }').
+    #[arg(long, value_name = "{...}")]
+    pub add: Vec<String>,
+    /// A new look-at camera from this point (with --look-at; size kept).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3)]
+    pub look_from: Option<[f32; 3]>,
+    /// The point the new camera looks at (with --look-from).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3)]
+    pub look_at: Option<[f32; 3]>,
+    /// Vertical field of view of the new camera, degrees [default: 40].
+    #[arg(long, value_name = "DEG")]
+    pub fov: Option<f32>,
+}
+
+impl EditCli {
+    /// The edits: files first, then the flags as one more edit.
+    pub fn edits(&self) -> Result<Vec<Edit>> {
+        let mut v = Vec::new();
+        for f in &self.files {
+            v.push(Edit::read(f)?);
+        }
+        let flags = EditFlags {
+            remove: self.remove.clone(),
+            moves: self.moves.clone(),
+            scale_lights: self.scale_light.clone(),
+            materials: self.material.clone(),
+            add: self.add.clone(),
+            look_from: self.look_from,
+            look_at: self.look_at,
+            fov_y_deg: self.fov,
+        };
+        v.extend(flags.to_edit()?);
+        Ok(v)
     }
 }
 
@@ -392,8 +480,16 @@ pub fn run(cmd: Command) -> Result<()> {
             spp,
             seed,
             aov,
+            edits,
         } => {
-            let (sc, lighting) = load(&scene)?;
+            let edits = edits.edits()?;
+            let (sc, lighting) = if edits.is_empty() {
+                load(&scene)?
+            } else {
+                let sc = load_edited(&scene, &edits)?;
+                let l = checks::scene_warnings(&sc);
+                (sc, l)
+            };
             let ext = output
                 .extension()
                 .and_then(|e| e.to_str())
@@ -439,6 +535,25 @@ pub fn run(cmd: Command) -> Result<()> {
             );
             Ok(())
         }
+        Command::Composite {
+            scene,
+            photo,
+            output,
+            edits,
+            spp,
+            seed,
+            response,
+            exposure,
+        } => composite::run(&composite::CompositeArgs {
+            scene,
+            photo,
+            output,
+            edits: edits.edits()?,
+            spp,
+            seed,
+            response,
+            exposure,
+        }),
         Command::Recover {
             scene,
             photo,
@@ -666,6 +781,19 @@ fn info(sc: &Scene, lighting: &matfit::scene::lint::Lighting) {
 }
 
 /// `DX,DY` in pixels.
+fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
+    let bad = || format!("expected X,Y,Z (e.g. 0,1.5,3), got {s:?}");
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| bad())?;
+    match v[..] {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([x, y, z]),
+        _ => Err(bad()),
+    }
+}
+
 fn parse_shift(s: &str) -> Result<(f32, f32), String> {
     let bad = || format!("expected DX,DY in pixels (e.g. 2,0), got {s:?}");
     let (a, b) = s.split_once(',').ok_or_else(bad)?;

@@ -3,6 +3,7 @@
 pub mod aov;
 pub mod batch;
 pub mod bsdf;
+pub mod composite;
 pub mod film;
 pub mod incident;
 pub mod integrator;

@@ -96,7 +96,7 @@ const SYNONYMS: &[(&str, &str)] = &[
 ];
 
 /// Adds "did you mean `x`?" to serde's "unknown field `y`, expected one of `a`, `b`" messages.
-fn with_suggestion(msg: &str) -> String {
+pub(super) fn with_suggestion(msg: &str) -> String {
     let Some(pos) = msg
         .find("unknown field `")
         .or_else(|| msg.find("unknown variant `"))
@@ -167,7 +167,8 @@ impl Ctx<'_> {
     }
 }
 
-fn build_scene(file: SceneFile, text: &str, path: &Path) -> Result<Scene, SceneError> {
+/// Checks and builds a parsed scene file; `text` and `path` are what errors point into.
+pub(super) fn build_scene(file: SceneFile, text: &str, path: &Path) -> Result<Scene, SceneError> {
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let cx = Ctx { path, text, dir };
     let camera = build_camera(&file, &cx)?;
@@ -405,6 +406,16 @@ fn build_render(file: &SceneFile, cx: &Ctx) -> Result<RenderSettings, SceneError
         }
     }
     Ok(r)
+}
+
+/// Checks a parsed scene file's camera alone (an edit's new camera).
+pub(super) fn check_camera(
+    file: &SceneFile,
+    text: &str,
+    path: &Path,
+) -> Result<Camera, SceneError> {
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    build_camera(file, &Ctx { path, text, dir })
 }
 
 fn build_camera(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {

@@ -3,6 +3,7 @@
 
 pub mod atlas;
 pub mod camera;
+pub mod edit;
 pub mod error;
 pub mod lint;
 pub mod load;

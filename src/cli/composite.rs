@@ -1,0 +1,131 @@
+//! `matfit composite`: an edit of the recovered scene rendered into the photo
+//! (`matfit::render::composite`).
+
+use super::checks;
+use crate::outln;
+use anyhow::{bail, Result};
+use matfit::io::atomic::check_output_file;
+use matfit::photo::{load_photo, PhotoOptions, Response};
+use matfit::render::composite::{coverage, differential};
+use matfit::render::film::{render, RenderOptions};
+use matfit::scene::edit::{load_edited, Edit};
+use matfit::scene::load_scene;
+use std::collections::HashSet;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+pub struct CompositeArgs {
+    pub scene: PathBuf,
+    pub photo: PathBuf,
+    pub output: PathBuf,
+    pub edits: Vec<Edit>,
+    pub spp: Option<u32>,
+    pub seed: Option<u64>,
+    pub response: Response,
+    pub exposure: Option<f32>,
+}
+
+pub fn run(a: &CompositeArgs) -> Result<()> {
+    let ext = a
+        .output
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    if !["exr", "hdr", "pfm", "png"].contains(&ext.as_str()) {
+        bail!(
+            "{}: output must end in .png, .exr, .hdr or .pfm",
+            a.output.display()
+        );
+    }
+    if a.edits.is_empty() {
+        bail!("nothing to composite: give an edit (--edit FILE, --add, --remove, --move, --material, --scale-light)");
+    }
+    if a.edits.iter().any(Edit::changes_camera) {
+        bail!("composite renders through the photo's camera: an edit may not replace it (remove [camera], --look-from, --look-at)");
+    }
+    let base = load_scene(&a.scene)?;
+    let edited = load_edited(&a.scene, &a.edits)?;
+    checks::require_light(&edited, &checks::scene_warnings(&edited))?;
+    let (k, rule) = exposure(a.exposure, &a.scene)?;
+    let opts = PhotoOptions {
+        response: a.response.clone(),
+        exposure: Some(k),
+    };
+    let photo = load_photo(&a.photo, base.camera.width, base.camera.height, &opts)
+        .map_err(anyhow::Error::msg)?;
+    check_output_file(&a.output).map_err(anyhow::Error::msg)?;
+    outln!("exposure {k} ({rule}); the photo's values are divided by it, then multiplied back");
+
+    let t = Instant::now();
+    let ropts = RenderOptions {
+        spp: a.spp.unwrap_or(base.render.spp).max(1),
+        seed: a.seed.unwrap_or(base.render.seed),
+        progress: true,
+    };
+    let without = render(&base, &base.camera, &ropts);
+    let with = render(&edited, &base.camera, &ropts);
+    let old: HashSet<&str> = base.objects.iter().map(|o| o.name.as_str()).collect();
+    let added: Vec<bool> = edited
+        .objects
+        .iter()
+        .map(|o| !old.contains(o.name.as_str()))
+        .collect();
+    let cover = coverage(&edited, &base.camera, &added);
+    let mut out = differential(&photo.image, &with, &without, &cover);
+    let changed = out
+        .data
+        .iter()
+        .zip(&photo.image.data)
+        .filter(|(o, p)| (**o - **p).abs().max_element() > 0.01 * p.max_element().max(1e-3))
+        .count();
+    for c in &mut out.data {
+        *c *= k;
+    }
+    out.write(&a.output).map_err(anyhow::Error::msg)?;
+    outln!(
+        "wrote {} ({}×{}, 2 renders of {} spp) in {:.1} s: {} pixels changed by more than 1%, \
+         {:.0} covered by added objects",
+        a.output.display(),
+        out.width,
+        out.height,
+        ropts.spp,
+        t.elapsed().as_secs_f64(),
+        changed,
+        cover.iter().sum::<f32>()
+    );
+    Ok(())
+}
+
+/// The exposure: given, else the one the recovery used (results.json beside the scene), else 1;
+/// with the rule that chose it, which the user is told.
+fn exposure(given: Option<f32>, scene: &Path) -> Result<(f32, String)> {
+    if let Some(k) = given {
+        if !(k > 0.0 && k.is_finite()) {
+            bail!("--exposure must be positive, got {k}");
+        }
+        return Ok((k, "given".into()));
+    }
+    let results = scene.with_file_name("results.json");
+    if let Ok(text) = std::fs::read_to_string(&results) {
+        let k = serde_json::from_str::<serde_json::Value>(&text)
+            .ok()
+            .and_then(|v| v["inputs"]["exposure"].as_f64());
+        match k {
+            Some(k) if k > 0.0 && k.is_finite() => {
+                return Ok((
+                    k as f32,
+                    format!("the recovery's, from {}", results.display()),
+                ))
+            }
+            _ => bail!(
+                "{}: has no positive inputs.exposure; give --exposure",
+                results.display()
+            ),
+        }
+    }
+    Ok((
+        1.0,
+        "default: no --exposure and no results.json beside the scene".into(),
+    ))
+}
