@@ -3,6 +3,7 @@
 mod bad_input;
 mod cli;
 mod common;
+mod edit;
 mod export;
 mod fuzz_replay;
 mod geometry;

@@ -404,10 +404,18 @@ impl EditFlags {
             message,
         };
         let q = |s: &str| toml::Value::String(s.to_string()).to_string();
+        // Top-level keys first: a TOML table header ends the top level.
         let mut text = String::new();
         if !self.remove.is_empty() {
             let names: Vec<String> = self.remove.iter().map(|n| q(n)).collect();
             text += &format!("remove = [{}]\n", names.join(", "));
+        }
+        if !self.add.is_empty() {
+            let mut tables = Vec::new();
+            for a in &self.add {
+                tables.push(inline_table(a).map_err(bad)?);
+            }
+            text += &format!("object = [{}]\n", tables.join(", "));
         }
         for m in &self.moves {
             let (name, v) = split_flag(m, "--move", "NAME=DX,DY,DZ").map_err(bad)?;
@@ -436,9 +444,6 @@ impl EditFlags {
                 q(name),
                 inline(v)
             );
-        }
-        for a in &self.add {
-            text += &format!("[[object]]\n{}\n", table_body(a).map_err(bad)?);
         }
         match (self.look_from, self.look_at) {
             (Some(e), Some(t)) => {
@@ -494,12 +499,13 @@ fn inline(v: &str) -> String {
     }
 }
 
-/// The keys of an inline table (`{ a = 1, b = 2 }` or `a = 1, b = 2`) as table lines.
-fn table_body(v: &str) -> Result<String, String> {
-    let doc: toml::Table = toml::from_str(&format!("x = {}", inline(v)))
+/// An object given as an inline table (`{ a = 1, b = 2 }` or `a = 1, b = 2`), checked to be one.
+fn inline_table(v: &str) -> Result<String, String> {
+    let t = inline(v);
+    let doc: toml::Table = toml::from_str(&format!("x = {t}"))
         .map_err(|e| format!("--add '{v}': not an inline table: {e}"))?;
     match doc.get("x") {
-        Some(toml::Value::Table(t)) => Ok(toml::to_string(t).map_err(|e| e.to_string())?),
+        Some(toml::Value::Table(_)) => Ok(t),
         _ => Err(format!("--add '{v}': not an inline table")),
     }
 }
