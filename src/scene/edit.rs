@@ -38,7 +38,7 @@
 //! relative to its edit file's folder, and its errors point at the edit file's lines.
 
 use super::error::SceneError;
-use super::load::{build_scene, check_camera};
+use super::load::{build_objects, build_scene, check_camera};
 use super::schema::{CameraSpec, Color, MaterialSpec, ObjectSpec, SceneFile, ShapeKind};
 use super::Scene;
 use serde::Deserialize;
@@ -241,7 +241,7 @@ pub fn apply(scene: &mut SceneFile, edit: &Edit) -> Result<(), SceneError> {
         if f.add.is_empty() {
             check_camera(&alone, &edit.text, &edit.path)?;
         } else {
-            build_scene(alone, &edit.text, &edit.path)?;
+            build_objects(alone, &edit.text, &edit.path)?;
         }
     }
     let dir = edit.path.parent().unwrap_or(Path::new(""));
@@ -619,6 +619,14 @@ emission = [4, 4, 4]
         .unwrap_err()
         .to_string();
         assert!(e.starts_with("edit.toml:"), "{e}");
+        // An added object the camera does not see (behind it) is a valid edit: a later edit of
+        // the camera may look at it, and the whole edited scene is checked as one.
+        let f = edited(
+            "[[object]]\nname = \"behind\"\ngroup = \"x\"\nshape = \"sphere\"\n\
+             center = [0, 0, 50]\nradius = 0.3\n",
+        )
+        .unwrap();
+        assert_eq!(f.objects.len(), 4);
     }
 
     #[test]

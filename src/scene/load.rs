@@ -169,6 +169,15 @@ impl Ctx<'_> {
 
 /// Checks and builds a parsed scene file; `text` and `path` are what errors point into.
 pub(super) fn build_scene(file: SceneFile, text: &str, path: &Path) -> Result<Scene, SceneError> {
+    let scene = build_objects(file, text, path)?;
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    check_camera_sees_geometry(&scene, &Ctx { path, text, dir })?;
+    Ok(scene)
+}
+
+/// [`build_scene`] without the check that the camera sees something: for objects checked on
+/// their own (an edit's added objects, which may well be out of view).
+pub(super) fn build_objects(file: SceneFile, text: &str, path: &Path) -> Result<Scene, SceneError> {
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let cx = Ctx { path, text, dir };
     let camera = build_camera(&file, &cx)?;
@@ -314,7 +323,6 @@ pub(super) fn build_scene(file: SceneFile, text: &str, path: &Path) -> Result<Sc
         geometry: Arc::new(geometry),
         source: file,
     };
-    check_camera_sees_geometry(&scene, &cx)?;
     Ok(scene)
 }
 
