@@ -148,7 +148,15 @@ fn help_describes_arguments_defaults_and_the_workflow() {
     assert!(out.contains("matfit inspect SCENE PHOTO"), "{out}");
     assert!(out.contains("matfit recover SCENE PHOTO"), "{out}");
     assert!(!out.contains("issue"), "{out}");
-    for cmd in ["render", "recover", "inspect", "demo", "info", "export"] {
+    for cmd in [
+        "render",
+        "recover",
+        "inspect",
+        "demo",
+        "info",
+        "export",
+        "composite",
+    ] {
         let (code, out, _) = run(&[cmd, "--help"], d.path());
         assert_eq!(code, 0);
         assert!(!out.contains("::"), "{cmd}: a Rust path in:\n{out}");

@@ -74,7 +74,9 @@ pub enum Command {
     /// object's shadows and reflections fall on the photographed surfaces.
     Composite {
         /// The recovered scene (`recover`'s recovered.toml), whose camera is the photo's.
-        #[arg(help = "The recovered scene (recover's recovered.toml): its camera is the photo's")]
+        #[arg(
+            help = "Scene file (TOML): the recovered scene (recover's recovered.toml), whose camera is the photo's"
+        )]
         scene: PathBuf,
         #[arg(help = PHOTO_HELP)]
         photo: PathBuf,
@@ -218,29 +220,29 @@ impl From<AovArg> for Aov {
 #[derive(clap::Args, Clone, Debug, Default)]
 pub struct EditCli {
     /// Apply the edit file FILE (TOML: remove, camera, object, material, move, light);
-    /// repeatable, applied in order.
+    /// repeatable, applied in order [default: none].
     #[arg(long = "edit", value_name = "FILE")]
     pub files: Vec<PathBuf>,
-    /// Remove an object, or every object of a group (repeatable).
+    /// Remove an object, or every object of a group (repeatable) [default: none].
     #[arg(long, value_name = "NAME")]
     pub remove: Vec<String>,
-    /// Translate an object or group: NAME=DX,DY,DZ (scene units; repeatable).
+    /// Translate an object or group: NAME=DX,DY,DZ (scene units; repeatable) [default: none].
     #[arg(long = "move", value_name = "NAME=DX,DY,DZ")]
     pub moves: Vec<String>,
-    /// Rescale a light's emission: NAME=K or NAME=R,G,B (repeatable).
+    /// Rescale a light's emission: NAME=K or NAME=R,G,B (repeatable) [default: none].
     #[arg(long, value_name = "NAME=K")]
     pub scale_light: Vec<String>,
-    /// Replace a group's material: GROUP='{ type = "diffuse", rho_d = 0.5 }' (repeatable).
+    /// Replace a group's material: GROUP='{ type = "diffuse", rho_d = 0.5 }' (repeatable) [default: none].
     #[arg(long, value_name = "GROUP={...}")]
     pub material: Vec<String>,
     /// Add an object, as an inline TOML table of a scene file's [[object]] keys
-    /// ('{ name = "ball", group = "ball", shape = "sphere", center = [0, 0.3, 0], radius = 0.3 }').
+    /// ('{ name = "ball", group = "ball", shape = "sphere", center = [0, 0.3, 0], radius = 0.3 }') [default: none].
     #[arg(long, value_name = "{...}")]
     pub add: Vec<String>,
-    /// A new look-at camera from this point (with --look-at; size kept).
+    /// A new look-at camera from this point (with --look-at; size kept) [default: the scene's camera].
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3)]
     pub look_from: Option<[f32; 3]>,
-    /// The point the new camera looks at (with --look-from).
+    /// The point the new camera looks at (with --look-from) [default: none].
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3)]
     pub look_at: Option<[f32; 3]>,
     /// Vertical field of view of the new camera, degrees [default: 40].
