@@ -15,6 +15,7 @@ pub mod fit;
 #[doc(hidden)]
 pub mod fuzzing;
 pub mod geometry;
+pub mod import;
 pub mod io;
 pub mod math;
 pub mod photo;

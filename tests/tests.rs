@@ -7,6 +7,7 @@ mod edit;
 mod export;
 mod fuzz_replay;
 mod geometry;
+mod import;
 mod low_resolution;
 mod mirrors;
 mod photo;

@@ -179,6 +179,22 @@ pub enum Command {
         #[arg(long)]
         force: bool,
     },
+    /// Import another renderer's scene: `matfit import mitsuba SCENE.xml -o scene.toml` writes a
+    /// matfit scene file (mesh and texture paths relative to it); approximations are printed as
+    /// warnings and listed in the file's header.
+    Import {
+        /// Source renderer.
+        format: ImportFormatArg,
+        /// The scene file to read (Mitsuba 3 XML).
+        input: PathBuf,
+        /// Output scene file (.toml).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Set a scene parameter ($NAME in the XML), overriding its <default> (e.g. -D spp=256;
+        /// repeatable).
+        #[arg(short = 'D', value_name = "NAME=VALUE", value_parser = parse_param)]
+        define: Vec<(String, String)>,
+    },
     /// Measure how fast this machine traces rays (to compare machines or builds; not needed
     /// to use matfit).
     Bench {
@@ -277,6 +293,21 @@ impl EditCli {
 pub enum FormatArg {
     /// Mitsuba 3 scene (XML, version 3.0.0) with one binary PLY per object.
     Mitsuba,
+}
+
+/// The formats `import` reads.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum ImportFormatArg {
+    /// Mitsuba 3 scene (XML): the subset matfit renders (src/import/mitsuba.rs).
+    Mitsuba,
+}
+
+/// `NAME=VALUE`.
+fn parse_param(s: &str) -> Result<(String, String), String> {
+    match s.split_once('=') {
+        Some((k, v)) if !k.is_empty() => Ok((k.to_string(), v.to_string())),
+        _ => Err(format!("expected NAME=VALUE, got {s:?}")),
+    }
 }
 
 /// How to read the photo and choose its usable pixels (`inspect` and `recover`).
@@ -679,6 +710,43 @@ pub fn run(cmd: Command) -> Result<()> {
                 "wrote {} ({} files)",
                 report.files[0].display(),
                 report.files.len()
+            );
+            Ok(())
+        }
+        Command::Import {
+            format,
+            input,
+            output,
+            define,
+        } => {
+            let ext = output.extension().and_then(|e| e.to_str()).unwrap_or("");
+            if !ext.eq_ignore_ascii_case("toml") {
+                bail!(
+                    "{}: the output scene file must end in .toml",
+                    output.display()
+                );
+            }
+            check_output_file(&output).map_err(anyhow::Error::msg)?;
+            let report = match format {
+                ImportFormatArg::Mitsuba => {
+                    matfit::import::mitsuba::import(&input, &output, &define)
+                        .map_err(anyhow::Error::msg)?
+                }
+            };
+            // The written file must be a scene that loads (its meshes found from its folder).
+            matfit::scene::load::parse_scene(&report.toml, &output).map_err(|e| {
+                anyhow::anyhow!("the imported scene does not load (a bug of the importer): {e}")
+            })?;
+            matfit::io::atomic::write_atomic(&output, report.toml.as_bytes())
+                .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", output.display()))?;
+            for w in &report.warnings {
+                out::warn(w.clone());
+            }
+            outln!(
+                "wrote {} ({} warning{})",
+                output.display(),
+                report.warnings.len(),
+                if report.warnings.len() == 1 { "" } else { "s" }
             );
             Ok(())
         }

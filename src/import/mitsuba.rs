@@ -1,0 +1,1419 @@
+//! Import of a Mitsuba 3 scene (XML) as a matfit scene file: the inverse of
+//! `export/mitsuba.rs`, for the subset of Mitsuba that matfit can render.
+//!
+//! How each part maps (an approximation is a warning naming the element and its line; an element
+//! matfit cannot render at all is an error `FILE:LINE: what`):
+//! - **Parameters.** `<default name value>` and `$name` in any attribute (the command line's
+//!   `-D name=value` wins over a default, as Mitsuba's `load_file(**params)` does).
+//! - **Camera.** `perspective` (or `thinlens`, as a pinhole: a warning). Its field of view is
+//!   converted to matfit's vertical one with Mitsuba's own rule (`fov_axis` x, y, diagonal,
+//!   smaller, larger; `focal_length` as a 36×24 mm diagonal). `to_world` (any chain of
+//!   `lookat`, `matrix`, `translate`, `rotate`, `scale`) gives eye = M·0, forward = M's third
+//!   column and up = its second (the exporter's up = −R row 2, reversed); camera x in Mitsuba is
+//!   the image's left, so matfit's R rows are (−c0, −c1, c2) normalised. A mirroring or shearing
+//!   `to_world` is an error (matfit cameras are rotations). Principal point offsets make the
+//!   calibrated form with cx = (½ − offset_x)·width − ½ and cy = (½ − offset_y)·height − ½
+//!   (OpenCV pixel centres), the exporter's rule inverted; otherwise the look-at form.
+//!   `hdrfilm` width/height (Mitsuba's defaults 768×576); an rfilter other than `box` is a
+//!   warning (matfit's pixel filter is a box). `sampler` `sample_count` → `[render] spp`.
+//! - **Integrator.** `path` (or `volpath`, the same without media) `max_depth` and `rr_depth` →
+//!   `[render]`; Mitsuba's unbounded max_depth −1 becomes 64 (a warning); `hide_emitters` is a
+//!   warning (matfit shows emitters).
+//! - **Shapes.** `rectangle` ([−1,1]² in z = 0, facing +z) → quad corner M(−1,−1,0), edges
+//!   M(2,0,0) and M(0,2,0), swapped when M mirrors or `flip_normals` is set, so that the emitting
+//!   side (matfit's edge_u × edge_v) is Mitsuba's normal. `cube` ([−1,1]³) → box min/max when M
+//!   keeps it axis-aligned, else a unit box with a `transform`. `sphere` (center, radius,
+//!   to_world) → sphere (256 segments: the tessellation's area is 0.01% short of the sphere's),
+//!   with a `transform` if M scales unevenly. `obj`/`ply` → mesh, the file referred to relative
+//!   to the output scene file, `to_world` as matfit's transform (scale, rotate X→Y→Z, translate;
+//!   a shear cannot be written: an error). `flip_normals` on an emitting box, sphere or mesh is
+//!   an error (matfit emits along the wound normal, outward), elsewhere it changes nothing
+//!   (matfit's surfaces reflect on both sides).
+//! - **Groups.** What matfit fits: a shape whose BSDF has an id (a `<ref>` to a shared BSDF, or
+//!   an inline one with an id) is in the group named by that id, so that shapes sharing a BSDF
+//!   share their reflectance; any other shape is its own group, named by its id (or
+//!   `TYPE_N`, the N-th shape, when it has none). Objects are named by the shape's id.
+//! - **Lights.** `area` emitters' `radiance` (rgb, or a constant spectrum) → emission.
+//!   Every other emitter (envmap, constant, point, spot, directional) is an error: the lights
+//!   are known inputs of a recovery, and one dropped would bias every group.
+//! - **BSDFs** (matfit's surfaces are two-sided: `twosided` is unwrapped, a one-sided BSDF is a
+//!   warning). Exact: `diffuse` (reflectance rgb / constant spectrum / bitmap texture →
+//!   textured) → diffuse; `conductor` with material `none` → mirror ρs = specular_reflectance;
+//!   `blendbsdf` of those → diffuse_mirror ρd = (1−w)·ρd₁ + w·ρd₂, ρs likewise (the exporter's
+//!   blend inverted). Initial guesses, not truth (a warning each), with ρs from Fresnel
+//!   reflectance at normal incidence F0: conductors with eta/k (or a named metal, from a small
+//!   table) → mirror ρs = F0·specular_reflectance; `roughconductor` → Ward ρd 0, ρs as the
+//!   conductor, α = alpha (αx, αy = alpha_u, alpha_v; Beckmann's and Ward's α are the same slope
+//!   width); `plastic` → diffuse_mirror, `roughplastic` → Ward α = alpha, both with
+//!   F0 = ((η−1)/(η+1))², η = int_ior/ext_ior, ρs = F0·specular_reflectance,
+//!   ρd = (1−F0)·diffuse_reflectance; `principled` → Ward α = roughness², F0 = 0.08·specular
+//!   blended to base_color by metallic, ρd = (1−metallic)(1−F0)·base_color. Anything else
+//!   (dielectrics, …) → diffuse 0.5 with a warning. A shape with no BSDF gets Mitsuba's default,
+//!   diffuse 0.5; a zero reflectance is written `black`. ρd + ρs over 1 is scaled down (a
+//!   warning).
+
+use super::ImportReport;
+use crate::scene::schema::{
+    CameraSpec, Color, MaterialSpec, ObjectSpec, RenderSpec, SceneFile, ShapeKind, TransformSpec,
+};
+use glam::{DMat3, DMat4, DQuat, DVec3, DVec4, EulerRot};
+use roxmltree::{Document, Node};
+use std::collections::{HashMap, HashSet};
+use std::path::{Path, PathBuf};
+use toml::Spanned;
+
+/// Reads the Mitsuba scene `xml` and returns the matfit scene file to be written at `out`
+/// (mesh and texture paths relative to `out`'s folder). `params` override `<default>`s.
+pub fn import(xml: &Path, out: &Path, params: &[(String, String)]) -> Result<ImportReport, String> {
+    let text = std::fs::read_to_string(xml)
+        .map_err(|e| format!("cannot read Mitsuba scene {}: {e}", xml.display()))?;
+    import_str(&text, xml, out, params)
+}
+
+/// [`import`] of XML text as if it were the file `xml`.
+pub fn import_str(
+    text: &str,
+    xml: &Path,
+    out: &Path,
+    params: &[(String, String)],
+) -> Result<ImportReport, String> {
+    let opts = roxmltree::ParsingOptions {
+        allow_dtd: true,
+        ..Default::default()
+    };
+    let doc = Document::parse_with_options(text, opts)
+        .map_err(|e| format!("{}:{}: malformed XML: {e}", xml.display(), e.pos().row))?;
+    let out_dir = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let mut cx = Ctx {
+        path: xml,
+        dir: xml.parent().map(Path::to_path_buf).unwrap_or_default(),
+        out_dir,
+        doc: &doc,
+        params: params.iter().cloned().collect(),
+        ids: HashMap::new(),
+        warnings: Vec::new(),
+        warned: HashSet::new(),
+    };
+    let file = cx.scene()?;
+    let mut header = format!(
+        "# Imported by `matfit import mitsuba` (matfit {}) from {}.\n\
+         # Mapping rules: src/import/mitsuba.rs. Groups: a shape whose BSDF has an id is in the\n\
+         # group of that id (shapes sharing a BSDF share a reflectance); any other shape is its own.\n",
+        env!("CARGO_PKG_VERSION"),
+        xml.display()
+    );
+    if cx.warnings.is_empty() {
+        header.push_str("# Approximations: none.\n");
+    } else {
+        header.push_str("# Approximations:\n");
+        for w in &cx.warnings {
+            header.push_str(&format!("# - {}\n", w.replace('\n', " ")));
+        }
+    }
+    let body = toml::to_string(&file).map_err(|e| format!("cannot write TOML: {e}"))?;
+    Ok(ImportReport {
+        toml: format!("{header}\n{}", compact(&body)),
+        warnings: cx.warnings,
+    })
+}
+
+struct Ctx<'a> {
+    path: &'a Path,
+    dir: PathBuf,
+    out_dir: PathBuf,
+    doc: &'a Document<'a>,
+    params: HashMap<String, String>,
+    ids: HashMap<String, Node<'a, 'a>>,
+    warnings: Vec<String>,
+    /// Elements (by text offset) already warned about, so that a shared BSDF warns once.
+    warned: HashSet<(usize, &'static str)>,
+}
+
+type N<'a> = Node<'a, 'a>;
+
+/// One material as lobes, so that blends can add them: ρd (or a texture), ρs, and a Ward lobe
+/// width where the specular part is not an ideal mirror.
+#[derive(Clone, Debug, Default)]
+struct Lobes {
+    d: DVec3,
+    s: DVec3,
+    alpha: Option<(f64, f64)>,
+    texture: Option<String>,
+}
+
+impl<'a> Ctx<'a> {
+    fn line(&self, n: N<'a>) -> u32 {
+        self.doc.text_pos_at(n.range().start).row
+    }
+
+    fn err(&self, n: N<'a>, msg: impl std::fmt::Display) -> String {
+        format!("{}:{}: {msg}", self.path.display(), self.line(n))
+    }
+
+    fn warn(&mut self, n: N<'a>, msg: impl std::fmt::Display) {
+        let w = format!("{}:{}: {msg}", self.path.display(), self.line(n));
+        if !self.warnings.contains(&w) {
+            self.warnings.push(w);
+        }
+    }
+
+    /// `<tag type=".." id="..">` as it is written, for messages.
+    fn describe(&self, n: N<'a>) -> String {
+        let mut s = format!("<{}", n.tag_name().name());
+        for a in ["type", "id", "name"] {
+            if let Some(v) = n.attribute(a) {
+                s.push_str(&format!(" {a}=\"{v}\""));
+            }
+        }
+        s + ">"
+    }
+
+    /// An attribute with `$name` parameters substituted.
+    fn attr(&self, n: N<'a>, name: &str) -> Result<Option<String>, String> {
+        let Some(v) = n.attribute(name) else {
+            return Ok(None);
+        };
+        if !v.contains('$') {
+            return Ok(Some(v.to_string()));
+        }
+        let mut out = String::new();
+        let mut rest = v;
+        while let Some(i) = rest.find('$') {
+            out.push_str(&rest[..i]);
+            let after = &rest[i + 1..];
+            let len = after
+                .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+                .unwrap_or(after.len());
+            let key = &after[..len];
+            let value = self.params.get(key).ok_or_else(|| {
+                self.err(
+                    n,
+                    format!(
+                        "parameter ${key} has no value: add <default name=\"{key}\" value=\"...\"/> \
+                         or pass -D {key}=VALUE"
+                    ),
+                )
+            })?;
+            out.push_str(value);
+            rest = &after[len..];
+        }
+        out.push_str(rest);
+        Ok(Some(out))
+    }
+
+    fn need_attr(&self, n: N<'a>, name: &str) -> Result<String, String> {
+        self.attr(n, name)?.ok_or_else(|| {
+            self.err(
+                n,
+                format!("{} lacks its `{name}` attribute", self.describe(n)),
+            )
+        })
+    }
+
+    fn numbers(&self, n: N<'a>, s: &str) -> Result<Vec<f64>, String> {
+        s.split(|c: char| c == ',' || c.is_whitespace())
+            .filter(|t| !t.is_empty())
+            .map(|t| {
+                t.parse::<f64>()
+                    .ok()
+                    .filter(|v| v.is_finite())
+                    .ok_or_else(|| self.err(n, format!("'{t}' is not a finite number")))
+            })
+            .collect()
+    }
+
+    fn number(&self, n: N<'a>, s: &str) -> Result<f64, String> {
+        match self.numbers(n, s)?[..] {
+            [v] => Ok(v),
+            _ => Err(self.err(n, format!("expected one number, got '{s}'"))),
+        }
+    }
+
+    /// Child elements of `n` (comments and text skipped).
+    fn children(n: N<'a>) -> impl Iterator<Item = N<'a>> {
+        n.children().filter(|c| c.is_element())
+    }
+
+    /// The child of `n` that is property `name`, a `<ref name=...>` resolved to its element.
+    fn prop(&self, n: N<'a>, name: &str) -> Result<Option<N<'a>>, String> {
+        for c in Self::children(n) {
+            if self.attr(c, "name")?.as_deref() == Some(name) {
+                if c.tag_name().name() == "ref" {
+                    return self.resolve(c).map(Some);
+                }
+                return Ok(Some(c));
+            }
+        }
+        Ok(None)
+    }
+
+    fn resolve(&self, r: N<'a>) -> Result<N<'a>, String> {
+        let id = self.need_attr(r, "id")?;
+        self.ids.get(&id).copied().ok_or_else(|| {
+            self.err(
+                r,
+                format!("<ref id=\"{id}\"> names no element defined before it"),
+            )
+        })
+    }
+
+    fn float(&self, n: N<'a>, name: &str, default: f64) -> Result<f64, String> {
+        match self.prop(n, name)? {
+            None => Ok(default),
+            Some(p) if matches!(p.tag_name().name(), "float" | "integer") => {
+                self.number(p, &self.need_attr(p, "value")?)
+            }
+            Some(p) => Err(self.err(
+                p,
+                format!("`{name}` must be a <float> here, got {}", self.describe(p)),
+            )),
+        }
+    }
+
+    fn string(&self, n: N<'a>, name: &str) -> Result<Option<String>, String> {
+        match self.prop(n, name)? {
+            None => Ok(None),
+            Some(p) => self.need_attr(p, "value").map(Some),
+        }
+    }
+
+    fn boolean(&self, n: N<'a>, name: &str) -> Result<bool, String> {
+        match self.prop(n, name)? {
+            None => Ok(false),
+            Some(p) => match self.need_attr(p, "value")?.as_str() {
+                "true" => Ok(true),
+                "false" => Ok(false),
+                v => Err(self.err(p, format!("`{name}` must be true or false, got '{v}'"))),
+            },
+        }
+    }
+
+    /// A point or vector: `x`, `y`, `z` attributes or `value="x, y, z"`.
+    fn vec3_of(&self, n: N<'a>, default: f64) -> Result<DVec3, String> {
+        if let Some(v) = self.attr(n, "value")? {
+            return match self.numbers(n, &v)?[..] {
+                [x, y, z] => Ok(DVec3::new(x, y, z)),
+                [x] => Ok(DVec3::splat(x)),
+                _ => Err(self.err(n, format!("expected three numbers, got '{v}'"))),
+            };
+        }
+        let c = |a: &str| -> Result<f64, String> {
+            match self.attr(n, a)? {
+                Some(v) => self.number(n, &v),
+                None => Ok(default),
+            }
+        };
+        Ok(DVec3::new(c("x")?, c("y")?, c("z")?))
+    }
+
+    /// A colour property: rgb, constant spectrum or float. `Ok(None)` when absent; a bitmap
+    /// texture gives `Err(path)` in the inner result (only diffuse reflectance takes one).
+    fn color(&mut self, n: N<'a>, name: &str) -> Result<Option<Result<DVec3, String>>, String> {
+        let Some(p) = self.prop(n, name)? else {
+            return Ok(None);
+        };
+        match p.tag_name().name() {
+            "rgb" => {
+                let v = self.need_attr(p, "value")?;
+                match self.numbers(p, &v)?[..] {
+                    [r, g, b] => Ok(Some(Ok(DVec3::new(r, g, b)))),
+                    [x] => Ok(Some(Ok(DVec3::splat(x)))),
+                    _ => Err(self.err(p, format!("<rgb> needs three numbers, got '{v}'"))),
+                }
+            }
+            "float" | "integer" => Ok(Some(Ok(DVec3::splat(
+                self.number(p, &self.need_attr(p, "value")?)?,
+            )))),
+            "spectrum" => {
+                let v = self.attr(p, "value")?.ok_or_else(|| {
+                    self.err(
+                        p,
+                        "a <spectrum> read from a file cannot be imported: give an <rgb>",
+                    )
+                })?;
+                if !v.contains(':') {
+                    return Ok(Some(Ok(DVec3::splat(self.number(p, &v)?))));
+                }
+                Err(self.err(
+                    p,
+                    format!(
+                        "`{name}` is a sampled spectrum (wavelength:value pairs); matfit renders \
+                         RGB: give an <rgb> (tools/cornell_rgb.md shows one conversion)"
+                    ),
+                ))
+            }
+            "texture" => {
+                let ty = self.need_attr(p, "type")?;
+                if ty != "bitmap" {
+                    return Err(self.err(
+                        p,
+                        format!("texture type '{ty}' is not supported (only bitmap)"),
+                    ));
+                }
+                let f = self.string(p, "filename")?.ok_or_else(|| {
+                    self.err(p, "a bitmap texture needs <string name=\"filename\">")
+                })?;
+                if self.boolean(p, "raw")? {
+                    self.warn(
+                        p,
+                        "raw=\"true\" bitmap: matfit decodes 8-bit textures as sRGB, Mitsuba \
+                         reads this one as linear",
+                    );
+                }
+                Ok(Some(Err(self.file_ref(p, &f)?)))
+            }
+            _ => Err(self.err(p, format!("`{name}` cannot be a {}", self.describe(p)))),
+        }
+    }
+
+    /// A colour property that must be a constant (no texture).
+    fn rgb(&mut self, n: N<'a>, name: &str, default: f64) -> Result<DVec3, String> {
+        match self.color(n, name)? {
+            None => Ok(DVec3::splat(default)),
+            Some(Ok(c)) => Ok(c),
+            Some(Err(_)) => {
+                let p = self.prop(n, name)?.unwrap_or(n);
+                self.warn(
+                    p,
+                    format!(
+                        "a texture for `{name}` of {} is not imported: {default} instead",
+                        self.describe(n)
+                    ),
+                );
+                Ok(DVec3::splat(default))
+            }
+        }
+    }
+
+    /// A file named in the XML (relative to its folder), as a path relative to the output file.
+    fn file_ref(&self, n: N<'a>, f: &str) -> Result<String, String> {
+        let abs = std::path::absolute(self.dir.join(f)).unwrap_or_else(|_| self.dir.join(f));
+        if !abs.is_file() {
+            return Err(self.err(n, format!("file {} not found", abs.display())));
+        }
+        let base = std::path::absolute(&self.out_dir).unwrap_or_else(|_| self.out_dir.clone());
+        Ok(relative(&abs, &base)
+            .unwrap_or(abs)
+            .to_string_lossy()
+            .into_owned())
+    }
+
+    /// The `<transform name=name>` child of `n` as a matrix (identity when absent). Each
+    /// operation applies after the ones before it, as in Mitsuba.
+    fn transform(&self, n: N<'a>, name: &str) -> Result<DMat4, String> {
+        let Some(t) = self.prop(n, name)? else {
+            return Ok(DMat4::IDENTITY);
+        };
+        if t.tag_name().name() != "transform" {
+            return Err(self.err(t, format!("`{name}` must be a <transform>")));
+        }
+        let mut m = DMat4::IDENTITY;
+        for op in Self::children(t) {
+            let step = match op.tag_name().name() {
+                "translate" => DMat4::from_translation(self.vec3_of(op, 0.0)?),
+                "scale" => DMat4::from_scale(self.vec3_of(op, 1.0)?),
+                "rotate" => {
+                    let axis = self.vec3_of(op, 0.0)?;
+                    let angle = self.number(op, &self.need_attr(op, "angle")?)?;
+                    if axis.length() == 0.0 {
+                        return Err(self.err(op, "<rotate> needs a non-zero axis"));
+                    }
+                    DMat4::from_axis_angle(axis.normalize(), angle.to_radians())
+                }
+                "matrix" => {
+                    let v = self.numbers(op, &self.need_attr(op, "value")?)?;
+                    match v.len() {
+                        16 => DMat4::from_cols_slice(&v).transpose(),
+                        9 => DMat4::from_mat3(DMat3::from_cols_slice(&v).transpose()),
+                        k => {
+                            return Err(
+                                self.err(op, format!("<matrix> needs 16 (or 9) numbers, got {k}"))
+                            )
+                        }
+                    }
+                }
+                "lookat" => {
+                    let p = |a: &str| -> Result<Option<DVec3>, String> {
+                        match self.attr(op, a)? {
+                            None => Ok(None),
+                            Some(v) => match self.numbers(op, &v)?[..] {
+                                [x, y, z] => Ok(Some(DVec3::new(x, y, z))),
+                                _ => Err(self.err(op, format!("`{a}` needs three numbers"))),
+                            },
+                        }
+                    };
+                    let origin = p("origin")?.unwrap_or(DVec3::ZERO);
+                    let target = p("target")?.unwrap_or(DVec3::Z);
+                    let dir = (target - origin).normalize_or_zero();
+                    let up = p("up")?.unwrap_or_else(|| dir.any_orthonormal_vector());
+                    let left = up.cross(dir).normalize_or_zero();
+                    if dir == DVec3::ZERO || left == DVec3::ZERO {
+                        return Err(self.err(
+                            op,
+                            "<lookat> has origin = target or up parallel to the view direction",
+                        ));
+                    }
+                    let new_up = dir.cross(left);
+                    DMat4::from_cols(
+                        left.extend(0.0),
+                        new_up.extend(0.0),
+                        dir.extend(0.0),
+                        origin.extend(1.0),
+                    )
+                }
+                other => return Err(self.err(op, format!("unknown transform operation <{other}>"))),
+            };
+            m = step * m;
+        }
+        Ok(m)
+    }
+
+    fn scene(&mut self) -> Result<SceneFile, String> {
+        let root = self.doc.root_element();
+        if root.tag_name().name() != "scene" {
+            return Err(self.err(
+                root,
+                format!(
+                    "expected a <scene> root element, got <{}>",
+                    root.tag_name().name()
+                ),
+            ));
+        }
+        // Defaults first (the command line's values win), then ids of every element.
+        for c in Self::children(root) {
+            if c.tag_name().name() == "default" {
+                let k = self.need_attr(c, "name")?;
+                let v = self.need_attr(c, "value")?;
+                self.params.entry(k).or_insert(v);
+            }
+        }
+        for d in root.descendants().filter(|d| d.is_element()) {
+            if let Some(id) = self.attr(d, "id")? {
+                if d.tag_name().name() != "ref" && self.ids.insert(id.clone(), d).is_some() {
+                    return Err(self.err(d, format!("id '{id}' is defined twice")));
+                }
+            }
+        }
+
+        let mut camera = None;
+        let mut render = RenderSpec::default();
+        let mut objects = Vec::new();
+        let mut names = HashSet::new();
+        let mut shape_counts: HashMap<String, usize> = HashMap::new();
+        for c in Self::children(root) {
+            match c.tag_name().name() {
+                "default" | "bsdf" | "texture" => {}
+                "integrator" => self.integrator(c, &mut render)?,
+                "sensor" => {
+                    if camera.is_some() {
+                        self.warn(c, "a second <sensor> is ignored (matfit uses the first)");
+                        continue;
+                    }
+                    let (cam, spp) = self.sensor(c)?;
+                    camera = Some(cam);
+                    render.spp = spp;
+                }
+                "shape" => {
+                    let ty = self.need_attr(c, "type")?;
+                    let k = shape_counts.entry(ty.clone()).or_default();
+                    *k += 1;
+                    let mut name = match self.attr(c, "id")? {
+                        Some(id) => id,
+                        None => format!("{ty}_{k}"),
+                    };
+                    while !names.insert(name.clone()) {
+                        name.push('_');
+                    }
+                    objects.push(self.shape(c, &ty, name)?);
+                }
+                "emitter" => {
+                    let ty = self.attr(c, "type")?.unwrap_or_default();
+                    return Err(self.err(
+                        c,
+                        format!(
+                            "emitter type '{ty}' cannot be imported: matfit's lights are \
+                             emitting surfaces (an area emitter inside a <shape>)"
+                        ),
+                    ));
+                }
+                "include" => return Err(self.err(c, "<include> is not supported: inline the file")),
+                other => self.warn(c, format!("<{other}> is ignored")),
+            }
+        }
+        let camera = camera.ok_or_else(|| self.err(root, "the scene has no <sensor>"))?;
+        if objects.is_empty() {
+            return Err(self.err(root, "the scene has no <shape>"));
+        }
+        Ok(SceneFile {
+            render: Some(render),
+            camera,
+            groups: Vec::new(),
+            objects,
+        })
+    }
+
+    fn integrator(&mut self, n: N<'a>, render: &mut RenderSpec) -> Result<(), String> {
+        let ty = self.need_attr(n, "type")?;
+        if !matches!(ty.as_str(), "path" | "volpath") {
+            self.warn(
+                n,
+                format!("integrator '{ty}' is rendered as matfit's path tracer (Mitsuba's `path`)"),
+            );
+            return Ok(());
+        }
+        let depth = self.float(n, "max_depth", -1.0)?;
+        render.max_depth = Some(if depth < 0.0 {
+            self.warn(
+                n,
+                "max_depth -1 (unbounded) becomes 64; paths end by Russian roulette long before",
+            );
+            64
+        } else {
+            depth as u32
+        });
+        render.rr_depth = Some(self.float(n, "rr_depth", 5.0)?.max(1.0) as u32);
+        if self.boolean(n, "hide_emitters")? {
+            self.warn(n, "hide_emitters: matfit's images show the emitters");
+        }
+        Ok(())
+    }
+
+    fn sensor(&mut self, n: N<'a>) -> Result<(CameraSpec, Option<u32>), String> {
+        let ty = self.need_attr(n, "type")?;
+        match ty.as_str() {
+            "perspective" => {}
+            "thinlens" => self.warn(n, "thinlens sensor imported as a pinhole (no defocus)"),
+            _ => {
+                return Err(self.err(
+                    n,
+                    format!("sensor type '{ty}' is not supported (only perspective)"),
+                ))
+            }
+        }
+        let film = Self::children(n).find(|c| c.tag_name().name() == "film");
+        let (mut w, mut h) = (768u32, 576u32);
+        if let Some(f) = film {
+            let size = |cx: &Self, key: &str, d: u32| -> Result<u32, String> {
+                let v = cx.float(f, key, d as f64)?;
+                if !(1.0..=65536.0).contains(&v) {
+                    return Err(cx.err(f, format!("film {key} must be 1 to 65536, got {v}")));
+                }
+                Ok(v as u32)
+            };
+            w = size(self, "width", w)?;
+            h = size(self, "height", h)?;
+            match Self::children(f).find(|c| c.tag_name().name() == "rfilter") {
+                Some(r) if self.attr(r, "type")?.as_deref() == Some("box") => {}
+                Some(r) => self.warn(r, "pixel filter is not a box: matfit's is"),
+                None => self.warn(
+                    f,
+                    "no rfilter: Mitsuba's default is gaussian, matfit's pixel filter is a box",
+                ),
+            }
+            if self.prop(f, "crop_width")?.is_some() || self.prop(f, "crop_offset_x")?.is_some() {
+                self.warn(f, "the film's crop window is ignored");
+            }
+        }
+        let spp = match Self::children(n).find(|c| c.tag_name().name() == "sampler") {
+            Some(s) => {
+                let v = self.float(s, "sample_count", 4.0)?;
+                if !(v >= 1.0) {
+                    return Err(self.err(s, "sample_count must be at least 1"));
+                }
+                Some(v as u32)
+            }
+            None => None,
+        };
+        let aspect = w as f64 / h as f64;
+        let fov_x = self.fov_x(n, aspect)?;
+        let fov_y = 2.0 * ((0.5 * fov_x.to_radians()).tan() / aspect).atan();
+
+        let m = self.transform(n, "to_world")?;
+        let eye = m.w_axis.truncate();
+        let (c0, c1, c2) = (
+            m.x_axis.truncate(),
+            m.y_axis.truncate(),
+            m.z_axis.truncate(),
+        );
+        let (l0, l1, l2) = (c0.length(), c1.length(), c2.length());
+        let ortho = [(c0, c1), (c1, c2), (c0, c2)]
+            .iter()
+            .map(|(a, b)| a.dot(*b).abs() / (a.length() * b.length()).max(1e-300))
+            .fold(0.0f64, f64::max);
+        if !(l0 > 0.0 && l1 > 0.0 && l2 > 0.0) || ortho > 1e-4 {
+            return Err(self.err(n, "the sensor's to_world shears or collapses the view"));
+        }
+        if DMat3::from_cols(c0, c1, c2).determinant() < 0.0 {
+            return Err(self.err(
+                n,
+                "the sensor's to_world mirrors the image (a negative scale): matfit's cameras \
+                 cannot",
+            ));
+        }
+        if (l0 - l1).abs() > 1e-6 * l0 || (l1 - l2).abs() > 1e-6 * l1 {
+            self.warn(
+                n,
+                "the sensor's to_world scales unevenly; its scale is ignored",
+            );
+        }
+        let (right, down, fwd) = (-c0 / l0, -c1 / l1, c2 / l2);
+        let off_x = self.float(n, "principal_point_offset_x", 0.0)?;
+        let off_y = self.float(n, "principal_point_offset_y", 0.0)?;
+        let cam = if off_x == 0.0 && off_y == 0.0 {
+            CameraSpec {
+                width: w,
+                height: h,
+                eye: Some(f32s(eye)),
+                target: Some(f32s(eye + fwd)),
+                up: Some(f32s(-down)),
+                fov_y_deg: Some(fov_y.to_degrees() as f32),
+                ..Default::default()
+            }
+        } else {
+            let r = DMat3::from_cols(right, down, fwd).transpose();
+            let t = -(r * eye);
+            let fy = 0.5 * h as f64 / (0.5 * fov_y).tan();
+            let rows = [r.row(0), r.row(1), r.row(2)].map(|v| v.as_vec3().to_array());
+            CameraSpec {
+                width: w,
+                height: h,
+                fx: Some(fy as f32),
+                fy: Some(fy as f32),
+                cx: Some(((0.5 - off_x) * w as f64 - 0.5) as f32),
+                cy: Some(((0.5 - off_y) * h as f64 - 0.5) as f32),
+                rotation: Some(rows),
+                translation: Some(f32s(t)),
+                ..Default::default()
+            }
+        };
+        Ok((cam, spp))
+    }
+
+    /// Mitsuba's horizontal field of view in degrees (its `parse_fov`).
+    fn fov_x(&mut self, n: N<'a>, aspect: f64) -> Result<f64, String> {
+        let fov = self.prop(n, "fov")?;
+        let (value, axis) = match (fov, self.string(n, "focal_length")?) {
+            (Some(_), Some(_)) => {
+                return Err(self.err(n, "give either `fov` or `focal_length`, not both"))
+            }
+            (Some(_), None) => {
+                let v = self.float(n, "fov", 0.0)?;
+                let axis = self
+                    .string(n, "fov_axis")?
+                    .unwrap_or_else(|| "x".into())
+                    .to_ascii_lowercase();
+                let axis = match axis.as_str() {
+                    "smaller" if aspect > 1.0 => "y".to_string(),
+                    "smaller" => "x".to_string(),
+                    "larger" if aspect > 1.0 => "x".to_string(),
+                    "larger" => "y".to_string(),
+                    _ => axis,
+                };
+                (v, axis)
+            }
+            (None, f) => {
+                let f = f.unwrap_or_else(|| "50mm".into());
+                let mm = self.number(n, f.trim_end_matches("mm"))?;
+                if !(mm > 0.0) {
+                    return Err(self.err(n, format!("focal_length must be positive, got {f}")));
+                }
+                let diag = (36.0f64 * 36.0 + 24.0 * 24.0).sqrt();
+                (
+                    (2.0 * (diag / (2.0 * mm)).atan()).to_degrees(),
+                    "diagonal".into(),
+                )
+            }
+        };
+        if !(value > 0.0 && value < 180.0) {
+            return Err(self.err(n, format!("fov must be in (0, 180) degrees, got {value}")));
+        }
+        let half = (0.5 * value.to_radians()).tan();
+        Ok(match axis.as_str() {
+            "x" => value,
+            "y" => (2.0 * (half * aspect).atan()).to_degrees(),
+            "diagonal" => {
+                let width = 2.0 * half / (1.0 + 1.0 / (aspect * aspect)).sqrt();
+                (2.0 * (0.5 * width).atan()).to_degrees()
+            }
+            other => {
+                return Err(self.err(
+                    n,
+                    format!("fov_axis '{other}' is not one of x, y, diagonal, smaller, larger"),
+                ))
+            }
+        })
+    }
+
+    fn shape(&mut self, n: N<'a>, ty: &str, name: String) -> Result<ObjectSpec, String> {
+        let mut bsdf = None;
+        let mut emitter = None;
+        for c in Self::children(n) {
+            let el = if c.tag_name().name() == "ref" {
+                if c.attribute("name").is_some_and(|v| v != "bsdf") {
+                    continue;
+                }
+                self.resolve(c)?
+            } else {
+                c
+            };
+            match el.tag_name().name() {
+                "bsdf" => bsdf = Some(el),
+                "emitter" => emitter = Some(el),
+                "medium" => self.warn(el, "media are ignored"),
+                _ => {}
+            }
+        }
+        let group = match bsdf {
+            Some(b) => match self.attr(b, "id")? {
+                Some(id) => id,
+                None => name.clone(),
+            },
+            None => name.clone(),
+        };
+        let emission = match emitter {
+            None => None,
+            Some(e) => {
+                let ety = self.need_attr(e, "type")?;
+                if ety != "area" {
+                    return Err(self.err(
+                        e,
+                        format!("emitter type '{ety}' inside a shape: only 'area' is supported"),
+                    ));
+                }
+                let c = match self.color(e, "radiance")? {
+                    Some(Ok(c)) => c,
+                    Some(Err(_)) => {
+                        return Err(self.err(e, "a textured radiance cannot be imported"))
+                    }
+                    None => return Err(self.err(e, "an area emitter needs `radiance`")),
+                };
+                Some(Spanned::new(0..0, Color(c.as_vec3().to_array())))
+            }
+        };
+        let material = match bsdf {
+            Some(b) => {
+                let one_sided = b.tag_name().name() == "bsdf"
+                    && self.attr(b, "type")?.as_deref() != Some("twosided");
+                if one_sided && self.warned.insert((b.range().start, "one-sided")) {
+                    self.warn(
+                        b,
+                        format!(
+                            "{} is one-sided in Mitsuba (black from behind); matfit's surfaces \
+                             reflect on both sides (the same wherever only front sides are seen \
+                             and lit)",
+                            self.describe(b)
+                        ),
+                    );
+                }
+                let l = self.lobes(b)?;
+                self.material_spec(b, l)
+            }
+            None => MaterialSpec::Diffuse {
+                rho_d: Color([0.5; 3]),
+            },
+        };
+        let flip = self.boolean(n, "flip_normals")?;
+        let m = self.transform(n, "to_world")?;
+        let lin = DMat3::from_mat4(m);
+        let p = |v: DVec3| m.transform_point3(v);
+        let f = f32s;
+        let mut o = ObjectSpec {
+            name: Spanned::new(0..0, name.clone()),
+            group: Some(Spanned::new(0..0, group)),
+            shape: Spanned::new(0..0, ShapeKind::Quad),
+            corner: None,
+            edge_u: None,
+            edge_v: None,
+            min: None,
+            max: None,
+            center: None,
+            radius: None,
+            segments: None,
+            file: None,
+            transform: None,
+            tangent: None,
+            material: Some(Spanned::new(0..0, material)),
+            emission,
+        };
+        let emits = o.emission.is_some();
+        let no_flip = |cx: &mut Self| -> Result<(), String> {
+            if flip && emits {
+                return Err(cx.err(
+                    n,
+                    format!(
+                        "flip_normals on an emitting {ty}: matfit's {ty} lights emit outward \
+                         (along the wound normal)"
+                    ),
+                ));
+            }
+            Ok(())
+        };
+        match ty {
+            "rectangle" => {
+                let (mut u, mut v) = (
+                    lin * DVec3::new(2.0, 0.0, 0.0),
+                    lin * DVec3::new(0.0, 2.0, 0.0),
+                );
+                if (lin.determinant() < 0.0) != flip {
+                    std::mem::swap(&mut u, &mut v);
+                }
+                if u.cross(v).length() == 0.0 {
+                    return Err(self.err(n, "the rectangle's to_world collapses it"));
+                }
+                o.corner = Some(f(p(DVec3::new(-1.0, -1.0, 0.0))));
+                o.edge_u = Some(f(u));
+                o.edge_v = Some(f(v));
+            }
+            "cube" => {
+                no_flip(self)?;
+                o.shape = Spanned::new(0..0, ShapeKind::Box);
+                if axis_aligned(lin) {
+                    let (a, b) = (p(DVec3::splat(-1.0)), p(DVec3::splat(1.0)));
+                    o.min = Some(f(a.min(b)));
+                    o.max = Some(f(a.max(b)));
+                } else {
+                    o.min = Some([-1.0; 3]);
+                    o.max = Some([1.0; 3]);
+                    o.transform = Some(self.decompose(n, m)?);
+                }
+            }
+            "sphere" => {
+                no_flip(self)?;
+                o.shape = Spanned::new(0..0, ShapeKind::Sphere);
+                o.segments = Some(256);
+                let c = self
+                    .prop(n, "center")?
+                    .map(|c| self.vec3_of(c, 0.0))
+                    .transpose()?;
+                let r = self.float(n, "radius", 1.0)?;
+                if !(r > 0.0) {
+                    return Err(self.err(n, format!("sphere radius must be positive, got {r}")));
+                }
+                let full = m
+                    * DMat4::from_translation(c.unwrap_or(DVec3::ZERO))
+                    * DMat4::from_scale(DVec3::splat(r));
+                let fl = DMat3::from_mat4(full);
+                let s = [fl.x_axis.length(), fl.y_axis.length(), fl.z_axis.length()];
+                let uniform = s.iter().all(|x| (x - s[0]).abs() <= 1e-6 * s[0]);
+                let ortho = (fl.transpose() * fl
+                    - DMat3::from_diagonal(DVec3::from(s.map(|x| x * x))))
+                .to_cols_array()
+                .iter()
+                .all(|x| x.abs() <= 1e-6 * s[0] * s[0]);
+                if uniform && ortho {
+                    o.center = Some(f(full.transform_point3(DVec3::ZERO)));
+                    o.radius = Some(s[0] as f32);
+                } else {
+                    o.center = Some([0.0; 3]);
+                    o.radius = Some(1.0);
+                    o.transform = Some(self.decompose(n, full)?);
+                }
+            }
+            "obj" | "ply" => {
+                no_flip(self)?;
+                o.shape = Spanned::new(0..0, ShapeKind::Mesh);
+                let fname = self.string(n, "filename")?.ok_or_else(|| {
+                    self.err(n, format!("a {ty} shape needs <string name=\"filename\">"))
+                })?;
+                o.file = Some(Spanned::new(0..0, self.file_ref(n, &fname)?));
+                if m != DMat4::IDENTITY {
+                    o.transform = Some(self.decompose(n, m)?);
+                }
+            }
+            other => {
+                return Err(self.err(
+                    n,
+                    format!(
+                        "shape type '{other}' is not supported (rectangle, cube, sphere, obj, \
+                         ply are)"
+                    ),
+                ))
+            }
+        }
+        Ok(o)
+    }
+
+    /// matfit's transform (scale, then rotations about X, Y, Z, then translate) of an affine
+    /// matrix without shear.
+    fn decompose(&self, n: N<'a>, m: DMat4) -> Result<TransformSpec, String> {
+        decompose(m).ok_or_else(|| {
+            self.err(
+                n,
+                "to_world shears the shape: matfit's transform is scale, rotate, translate only",
+            )
+        })
+    }
+
+    /// The lobes of a BSDF element (twosided and other wrappers unwrapped).
+    fn lobes(&mut self, b: N<'a>) -> Result<Lobes, String> {
+        let ty = self.need_attr(b, "type")?;
+        let nested = |cx: &Self| -> Result<Vec<N<'a>>, String> {
+            let mut v = Vec::new();
+            for c in Self::children(b) {
+                match c.tag_name().name() {
+                    "bsdf" => v.push(c),
+                    "ref" if c.attribute("name").is_none_or(|x| x == "bsdf") => {
+                        let r = cx.resolve(c)?;
+                        if r.tag_name().name() == "bsdf" {
+                            v.push(r)
+                        }
+                    }
+                    _ => {}
+                }
+            }
+            Ok(v)
+        };
+        let guess = |cx: &mut Self, rule: &str| {
+            if cx.warned.insert((b.range().start, "guess")) {
+                let d = cx.describe(b);
+                cx.warn(
+                    b,
+                    format!("{d} imported as {rule}: an initial guess for recovery, not the truth"),
+                );
+            }
+        };
+        Ok(match ty.as_str() {
+            "twosided" | "mask" | "bumpmap" | "normalmap" => {
+                let inner = nested(self)?;
+                let Some(first) = inner.first().copied() else {
+                    return Err(self.err(b, format!("{} has no nested <bsdf>", self.describe(b))));
+                };
+                if ty != "twosided" {
+                    self.warn(
+                        b,
+                        format!("{} is ignored; its nested BSDF is used", self.describe(b)),
+                    );
+                }
+                if inner.len() > 1 {
+                    self.warn(
+                        b,
+                        "a twosided BSDF with two different sides: the front one is used",
+                    );
+                }
+                self.lobes(first)?
+            }
+            "diffuse" => match self.color(b, "reflectance")? {
+                None => Lobes {
+                    d: DVec3::splat(0.5),
+                    ..Default::default()
+                },
+                Some(Ok(c)) => Lobes {
+                    d: c,
+                    ..Default::default()
+                },
+                Some(Err(tex)) => Lobes {
+                    texture: Some(tex),
+                    ..Default::default()
+                },
+            },
+            "conductor" | "roughconductor" => {
+                let spec = self.rgb(b, "specular_reflectance", 1.0)?;
+                let f0 = self.conductor_f0(b)?;
+                let rough = ty == "roughconductor";
+                if f0.is_some() || rough {
+                    guess(
+                        self,
+                        if rough {
+                            "Ward ρd 0, ρs = F0 × specular_reflectance, α = alpha"
+                        } else {
+                            "a mirror with ρs = Fresnel reflectance at normal incidence × specular_reflectance"
+                        },
+                    );
+                }
+                let s = spec * f0.unwrap_or(DVec3::ONE);
+                Lobes {
+                    s,
+                    alpha: if rough {
+                        Some(self.alpha(b, 0.1)?)
+                    } else {
+                        None
+                    },
+                    ..Default::default()
+                }
+            }
+            "plastic" | "roughplastic" => {
+                let eta = self.float(b, "int_ior", 1.49)? / self.float(b, "ext_ior", 1.000277)?;
+                let f0 = ((eta - 1.0) / (eta + 1.0)).powi(2);
+                let rough = ty == "roughplastic";
+                guess(
+                    self,
+                    &format!(
+                        "{} with F0 = ((η−1)/(η+1))² = {f0:.4}, ρs = F0 × specular_reflectance, \
+                         ρd = (1 − F0) × diffuse_reflectance{}",
+                        if rough { "Ward" } else { "diffuse_mirror" },
+                        if rough { ", α = alpha" } else { "" }
+                    ),
+                );
+                let d = self.rgb(b, "diffuse_reflectance", 0.5)? * (1.0 - f0);
+                let s = self.rgb(b, "specular_reflectance", 1.0)? * f0;
+                Lobes {
+                    d,
+                    s,
+                    alpha: if rough {
+                        Some(self.alpha(b, 0.1)?)
+                    } else {
+                        None
+                    },
+                    ..Default::default()
+                }
+            }
+            "principled" => {
+                let base = self.rgb(b, "base_color", 0.5)?;
+                let metallic = self.float(b, "metallic", 0.0)?.clamp(0.0, 1.0);
+                let rough = self.float(b, "roughness", 0.5)?.clamp(1e-3, 1.0);
+                let f0d = 0.08 * self.float(b, "specular", 0.5)?;
+                guess(
+                    self,
+                    "Ward with α = roughness², ρs = 0.08·specular blended to base_color by \
+                     metallic, ρd = (1 − metallic)(1 − ρs)·base_color",
+                );
+                let s = DVec3::splat(f0d) * (1.0 - metallic) + base * metallic;
+                Lobes {
+                    d: base * (1.0 - metallic) * (DVec3::ONE - s),
+                    s,
+                    alpha: Some((rough * rough, rough * rough)),
+                    ..Default::default()
+                }
+            }
+            "blendbsdf" => {
+                let w = match self.prop(b, "weight")? {
+                    Some(p) if p.tag_name().name() == "float" => {
+                        self.number(p, &self.need_attr(p, "value")?)?
+                    }
+                    Some(p) => {
+                        return Err(self.err(p, "a textured blend weight cannot be imported"))
+                    }
+                    None => 0.5,
+                };
+                let inner = nested(self)?;
+                let [a, c] = inner[..] else {
+                    return Err(self.err(b, "a blendbsdf needs two nested BSDFs"));
+                };
+                let (la, lc) = (self.lobes(a)?, self.lobes(c)?);
+                if la.texture.is_some()
+                    || lc.texture.is_some()
+                    || la.alpha.is_some()
+                    || lc.alpha.is_some()
+                {
+                    guess(
+                        self,
+                        "the blend of its parts' ρd and ρs, the rough part's α (no textures)",
+                    );
+                }
+                Lobes {
+                    d: la.d * (1.0 - w) + lc.d * w,
+                    s: la.s * (1.0 - w) + lc.s * w,
+                    alpha: la.alpha.or(lc.alpha),
+                    texture: None,
+                }
+            }
+            other => {
+                guess(
+                    self,
+                    &format!("diffuse 0.5 (matfit has no '{other}' material)"),
+                );
+                Lobes {
+                    d: DVec3::splat(0.5),
+                    ..Default::default()
+                }
+            }
+        })
+    }
+
+    fn alpha(&self, b: N<'a>, default: f64) -> Result<(f64, f64), String> {
+        let a = self.float(b, "alpha", default)?;
+        let ax = self.float(b, "alpha_u", a)?;
+        let ay = self.float(b, "alpha_v", a)?;
+        if !(ax > 0.0 && ay > 0.0) {
+            return Err(self.err(b, "alpha must be positive"));
+        }
+        Ok((ax, ay))
+    }
+
+    /// Fresnel reflectance at normal incidence of a conductor; None for material "none" with no
+    /// eta/k (an ideal mirror).
+    fn conductor_f0(&mut self, b: N<'a>) -> Result<Option<DVec3>, String> {
+        if self.prop(b, "eta")?.is_some() || self.prop(b, "k")?.is_some() {
+            let eta = self.rgb(b, "eta", 0.0)?;
+            let k = self.rgb(b, "k", 1.0)?;
+            let f = |e: f64, k: f64| ((e - 1.0).powi(2) + k * k) / ((e + 1.0).powi(2) + k * k);
+            return Ok(Some(DVec3::new(
+                f(eta.x, k.x),
+                f(eta.y, k.y),
+                f(eta.z, k.z),
+            )));
+        }
+        // Mitsuba's default material is "none": a 100% mirror.
+        let name = self.string(b, "material")?.unwrap_or_else(|| "none".into());
+        if name == "none" {
+            return Ok(None);
+        }
+        // Linear-RGB F0 of common metals (Hoffman, "Physics and Math of Shading", 2013).
+        let f0 = match name.as_str() {
+            "Au" => [1.000, 0.766, 0.336],
+            "Ag" => [0.972, 0.960, 0.915],
+            "Cu" => [0.955, 0.638, 0.538],
+            "Al" => [0.913, 0.922, 0.924],
+            "Cr" => [0.549, 0.556, 0.554],
+            "Fe" => [0.562, 0.565, 0.578],
+            "Ni" => [0.660, 0.609, 0.526],
+            "Ti" => [0.542, 0.497, 0.449],
+            "W" => [0.504, 0.498, 0.478],
+            _ => {
+                self.warn(
+                    b,
+                    format!("metal '{name}' is not in matfit's table: ρs 0.9 as a guess"),
+                );
+                [0.9; 3]
+            }
+        };
+        Ok(Some(DVec3::from(f0)))
+    }
+
+    fn material_spec(&mut self, b: N<'a>, l: Lobes) -> MaterialSpec {
+        let c = |v: DVec3| Color(v.as_vec3().to_array());
+        let mut d = l.d.max(DVec3::ZERO);
+        let mut s = l.s.max(DVec3::ZERO);
+        let sum = (d + s).max_element();
+        if sum > 1.0 + 1e-6 {
+            self.warn(
+                b,
+                format!("ρd + ρs reaches {sum:.4} > 1 (more light out than in): scaled to 1"),
+            );
+            d /= sum;
+            s /= sum;
+        }
+        let (alpha, alpha_x, alpha_y) = match l.alpha {
+            Some((ax, ay)) if ax == ay => (Some(ax as f32), None, None),
+            Some((ax, ay)) => (None, Some(ax as f32), Some(ay as f32)),
+            None => (None, None, None),
+        };
+        let has_s = s.max_element() > 0.0;
+        if let Some(t) = l.texture {
+            return MaterialSpec::Textured {
+                texture: t,
+                scale: None,
+                mapping: None,
+                texel_size: None,
+                rho_s: has_s.then(|| c(s)),
+                alpha: if has_s { alpha.or(Some(0.05)) } else { None },
+                alpha_x: if has_s { alpha_x } else { None },
+                alpha_y: if has_s { alpha_y } else { None },
+                theta_deg: None,
+            };
+        }
+        if l.alpha.is_some() && has_s {
+            return MaterialSpec::Ward {
+                rho_d: c(d),
+                rho_s: c(s),
+                alpha,
+                alpha_x,
+                alpha_y,
+                theta_deg: None,
+            };
+        }
+        let has_d = d.max_element() > 0.0;
+        match (has_d, has_s) {
+            (false, false) => MaterialSpec::Black,
+            (true, false) => MaterialSpec::Diffuse { rho_d: c(d) },
+            (false, true) => MaterialSpec::Mirror { rho_s: c(s) },
+            (true, true) => MaterialSpec::DiffuseMirror {
+                rho_d: c(d),
+                rho_s: c(s),
+            },
+        }
+    }
+}
+
+/// The scene's TOML with each object's material and transform as one inline table, as people
+/// write them (`material = { type = "diffuse", rho_d = 0.5 }`).
+fn compact(text: &str) -> String {
+    let Ok(mut doc) = text.parse::<toml_edit::DocumentMut>() else {
+        return text.to_string();
+    };
+    if let Some(objects) = doc
+        .get_mut("object")
+        .and_then(|o| o.as_array_of_tables_mut())
+    {
+        for t in objects.iter_mut() {
+            for key in ["transform", "material"] {
+                if let Some(item) = t.get_mut(key) {
+                    item.make_value();
+                    if let Some(v) = item.as_inline_table_mut() {
+                        v.fmt();
+                    }
+                }
+                if let Some(mut k) = t.key_mut(key) {
+                    k.leaf_decor_mut().set_suffix(" ");
+                }
+            }
+        }
+    }
+    doc.to_string()
+}
+
+/// `v` with the components that are rounding noise of a rotation (under 1e-10 of the largest)
+/// set to zero, as f32.
+fn f32s(v: DVec3) -> [f32; 3] {
+    let m = v.abs().max_element();
+    v.to_array()
+        .map(|x| if x.abs() <= 1e-10 * m { 0.0 } else { x as f32 })
+}
+
+/// True when a linear map keeps axis-aligned boxes axis-aligned: each column along one axis,
+/// distinct axes.
+fn axis_aligned(l: DMat3) -> bool {
+    let cols = [l.x_axis, l.y_axis, l.z_axis];
+    let mut used = [false; 3];
+    for c in cols {
+        let a = c.abs();
+        let k = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
+        let off = a.element_sum() - a[k];
+        if off > 1e-9 * a[k] || a[k] == 0.0 || used[k] {
+            return false;
+        }
+        used[k] = true;
+    }
+    true
+}
+
+/// m = T·R·S (S diagonal, possibly with one negative entry for a mirroring m) as matfit's
+/// transform keys; None when m shears (its columns are not orthogonal) or is not affine.
+pub(crate) fn decompose(m: DMat4) -> Option<TransformSpec> {
+    if m.row(3) != DVec4::new(0.0, 0.0, 0.0, 1.0) {
+        return None;
+    }
+    let l = DMat3::from_mat4(m);
+    let mut s = DVec3::new(l.x_axis.length(), l.y_axis.length(), l.z_axis.length());
+    if s.min_element() <= 0.0 {
+        return None;
+    }
+    let mut r = DMat3::from_cols(l.x_axis / s.x, l.y_axis / s.y, l.z_axis / s.z);
+    if (r.transpose() * r - DMat3::IDENTITY)
+        .to_cols_array()
+        .iter()
+        .any(|x| x.abs() > 1e-5)
+    {
+        return None;
+    }
+    if r.determinant() < 0.0 {
+        s.x = -s.x;
+        r.x_axis = -r.x_axis;
+    }
+    let (z, y, x) = DQuat::from_mat3(&r).to_euler(EulerRot::ZYX);
+    let rot = DVec3::new(x, y, z);
+    let t = m.w_axis.truncate();
+    Some(TransformSpec {
+        scale: (s != DVec3::ONE).then(|| Color(s.as_vec3().to_array())),
+        rotate_deg: (rot.abs().max_element() > 1e-12)
+            .then(|| f32s(rot).map(|a| (a as f64).to_degrees() as f32)),
+        translate: (t != DVec3::ZERO).then(|| f32s(t)),
+    })
+}
+
+/// `path` relative to the folder `base` (both absolute), if they share a root.
+fn relative(path: &Path, base: &Path) -> Option<PathBuf> {
+    let p: Vec<_> = path.components().collect();
+    let b: Vec<_> = base.components().collect();
+    let common = p.iter().zip(&b).take_while(|(a, b)| a == b).count();
+    if common == 0 {
+        return None;
+    }
+    let mut out = PathBuf::new();
+    for _ in common..b.len() {
+        out.push("..");
+    }
+    for c in &p[common..] {
+        out.push(c);
+    }
+    Some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// matfit's transform of the keys (as `scene/load.rs` builds it), applied to a point.
+    fn apply(t: &TransformSpec, p: DVec3) -> DVec3 {
+        let s = t
+            .scale
+            .map(|c| DVec3::from(c.0.map(f64::from)))
+            .unwrap_or(DVec3::ONE);
+        let [x, y, z] = t
+            .rotate_deg
+            .unwrap_or([0.0; 3])
+            .map(|a| (a as f64).to_radians());
+        let r = DQuat::from_euler(EulerRot::ZYX, z, y, x);
+        let tr = t
+            .translate
+            .map(|v| DVec3::from(v.map(f64::from)))
+            .unwrap_or(DVec3::ZERO);
+        r * (s * p) + tr
+    }
+
+    #[test]
+    fn a_rotate_scale_translate_chain_decomposes_exactly() {
+        let m = DMat4::from_translation(DVec3::new(1.0, -2.0, 0.5))
+            * DMat4::from_axis_angle(DVec3::new(1.0, 2.0, -0.5).normalize(), 0.7)
+            * DMat4::from_scale(DVec3::new(0.3, 2.0, -1.5));
+        let t = decompose(m).unwrap();
+        for p in [DVec3::ZERO, DVec3::X, DVec3::new(0.3, -4.0, 2.0)] {
+            let want = m.transform_point3(p);
+            assert!((apply(&t, p) - want).length() < 1e-5, "{p}: {t:?}");
+        }
+        // A shear has no such form.
+        let mut sheared = DMat4::IDENTITY;
+        sheared.y_axis.x = 0.5;
+        assert!(decompose(sheared).is_none());
+    }
+
+    #[test]
+    fn cubes_rotated_by_right_angles_stay_boxes() {
+        assert!(axis_aligned(DMat3::from_diagonal(DVec3::new(
+            1.0, 2.0, 3.0
+        ))));
+        let quarter = DMat3::from_axis_angle(DVec3::Y, std::f64::consts::FRAC_PI_2);
+        let q = DMat3::from_cols(
+            quarter.x_axis.round(),
+            quarter.y_axis.round(),
+            quarter.z_axis.round(),
+        );
+        assert!(axis_aligned(q));
+        assert!(!axis_aligned(DMat3::from_axis_angle(DVec3::Y, 0.3)));
+    }
+
+    /// Mitsuba's fov_axis rules: 90° on x of a 2:1 film is atan(½) on y, and so on.
+    #[test]
+    fn fields_of_view_convert_to_vertical() {
+        let xml = |axis: &str| {
+            format!(
+                r#"<scene version="3.0.0"><sensor type="perspective">
+                <float name="fov" value="90"/><string name="fov_axis" value="{axis}"/>
+                <film type="hdrfilm"><integer name="width" value="200"/>
+                <integer name="height" value="100"/><rfilter type="box"/></film></sensor>
+                <shape type="sphere"/></scene>"#
+            )
+        };
+        let fov_y = |axis: &str| {
+            let r = import_str(&xml(axis), Path::new("s.xml"), Path::new("o.toml"), &[]).unwrap();
+            let f: SceneFile = toml::from_str(&r.toml).unwrap();
+            f.camera.fov_y_deg.unwrap() as f64
+        };
+        let deg = |x: f64| x.to_degrees();
+        assert!((fov_y("x") - deg(2.0 * 0.5f64.atan())).abs() < 1e-4);
+        assert!((fov_y("y") - 90.0).abs() < 1e-4);
+        assert!((fov_y("smaller") - 90.0).abs() < 1e-4);
+        assert!((fov_y("larger") - fov_y("x")).abs() < 1e-4);
+        // Diagonal 90°: half-diagonal = 1, so half-height = 1/√5.
+        assert!((fov_y("diagonal") - deg(2.0 * (1.0 / 5f64.sqrt()).atan())).abs() < 1e-4);
+    }
+}

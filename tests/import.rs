@@ -1,0 +1,479 @@
+//! `matfit import mitsuba` (issue 22): the inverse of the exporter (a round trip renders the
+//! same image), a scene written in Mitsuba's own idiom imports as the same scene written by
+//! hand, and bad input is an error naming the file and line.
+
+use crate::common::{root, run, write};
+use matfit::math::{Rgb, Vec2};
+use matfit::render::aov::{aov_image, Aov};
+use matfit::render::film::{render, RenderOptions};
+use matfit::scene::{load_scene, Material, Scene};
+use std::path::Path;
+
+/// `matfit import mitsuba XML -o OUT`, which must succeed; returns its stderr (the warnings).
+fn import(xml: &Path, out: &Path) -> String {
+    let (code, stdout, stderr) = run(
+        &[
+            "import",
+            "mitsuba",
+            xml.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        out.parent().unwrap(),
+    );
+    assert_eq!(code, 0, "{stdout}\n{stderr}");
+    stderr
+}
+
+/// The two cameras shoot the same rays through the film (corners, centre, an odd point).
+fn assert_same_camera(a: &Scene, b: &Scene, tol: f32) {
+    let (ca, cb) = (&a.camera, &b.camera);
+    assert_eq!((ca.width, ca.height), (cb.width, cb.height));
+    let (w, h) = (ca.width as f32, ca.height as f32);
+    for p in [
+        (0.0, 0.0),
+        (w, 0.0),
+        (0.0, h),
+        (w, h),
+        (w / 2.0, h / 2.0),
+        (0.37 * w, 0.81 * h),
+    ] {
+        let (ra, rb) = (ca.ray(Vec2::new(p.0, p.1)), cb.ray(Vec2::new(p.0, p.1)));
+        assert!(
+            (ra.o - rb.o).abs().max_element() < tol,
+            "{:?} vs {:?}",
+            ra.o,
+            rb.o
+        );
+        assert!(
+            (ra.d - rb.d).abs().max_element() < tol,
+            "{p:?}: {:?} vs {:?}",
+            ra.d,
+            rb.d
+        );
+    }
+}
+
+/// Every object of `a` has a namesake in `b` with the same triangles (vertex for vertex, in
+/// order) and the same emission.
+fn assert_same_geometry(a: &Scene, b: &Scene, tol: f32) {
+    assert_eq!(a.objects.len(), b.objects.len());
+    for oa in &a.objects {
+        let ob = b
+            .objects
+            .iter()
+            .find(|o| o.name == oa.name)
+            .unwrap_or_else(|| panic!("no object '{}' in {}", oa.name, b.path.display()));
+        assert_eq!(oa.tri_range.len(), ob.tri_range.len(), "{}", oa.name);
+        let (ga, gb) = (&a.geometry, &b.geometry);
+        let bounds = ga.bvh.bounds();
+        let scale = (bounds.max - bounds.min).length();
+        for (ta, tb) in ga.tris[oa.tri_range.start as usize..][..oa.tri_range.len()]
+            .iter()
+            .zip(&gb.tris[ob.tri_range.start as usize..])
+        {
+            for k in 0..3 {
+                let (pa, pb) = (
+                    ga.positions[ta.v[k] as usize],
+                    gb.positions[tb.v[k] as usize],
+                );
+                assert!(
+                    (pa - pb).abs().max_element() <= tol * scale,
+                    "{}: {pa} vs {pb}",
+                    oa.name
+                );
+            }
+        }
+        assert!(
+            (oa.emission - ob.emission).abs().max_element() <= 1e-6 * oa.emission.max_element(),
+            "{}",
+            oa.name
+        );
+    }
+}
+
+/// Mean radiance per object of `a` and `b` rendered with the same seed, over the pixels where
+/// both see the object directly with the same object around them (3×3): a pixel on an outline
+/// may see one object in one scene and its neighbour in the other.
+fn object_means(a: &Scene, b: &Scene, spp: u32) -> Vec<(String, Rgb, Rgb, usize)> {
+    let opts = RenderOptions {
+        spp,
+        seed: 7,
+        progress: false,
+    };
+    let (ia, ib) = (render(a, &a.camera, &opts), render(b, &b.camera, &opts));
+    let id = |sc: &Scene| -> Vec<i64> {
+        aov_image(sc, &sc.camera, Aov::Object, false)
+            .data
+            .iter()
+            .map(|c| c.x.round() as i64)
+            .collect()
+    };
+    let (da, db) = (id(a), id(b));
+    let (w, h) = (a.camera.width as usize, a.camera.height as usize);
+    let mut sums = vec![(Rgb::ZERO, Rgb::ZERO, 0usize); a.objects.len()];
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            let i = y * w + x;
+            let o = da[i];
+            let same = (0..9).all(|k| {
+                let j = (y + k / 3 - 1) * w + (x + k % 3 - 1);
+                da[j] == o && db[j] == o
+            });
+            if same && o >= 0 && (o as usize) < sums.len() {
+                let s = &mut sums[o as usize];
+                s.0 += ia.data[i];
+                s.1 += ib.data[i];
+                s.2 += 1;
+            }
+        }
+    }
+    a.objects
+        .iter()
+        .zip(sums)
+        .filter(|(_, s)| s.2 > 0)
+        .map(|(o, (sa, sb, n))| (o.name.clone(), sa / n as f32, sb / n as f32, n))
+        .collect()
+}
+
+/// What the exporter writes for each material (its module comment): Ward loses its lobe, a
+/// texture becomes its mean; the rest is exact.
+fn as_exported(sc: &mut Scene) {
+    for o in &mut sc.objects {
+        if matches!(
+            o.material,
+            Material::Ward { .. } | Material::Textured { .. }
+        ) {
+            o.material = Material::Diffuse {
+                rho_d: o.material.rho_d(),
+            };
+        }
+    }
+}
+
+fn round_trip(scene: &str) {
+    let src = root().join(scene);
+    let dir = tempfile::tempdir().unwrap();
+    let mi = dir.path().join("mi");
+    let (code, stdout, stderr) = run(
+        &[
+            "export",
+            "mitsuba",
+            src.to_str().unwrap(),
+            "-o",
+            mi.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(code, 0, "{stdout}\n{stderr}");
+    // In a folder of its own, so that the mesh paths must be rewritten.
+    std::fs::create_dir(dir.path().join("back")).unwrap();
+    let out = dir.path().join("back").join("scene.toml");
+    let warnings = import(&mi.join("scene.xml"), &out);
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        text.starts_with("# Imported by `matfit import mitsuba`"),
+        "{text}"
+    );
+    assert!(text.contains("file = \"../mi/meshes/000_"), "{text}");
+    // The exporter's XML is in the imported subset: nothing is approximated on the way back.
+    assert!(!warnings.contains("warning"), "{warnings}");
+
+    let mut original = load_scene(&src).unwrap();
+    as_exported(&mut original);
+    let back = load_scene(&out).unwrap();
+    assert_same_camera(&original, &back, 1e-5);
+    assert_same_geometry(&original, &back, 1e-6);
+    assert_eq!(back.render.max_depth, original.render.max_depth);
+    assert_eq!(back.render.rr_depth, original.render.rr_depth);
+    assert_eq!(back.render.spp, original.render.spp);
+    for (oa, ob) in original.objects.iter().zip(&back.objects) {
+        let close = |a: Rgb, b: Rgb| (a - b).abs().max_element() < 1e-6;
+        assert!(
+            close(oa.material.rho_d(), ob.material.rho_d())
+                && close(oa.material.rho_s(), ob.material.rho_s()),
+            "{}: {:?} vs {:?}",
+            oa.name,
+            oa.material,
+            ob.material
+        );
+    }
+    // The same image, to rounding: every object's mean radiance, same seed, same samples.
+    for (name, a, b, _) in object_means(&original, &back, 4) {
+        let rel = ((a - b).abs() / a.max(Rgb::splat(1e-3))).max_element();
+        assert!(rel < 1e-3, "{scene} {name}: {a} vs {b}");
+    }
+}
+
+#[test]
+fn figure6_round_trips_through_mitsuba() {
+    round_trip("scenes/figure6/scene.toml");
+}
+
+#[test]
+fn cornell_round_trips_through_mitsuba() {
+    round_trip("scenes/cornell/scene.toml");
+}
+
+#[test]
+fn facing_mirrors_round_trip_through_mitsuba() {
+    round_trip("scenes/facing-mirrors/scene.toml");
+}
+
+/// A Cornell box written as Mitsuba users write them (rectangles and cubes placed by
+/// transform chains, `<default>` parameters, BSDFs by reference, a horizontal field of view)
+/// imports as the same scene written by hand (scenes/mitsuba-cbox/expected.toml).
+#[test]
+fn a_hand_written_mitsuba_scene_imports_as_its_matfit_twin() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("cbox.toml");
+    let warnings = import(&root().join("scenes/mitsuba-cbox/scene.xml"), &out);
+    assert!(!warnings.contains("warning"), "{warnings}");
+    let got = load_scene(&out).unwrap();
+    let want = load_scene(&root().join("scenes/mitsuba-cbox/expected.toml")).unwrap();
+    assert_same_camera(&want, &got, 1e-5);
+    assert_same_geometry(&want, &got, 1e-5);
+    // Groups: shapes sharing a BSDF id share its group; the others are their own.
+    for o in &want.objects {
+        let g = &got.objects.iter().find(|x| x.name == o.name).unwrap();
+        assert_eq!(
+            got.groups[g.group].name, want.groups[o.group].name,
+            "{}",
+            o.name
+        );
+        assert!(
+            (g.material.rho_d() - o.material.rho_d())
+                .abs()
+                .max_element()
+                < 1e-6
+        );
+        assert!(matches!(
+            (&g.material, &o.material),
+            (Material::Diffuse { .. }, Material::Diffuse { .. })
+                | (Material::Black, Material::Black)
+        ));
+    }
+    assert_eq!(got.render.spp, 64);
+    assert_eq!(got.render.max_depth, 6);
+    // Per-group mean radiance, one seed in both: equal to within noise (here, to rounding).
+    for (name, a, b, _) in object_means(&want, &got, 16) {
+        let rel = ((a - b).abs() / a.max(Rgb::splat(1e-3))).max_element();
+        assert!(rel < 2e-3, "{name}: {a} vs {b}");
+    }
+}
+
+/// A `-D` parameter overrides a `<default>`.
+#[test]
+fn command_line_parameters_override_defaults() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("cbox.toml");
+    let xml = root().join("scenes/mitsuba-cbox/scene.xml");
+    let (code, _, stderr) = run(
+        &[
+            "import",
+            "mitsuba",
+            xml.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "-D",
+            "res_x=64",
+            "-D",
+            "spp=3",
+        ],
+        dir.path(),
+    );
+    assert_eq!(code, 0, "{stderr}");
+    let sc = load_scene(&out).unwrap();
+    assert_eq!(
+        (sc.camera.width, sc.camera.height, sc.render.spp),
+        (64, 192, 3)
+    );
+}
+
+/// An XML scene around one shape element, written to `dir/scene.xml`.
+fn xml_with(dir: &Path, body: &str) -> std::path::PathBuf {
+    write(
+        dir,
+        "scene.xml",
+        &format!(
+            "<scene version=\"3.0.0\">\n<sensor type=\"perspective\">\n\
+             <float name=\"fov\" value=\"40\"/>\n</sensor>\n{body}\n</scene>\n"
+        ),
+    )
+}
+
+fn import_fails(xml: &Path) -> String {
+    let out = xml.with_file_name("out.toml");
+    let (code, stdout, stderr) = run(
+        &[
+            "import",
+            "mitsuba",
+            xml.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        xml.parent().unwrap(),
+    );
+    assert_eq!(code, 2, "{stdout}\n{stderr}");
+    assert!(!out.exists(), "nothing is written on an error");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    stderr
+}
+
+#[test]
+fn bad_mitsuba_files_are_errors_naming_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+
+    let missing = import_fails(&d.join("nowhere.xml"));
+    assert!(
+        missing.starts_with("error: cannot read Mitsuba scene"),
+        "{missing}"
+    );
+    assert!(missing.contains("nowhere.xml"), "{missing}");
+
+    let xml = xml_with(d, "<shape type=\"disk\"/>");
+    let e = import_fails(&xml);
+    assert!(
+        e.contains(&format!(
+            "error: {}:5: shape type 'disk' is not supported",
+            xml.display()
+        )),
+        "{e}"
+    );
+
+    let xml = write(
+        d,
+        "scene.xml",
+        "<scene version=\"3.0.0\">\n<shape type=\"cube\">\n</scene>\n",
+    );
+    let e = import_fails(&xml);
+    assert!(
+        e.contains(&format!("error: {}:3: malformed XML", xml.display())),
+        "{e}"
+    );
+
+    let xml = xml_with(d, "<emitter type=\"envmap\"/>");
+    let e = import_fails(&xml);
+    assert!(
+        e.contains(":5: emitter type 'envmap' cannot be imported"),
+        "{e}"
+    );
+
+    let xml = xml_with(
+        d,
+        "<shape type=\"sphere\">\n<float name=\"radius\" value=\"$r\"/>\n</shape>",
+    );
+    let e = import_fails(&xml);
+    assert!(e.contains(":6: parameter $r has no value"), "{e}");
+
+    let xml = xml_with(
+        d,
+        "<shape type=\"ply\">\n<string name=\"filename\" value=\"gone.ply\"/>\n</shape>",
+    );
+    let e = import_fails(&xml);
+    assert!(
+        e.contains(":5: file ") && e.contains("gone.ply not found"),
+        "{e}"
+    );
+}
+
+/// What matfit cannot render exactly is imported as the nearest material, with a warning that
+/// names the element's line, repeated in the file's header; exact BSDFs stay exact.
+#[test]
+fn approximations_are_warnings_listed_in_the_header() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write(d, "meshes/tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    let xml = write(
+        d,
+        "scene.xml",
+        r#"<scene version="3.0.0">
+<sensor type="perspective">
+    <float name="fov" value="50"/>
+    <transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="32"/><integer name="height" value="32"/></film>
+</sensor>
+<bsdf type="roughplastic" id="plastic">
+    <float name="alpha" value="0.2"/>
+    <rgb name="diffuse_reflectance" value="0.5, 0.4, 0.3"/>
+</bsdf>
+<bsdf type="twosided" id="blend">
+    <bsdf type="blendbsdf">
+        <float name="weight" value="0.25"/>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.4"/></bsdf>
+        <bsdf type="conductor"><rgb name="specular_reflectance" value="0.8"/></bsdf>
+    </bsdf>
+</bsdf>
+<shape type="rectangle" id="board"><ref id="plastic"/></shape>
+<shape type="obj" id="tri">
+    <string name="filename" value="meshes/tri.obj"/>
+    <transform name="to_world"><scale value="2"/><translate z="1"/></transform>
+    <ref id="blend"/>
+</shape>
+<shape type="sphere" id="gold">
+    <float name="radius" value="0.1"/>
+    <bsdf type="conductor"><string name="material" value="Au"/></bsdf>
+</shape>
+<shape type="rectangle" id="lamp">
+    <transform name="to_world"><scale value="0.2"/><translate z="2"/></transform>
+    <emitter type="area"><rgb name="radiance" value="5"/></emitter>
+</shape>
+</scene>
+"#,
+    );
+    let out = d.join("out").join("scene.toml");
+    std::fs::create_dir(d.join("out")).unwrap();
+    let stderr = import(&xml, &out);
+    let text = std::fs::read_to_string(&out).unwrap();
+    for (line, what) in [
+        (5, "no rfilter"),
+        (7, "imported as Ward"),
+        (7, "one-sided"),
+        (26, "a mirror with ρs = Fresnel"),
+        (26, "one-sided"),
+    ] {
+        let w = format!("{}:{line}: ", xml.display());
+        assert!(
+            stderr.lines().any(|l| l.contains(&w) && l.contains(what)),
+            "{w}{what} in\n{stderr}"
+        );
+        assert!(
+            text.lines()
+                .any(|l| l.starts_with("# - ") && l.contains(&w) && l.contains(what)),
+            "{what} in\n{text}"
+        );
+    }
+    let sc = load_scene(&out).unwrap();
+    let obj = |n: &str| sc.objects.iter().find(|o| o.name == n).unwrap();
+    // Roughplastic: F0 = ((1.49/1.000277 − 1)/(1.49/1.000277 + 1))² ≈ 0.0387, α = alpha.
+    match &obj("board").material {
+        Material::Ward {
+            rho_d,
+            rho_s,
+            alpha_x,
+            ..
+        } => {
+            assert!((rho_s.x - 0.0387).abs() < 1e-3, "{rho_s}");
+            assert!((rho_d.x - 0.5 * (1.0 - rho_s.x)).abs() < 1e-6, "{rho_d}");
+            assert_eq!(*alpha_x, 0.2);
+        }
+        m => panic!("{m:?}"),
+    }
+    // The blend is exact: ρd = 0.75 · 0.4, ρs = 0.25 · 0.8; the mesh is placed by to_world
+    // and referred to from the output's folder.
+    match &obj("tri").material {
+        Material::DiffuseMirror { rho_d, rho_s } => {
+            assert!((rho_d.x - 0.3).abs() < 1e-6 && (rho_s.x - 0.2).abs() < 1e-6);
+        }
+        m => panic!("{m:?}"),
+    }
+    assert!(text.contains("file = \"../meshes/tri.obj\""), "{text}");
+    let t = &obj("tri").tri_range;
+    let p = |k: usize| sc.geometry.positions[sc.geometry.tris[t.start as usize].v[k] as usize];
+    assert_eq!(p(1).to_array(), [2.0, 0.0, 1.0]);
+    // Gold from the table; a shape without a BSDF has Mitsuba's default, diffuse 0.5.
+    assert!((obj("gold").material.rho_s().y - 0.766).abs() < 1e-6);
+    assert_eq!(obj("lamp").emission, Rgb::splat(5.0));
+    assert!(matches!(obj("lamp").material, Material::Diffuse { .. }));
+}
