@@ -5,6 +5,7 @@ mod cli;
 mod common;
 mod edit;
 mod export;
+mod export_gltf;
 mod fuzz_replay;
 mod geometry;
 mod import;

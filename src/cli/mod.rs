@@ -166,16 +166,17 @@ pub enum Command {
         force: bool,
     },
     /// Export a scene to another renderer: `matfit export mitsuba SCENE -o DIR` writes
-    /// DIR/scene.xml (Mitsuba 3) and DIR/meshes/*.ply; approximations are printed as warnings.
+    /// DIR/scene.xml (Mitsuba 3) and DIR/meshes/*.ply; `matfit export gltf SCENE -o OUT.glb`
+    /// one binary glTF 2.0 file. Approximations are printed as warnings.
     Export {
         /// Target renderer.
         format: FormatArg,
         #[arg(help = SCENE_HELP)]
         scene: PathBuf,
-        /// Output folder (created if needed).
+        /// Output folder (mitsuba; created if needed) or .glb file (gltf).
         #[arg(short, long)]
         output: PathBuf,
-        /// Write into OUTPUT even if it holds files that are not a matfit output.
+        /// Write into OUTPUT even if it holds files that are not a matfit output (mitsuba).
         #[arg(long)]
         force: bool,
     },
@@ -293,6 +294,8 @@ impl EditCli {
 pub enum FormatArg {
     /// Mitsuba 3 scene (XML, version 3.0.0) with one binary PLY per object.
     Mitsuba,
+    /// glTF 2.0 binary (.glb): meshes, metallic-roughness materials, textures, the camera.
+    Gltf,
 }
 
 /// The formats `import` reads.
@@ -696,21 +699,28 @@ pub fn run(cmd: Command) -> Result<()> {
             force,
         } => {
             let (sc, _) = load(&scene)?;
-            checks::output_folder(&output, force)?;
-            prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
             let report = match format {
                 FormatArg::Mitsuba => {
+                    checks::output_folder(&output, force)?;
+                    prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
                     matfit::export::mitsuba::export(&sc, &output).map_err(anyhow::Error::msg)?
+                }
+                FormatArg::Gltf => {
+                    let ext = output.extension().and_then(|e| e.to_str()).unwrap_or("");
+                    if !ext.eq_ignore_ascii_case("glb") {
+                        bail!("{}: output must end in .glb", output.display());
+                    }
+                    check_output_file(&output).map_err(anyhow::Error::msg)?;
+                    matfit::export::gltf::export(&sc, &output).map_err(anyhow::Error::msg)?
                 }
             };
             for w in &report.warnings {
                 out::warn(w.clone());
             }
-            outln!(
-                "wrote {} ({} files)",
-                report.files[0].display(),
-                report.files.len()
-            );
+            match report.files.len() {
+                1 => outln!("wrote {}", report.files[0].display()),
+                n => outln!("wrote {} ({n} files)", report.files[0].display()),
+            }
             Ok(())
         }
         Command::Import {

@@ -1,6 +1,7 @@
 //! Export of a scene to other renderers' formats, so that people can keep working in their own
 //! tools and so that an independent renderer can check ours (`bench/crosscheck.py`).
 
+pub mod gltf;
 pub mod mitsuba;
 
 /// The formats `matfit export` writes.
@@ -8,6 +9,8 @@ pub mod mitsuba;
 pub enum Format {
     /// Mitsuba 3 scene (XML, version 3.0.0) with one binary PLY per object.
     Mitsuba,
+    /// glTF 2.0 binary (.glb): meshes, metallic-roughness materials, textures, the camera.
+    Gltf,
 }
 
 /// What an export wrote, and what it could not carry over exactly.

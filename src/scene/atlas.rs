@@ -209,6 +209,17 @@ impl Atlas {
         ])
     }
 
+    /// The continuous atlas position of a surface point, in texels from the atlas's top-left
+    /// corner (texel (i, j) covers [i, i+1) × [j, j+1)), not clamped: where a renderer that
+    /// samples the atlas through UVs must look (`export::gltf`). None off the group.
+    pub fn position(&self, object: u32, p: Vec3, ng: Vec3) -> Option<[f32; 2]> {
+        let c = self.chart(object, ng)?;
+        Some([
+            c.x0 as f32 + (p.dot(c.u) - c.s_min) / self.texel,
+            c.y0 as f32 + (c.t_max - p.dot(c.v)) / self.texel,
+        ])
+    }
+
     /// The texel whose square holds a surface point (None off the group or outside its chart):
     /// for box-filtering a reference texture onto the atlas.
     pub fn texel_at(&self, object: u32, p: Vec3, ng: Vec3) -> Option<u32> {
