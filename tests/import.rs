@@ -140,10 +140,7 @@ fn object_means(a: &Scene, b: &Scene, spp: u32) -> Vec<(String, Rgb, Rgb, usize)
 /// texture becomes its mean; the rest is exact.
 fn as_exported(sc: &mut Scene) {
     for o in &mut sc.objects {
-        if matches!(
-            o.material,
-            Material::Ward { .. } | Material::Textured { .. }
-        ) {
+        if matches!(o.material, Material::Textured { .. }) {
             o.material = Material::Diffuse {
                 rho_d: o.material.rho_d(),
             };
@@ -176,12 +173,49 @@ fn round_trip(scene: &str) {
         "{text}"
     );
     assert!(text.contains("file = \"../mi/meshes/000_"), "{text}");
-    // The exporter's XML is in the imported subset: nothing is approximated on the way back.
-    assert!(!warnings.contains("warning"), "{warnings}");
-
     let mut original = load_scene(&src).unwrap();
     as_exported(&mut original);
     let back = load_scene(&out).unwrap();
+    // The exporter's XML is in the imported subset: nothing is approximated on the way back but
+    // Ward, which went out as a rescaled Beckmann lobe (src/export/mitsuba.rs) and comes back as
+    // a Ward initial guess: same ρd and α, anisotropy along the same axes (the exporter's UVs
+    // make dp/du the tangent), ρs scaled by the exporter's k.
+    let has_ward = original
+        .objects
+        .iter()
+        .any(|o| matches!(o.material, Material::Ward { .. }));
+    for line in warnings.lines().filter(|l| l.contains("warning")) {
+        assert!(
+            has_ward && (line.contains("roughconductor") || line.contains("blendbsdf")),
+            "{warnings}"
+        );
+    }
+    for (oa, ob) in original.objects.iter_mut().zip(&back.objects) {
+        if let (
+            Material::Ward {
+                rho_s,
+                alpha_x,
+                alpha_y,
+                ..
+            },
+            Material::Ward {
+                rho_s: back_s,
+                alpha_x: bx,
+                alpha_y: by,
+                ..
+            },
+        ) = (&mut oa.material, &ob.material)
+        {
+            assert_eq!((*alpha_x, *alpha_y), (*bx, *by), "{}", oa.name);
+            let k = *back_s / *rho_s;
+            assert!(
+                k.max_element() - k.min_element() < 1e-5 && k.x > 0.05 && k.x <= 1.0,
+                "{}: k {k}",
+                oa.name
+            );
+            *rho_s = *back_s;
+        }
+    }
     assert_same_camera(&original, &back, 1e-5);
     assert_same_geometry(&original, &back, 1e-6);
     assert_eq!(back.render.max_depth, original.render.max_depth);

@@ -763,17 +763,7 @@ fn camera_json(scene: &Scene, warnings: &mut Vec<String>) -> (Value, Value) {
              which glTF cameras cannot express; exported centred (the image shifts by that much)"
         ));
     }
-    let b = scene.geometry.bvh.bounds();
-    let mut far = 0.0f32;
-    for i in 0..8 {
-        let corner = Vec3::new(
-            if i & 1 == 0 { b.min.x } else { b.max.x },
-            if i & 2 == 0 { b.min.y } else { b.max.y },
-            if i & 4 == 0 { b.min.z } else { b.max.z },
-        );
-        far = far.max((corner - eye).length());
-    }
-    let far = (2.0 * far).max(1e-3);
+    let far = super::far_clip(scene, eye);
     let g = &*scene.geometry;
     let nearest = g
         .tris

@@ -21,3 +21,19 @@ pub struct ExportReport {
     /// One message per approximation (a material or camera the target cannot express).
     pub warnings: Vec<String>,
 }
+
+/// A far clipping distance that cuts nothing: twice the distance from `eye` to the farthest
+/// corner of the scene's bounds.
+pub(crate) fn far_clip(scene: &crate::scene::Scene, eye: crate::math::Vec3) -> f32 {
+    let b = scene.geometry.bvh.bounds();
+    let mut far = 0.0f32;
+    for i in 0..8 {
+        let corner = crate::math::Vec3::new(
+            if i & 1 == 0 { b.min.x } else { b.max.x },
+            if i & 2 == 0 { b.min.y } else { b.max.y },
+            if i & 4 == 0 { b.min.z } else { b.max.z },
+        );
+        far = far.max((corner - eye).length());
+    }
+    (2.0 * far).max(1e-3)
+}

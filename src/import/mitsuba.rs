@@ -56,6 +56,7 @@ use super::ImportReport;
 use crate::scene::schema::{
     CameraSpec, Color, MaterialSpec, ObjectSpec, RenderSpec, SceneFile, ShapeKind, TransformSpec,
 };
+use crate::scene::write::relative;
 use glam::{DMat3, DMat4, DQuat, DVec3, DVec4, EulerRot};
 use roxmltree::{Document, Node};
 use std::collections::{HashMap, HashSet};
@@ -1318,24 +1319,6 @@ pub(crate) fn decompose(m: DMat4) -> Option<TransformSpec> {
             .then(|| f32s(rot).map(|a| (a as f64).to_degrees() as f32)),
         translate: (t != DVec3::ZERO).then(|| f32s(t)),
     })
-}
-
-/// `path` relative to the folder `base` (both absolute), if they share a root.
-fn relative(path: &Path, base: &Path) -> Option<PathBuf> {
-    let p: Vec<_> = path.components().collect();
-    let b: Vec<_> = base.components().collect();
-    let common = p.iter().zip(&b).take_while(|(a, b)| a == b).count();
-    if common == 0 {
-        return None;
-    }
-    let mut out = PathBuf::new();
-    for _ in common..b.len() {
-        out.push("..");
-    }
-    for c in &p[common..] {
-        out.push(c);
-    }
-    Some(out)
 }
 
 #[cfg(test)]

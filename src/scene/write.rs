@@ -85,7 +85,8 @@ fn rebase(p: &str, from_dir: &Path, to_dir: &Path) -> String {
         .into_owned()
 }
 
-fn relative(path: &Path, base: &Path) -> Option<PathBuf> {
+/// `path` relative to the folder `base` (both absolute), if they share a root.
+pub(crate) fn relative(path: &Path, base: &Path) -> Option<PathBuf> {
     let p: Vec<_> = path.components().collect();
     let b: Vec<_> = base.components().collect();
     let common = p.iter().zip(&b).take_while(|(a, b)| a == b).count();
