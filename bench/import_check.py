@@ -38,6 +38,8 @@ ROOT = cc.ROOT
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--xml", default=os.path.join(ROOT, "scenes", "mitsuba-cbox", "scene.xml"))
+    ap.add_argument("--params", help="the XML's parameters instead of res_x/res_y from --res, "
+                    "as NAME=VALUE,... (e.g. res=256 for shared/data/cornell-box/cbox.xml)")
     ap.add_argument("--spp", type=int, default=256, help="samples per pixel, both renderers")
     ap.add_argument("--res", default="256x192", help="resolution (the XML's $res_x, $res_y)")
     ap.add_argument("--matfit", help="matfit binary (default: $MATFIT, $CARGO_TARGET_DIR)")
@@ -61,6 +63,8 @@ def main():
     # The XML's $spp is not passed to Mitsuba: render(spp=...) sets it (and crosscheck's helper
     # takes spp itself).
     params = dict(res_x=w, res_y=h)
+    if args.params:
+        params = dict(kv.split("=", 1) for kv in args.params.split(","))
 
     scene = os.path.join(work, "scene.toml")
     cmd = [exe, "import", "mitsuba", args.xml, "-o", scene]

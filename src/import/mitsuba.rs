@@ -33,11 +33,11 @@
 //!   an inline one with an id) is in the group named by that id, so that shapes sharing a BSDF
 //!   share their reflectance; any other shape is its own group, named by its id (or
 //!   `TYPE_N`, the N-th shape, when it has none). Objects are named by the shape's id.
-//! - **Lights.** `area` emitters' `radiance` (rgb, or a constant spectrum) → emission.
+//! - **Lights.** `area` emitters' `radiance` (rgb, a constant or a sampled spectrum) → emission.
 //!   Every other emitter (envmap, constant, point, spot, directional) is an error: the lights
 //!   are known inputs of a recovery, and one dropped would bias every group.
 //! - **BSDFs** (matfit's surfaces are two-sided: `twosided` is unwrapped, a one-sided BSDF is a
-//!   warning). Exact: `diffuse` (reflectance rgb / constant spectrum / bitmap texture →
+//!   warning). Exact: `diffuse` (reflectance rgb / constant or sampled spectrum / bitmap texture →
 //!   textured) → diffuse; `conductor` with material `none` → mirror ρs = specular_reflectance;
 //!   `blendbsdf` of those → diffuse_mirror ρd = (1−w)·ρd₁ + w·ρd₂, ρs likewise (the exporter's
 //!   blend inverted). Initial guesses, not truth (a warning each), with ρs from Fresnel
@@ -51,6 +51,8 @@
 //!   (dielectrics, …) → diffuse 0.5 with a warning. A shape with no BSDF gets Mitsuba's default,
 //!   diffuse 0.5; a zero reflectance is written `black`. ρd + ρs over 1 is scaled down (a
 //!   warning).
+//! - **Spectra.** A sampled spectrum (wavelength:value pairs) becomes linear sRGB as Mitsuba's
+//!   RGB variants convert it ([`super::spectrum`]); a warning, since a spectral render differs.
 
 use super::ImportReport;
 use crate::scene::schema::{
@@ -310,7 +312,7 @@ impl<'a> Ctx<'a> {
         Ok(DVec3::new(c("x")?, c("y")?, c("z")?))
     }
 
-    /// A colour property: rgb, constant spectrum or float. `Ok(None)` when absent; a bitmap
+    /// A colour property: rgb, spectrum (constant or sampled) or float. `Ok(None)` when absent; a bitmap
     /// texture gives `Err(path)` in the inner result (only diffuse reflectance takes one).
     fn color(&mut self, n: N<'a>, name: &str) -> Result<Option<Result<DVec3, String>>, String> {
         let Some(p) = self.prop(n, name)? else {
@@ -338,13 +340,42 @@ impl<'a> Ctx<'a> {
                 if !v.contains(':') {
                     return Ok(Some(Ok(DVec3::splat(self.number(p, &v)?))));
                 }
-                Err(self.err(
+                let mut samples = Vec::new();
+                for pair in v.split(',') {
+                    let parsed = pair.split_once(':').and_then(|(l, x)| {
+                        Some((l.trim().parse::<f64>().ok()?, x.trim().parse::<f64>().ok()?))
+                    });
+                    match parsed {
+                        Some((l, x))
+                            if l.is_finite()
+                                && x.is_finite()
+                                && samples.last().is_none_or(|&(prev, _)| l > prev) =>
+                        {
+                            samples.push((l, x))
+                        }
+                        _ => {
+                            return Err(self.err(
+                                p,
+                                format!(
+                                    "`{name}`: '{}' is not a wavelength:value pair with the \
+                                     wavelengths increasing",
+                                    pair.trim()
+                                ),
+                            ))
+                        }
+                    }
+                }
+                let rgb = super::spectrum::to_srgb(&samples, name == "radiance");
+                self.warn(
                     p,
                     format!(
-                        "`{name}` is a sampled spectrum (wavelength:value pairs); matfit renders \
-                         RGB: give an <rgb> (tools/cornell_rgb.md shows one conversion)"
+                        "`{name}`: sampled spectrum converted to linear sRGB ({:.4}, {:.4}, \
+                         {:.4}) as Mitsuba's RGB variants convert it (src/import/spectrum.rs); \
+                         a spectral render differs (tools/cornell_rgb.md)",
+                        rgb.x, rgb.y, rgb.z
                     ),
-                ))
+                );
+                Ok(Some(Ok(rgb)))
             }
             "texture" => {
                 let ty = self.need_attr(p, "type")?;

@@ -2,6 +2,7 @@
 //! scenes can be recovered without retyping them. The inverse of [`crate::export`].
 
 pub mod mitsuba;
+pub mod spectrum;
 
 /// What an import produced, and what it could not carry over exactly.
 #[derive(Clone, Debug, Default)]
