@@ -123,11 +123,14 @@ fn figure6_exports_the_same_triangles_camera_and_lights() {
     assert!(xml.contains("<rfilter type=\"box\"/>"));
     assert!(xml.contains("<integer name=\"max_depth\" value=\"8\"/>"));
     assert!(xml.contains("<integer name=\"rr_depth\" value=\"5\"/>"));
+    // One two-sided BSDF per group, named like it, and every shape refers to its group's.
     assert_eq!(
-        xml.matches("<bsdf type=\"twosided\">").count(),
-        scene.objects.len(),
-        "every BSDF is two-sided"
+        xml.matches("<bsdf type=\"twosided\" id=").count(),
+        scene.groups.len(),
+        "every BSDF is two-sided, one per group"
     );
+    assert_eq!(xml.matches("<ref id=").count(), scene.objects.len());
+    assert!(xml.contains("<ref id=\"back_wall\"/>") && xml.contains("id=\"front_wall\""));
     assert_eq!(xml.matches("<emitter type=\"area\">").count(), 1);
     assert!(
         xml.contains("<rgb name=\"radiance\" value=\"30, 30, 30\"/>"),

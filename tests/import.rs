@@ -190,6 +190,15 @@ fn round_trip(scene: &str) {
             "{warnings}"
         );
     }
+    // Objects and groups keep their names (the exporter shares a group's BSDF by id).
+    for (oa, ob) in original.objects.iter().zip(&back.objects) {
+        assert_eq!(oa.name, ob.name);
+        assert_eq!(
+            original.groups[oa.group].name, back.groups[ob.group].name,
+            "{}",
+            oa.name
+        );
+    }
     for (oa, ob) in original.objects.iter_mut().zip(&back.objects) {
         if let (
             Material::Ward {

@@ -70,6 +70,47 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
     write_integrator(&mut xml, scene);
     write_sensor(&mut xml, scene, &mut report.warnings);
 
+    // A group's BSDF, when all its objects have the same one (textures differ: their means), is
+    // defined once with the group's name as id and referenced by its shapes, so that `matfit
+    // import mitsuba` (which groups shapes by BSDF id) gives every object back its group. A
+    // shape named like its group goes without an id (Mitsuba's ids are one namespace); the
+    // importer names such a shape after its BSDF.
+    let members = |g: usize| -> Vec<usize> {
+        (0..scene.objects.len())
+            .filter(|&oi| scene.objects[oi].group == g)
+            .collect()
+    };
+    let mut shared: Vec<Option<String>> = vec![None; scene.groups.len()];
+    for (g, group) in scene.groups.iter().enumerate() {
+        let objs = members(g);
+        let id = mitsuba_id(&group.name, 'g');
+        let taken = scene
+            .objects
+            .iter()
+            .any(|o| o.group != g && mitsuba_id(&o.name, 'o') == id);
+        if objs.is_empty() || taken {
+            continue;
+        }
+        let xmls: Vec<String> = objs
+            .iter()
+            .map(|&oi| object_bsdf(scene, oi, &objs, &mut Vec::new()))
+            .collect();
+        if xmls.iter().any(|x| *x != xmls[0]) {
+            continue;
+        }
+        let bsdf = object_bsdf(scene, objs[0], &objs, &mut report.warnings);
+        let _ = writeln!(
+            xml,
+            "
+    <!-- group '{}' -->
+    <bsdf type=\"twosided\" id=\"{}\">\n{}    </bsdf>",
+            escape_comment(&group.name),
+            escape(&id),
+            indent(&bsdf, 8)
+        );
+        shared[g] = Some(id);
+    }
+
     let mut ply_files = Vec::new();
     for (oi, obj) in scene.objects.iter().enumerate() {
         let file = format!("meshes/{oi:03}_{}.ply", file_stem(&obj.name));
@@ -94,42 +135,26 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
             escape_comment(&obj.name),
             escape_comment(group)
         );
-        // Mitsuba reserves ids that start with an underscore.
-        let id = if obj.name.starts_with('_') {
-            format!("o{}", obj.name)
+        let id = mitsuba_id(&obj.name, 'o');
+        if shared[obj.group].as_ref() == Some(&id) {
+            xml.push_str("    <shape type=\"ply\">\n");
         } else {
-            obj.name.clone()
-        };
-        let _ = writeln!(xml, "    <shape type=\"ply\" id=\"{}\">", escape(&id));
+            let _ = writeln!(xml, "    <shape type=\"ply\" id=\"{}\">", escape(&id));
+        }
         let _ = writeln!(xml, "        <string name=\"filename\" value=\"{file}\"/>");
-        let bsdf = bsdf_xml(
-            &obj.material,
-            &obj.name,
-            || match obj.material {
-                Material::Ward {
-                    alpha_x,
-                    alpha_y,
-                    theta,
-                    ..
-                } => ward_scale(
-                    scene,
-                    oi,
-                    WardLobe {
-                        alpha_x,
-                        alpha_y,
-                        variant: scene.render.ward_variant,
-                    },
-                    theta,
-                ),
-                _ => None,
-            },
-            &mut report.warnings,
-        );
-        let _ = writeln!(
-            xml,
-            "        <bsdf type=\"twosided\">\n{}        </bsdf>",
-            indent(&bsdf, 12)
-        );
+        match &shared[obj.group] {
+            Some(gid) => {
+                let _ = writeln!(xml, "        <ref id=\"{}\"/>", escape(gid));
+            }
+            None => {
+                let bsdf = object_bsdf(scene, oi, &members(obj.group), &mut report.warnings);
+                let _ = writeln!(
+                    xml,
+                    "        <bsdf type=\"twosided\">\n{}        </bsdf>",
+                    indent(&bsdf, 12)
+                );
+            }
+        }
         if obj.is_emitter() {
             let _ = writeln!(
                 xml,
@@ -147,6 +172,44 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
     report.files.push(xml_path);
     report.files.extend(ply_files);
     Ok(report)
+}
+
+/// Mitsuba reserves ids that start with an underscore: such a name gets `prefix` in front.
+fn mitsuba_id(name: &str, prefix: char) -> String {
+    if name.starts_with('_') {
+        format!("{prefix}{name}")
+    } else {
+        name.to_string()
+    }
+}
+
+/// Object `oi`'s BSDF element (without `twosided`); a Ward lobe's scale k is taken over the
+/// camera's view of all of `group` (its group's objects), so that the group shares one BSDF.
+fn object_bsdf(scene: &Scene, oi: usize, group: &[usize], warnings: &mut Vec<String>) -> String {
+    let obj = &scene.objects[oi];
+    bsdf_xml(
+        &obj.material,
+        &obj.name,
+        || match obj.material {
+            Material::Ward {
+                alpha_x,
+                alpha_y,
+                theta,
+                ..
+            } => ward_scale(
+                scene,
+                group,
+                WardLobe {
+                    alpha_x,
+                    alpha_y,
+                    variant: scene.render.ward_variant,
+                },
+                theta,
+            ),
+            _ => None,
+        },
+        warnings,
+    )
 }
 
 fn write_integrator(xml: &mut String, scene: &Scene) {
@@ -223,11 +286,10 @@ fn write_sensor(xml: &mut String, scene: &Scene, warnings: &mut Vec<String>) {
     );
 }
 
-/// The scale k of the Beckmann lobe that stands for object `oi`'s Ward lobe in Mitsuba: the
-/// ratio of the two lobes' albedos ∫ f cosθi dωi, summed over the camera's view directions of
-/// the object (a 64 × 48 grid of rays) and estimated with 32 of Ward's own samples per view
+/// The scale k of the Beckmann lobe that stands for a Ward lobe in Mitsuba: the ratio of the
+/// two lobes' albedos ∫ f cosθi dωi, summed over the camera's view directions of `objects` (a 64 × 48 grid of rays) and estimated with 32 of Ward's own samples per view
 /// (common to both lobes, fixed hash: deterministic). `None` where the camera does not see it.
-fn ward_scale(scene: &Scene, oi: usize, lobe: WardLobe, theta: f32) -> Option<f32> {
+fn ward_scale(scene: &Scene, objects: &[usize], lobe: WardLobe, theta: f32) -> Option<f32> {
     let cam = &scene.camera;
     let (nx, ny, spv) = (64u64, 48u64, 32u64);
     let (mut ward, mut beckmann) = (0.0f64, 0.0f64);
@@ -241,7 +303,7 @@ fn ward_scale(scene: &Scene, oi: usize, lobe: WardLobe, theta: f32) -> Option<f3
             let Some(hit) = scene.intersect(&ray, f32::INFINITY) else {
                 continue;
             };
-            if hit.object as usize != oi {
+            if !objects.contains(&(hit.object as usize)) {
                 continue;
             }
             let mut wo = hit.frame.rotated(theta).to_local(-ray.d);

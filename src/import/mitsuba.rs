@@ -32,7 +32,10 @@
 //! - **Groups.** What matfit fits: a shape whose BSDF has an id (a `<ref>` to a shared BSDF, or
 //!   an inline one with an id) is in the group named by that id, so that shapes sharing a BSDF
 //!   share their reflectance; any other shape is its own group, named by its id (or
-//!   `TYPE_N`, the N-th shape, when it has none). Objects are named by the shape's id.
+//!   `TYPE_N`, the N-th shape, when it has none). Objects are named by the shape's id; a shape
+//!   without one is named after its BSDF's id if no object has that name yet (how `matfit export
+//!   mitsuba` writes an object named like its group, ids being one namespace in Mitsuba), else
+//!   `TYPE_N`.
 //! - **Lights.** `area` emitters' `radiance` (rgb, a constant or a sampled spectrum) → emission.
 //!   Every other emitter (envmap, constant, point, spot, directional) is an error: the lights
 //!   are known inputs of a recovery, and one dropped would bias every group.
@@ -554,7 +557,10 @@ impl<'a> Ctx<'a> {
                     *k += 1;
                     let mut name = match self.attr(c, "id")? {
                         Some(id) => id,
-                        None => format!("{ty}_{k}"),
+                        None => match self.bsdf_id(c)? {
+                            Some(b) if !names.contains(&b) => b,
+                            _ => format!("{ty}_{k}"),
+                        },
                     };
                     while !names.insert(name.clone()) {
                         name.push('_');
@@ -779,18 +785,36 @@ impl<'a> Ctx<'a> {
         })
     }
 
+    /// A shape's child elements with its `<ref>`s resolved (a ref named other than `bsdf` is
+    /// skipped).
+    fn shape_children(&mut self, n: N<'a>) -> Result<Vec<N<'a>>, String> {
+        let mut out = Vec::new();
+        for c in Self::children(n) {
+            if c.tag_name().name() != "ref" {
+                out.push(c);
+            } else if c.attribute("name").is_none_or(|v| v == "bsdf") {
+                out.push(self.resolve(c)?);
+            }
+        }
+        Ok(out)
+    }
+
+    /// The id of a shape's BSDF (referenced, or inline with an id), if it has one.
+    fn bsdf_id(&mut self, n: N<'a>) -> Result<Option<String>, String> {
+        match self
+            .shape_children(n)?
+            .into_iter()
+            .find(|c| c.tag_name().name() == "bsdf")
+        {
+            Some(b) => self.attr(b, "id"),
+            None => Ok(None),
+        }
+    }
+
     fn shape(&mut self, n: N<'a>, ty: &str, name: String) -> Result<ObjectSpec, String> {
         let mut bsdf = None;
         let mut emitter = None;
-        for c in Self::children(n) {
-            let el = if c.tag_name().name() == "ref" {
-                if c.attribute("name").is_some_and(|v| v != "bsdf") {
-                    continue;
-                }
-                self.resolve(c)?
-            } else {
-                c
-            };
+        for el in self.shape_children(n)? {
             match el.tag_name().name() {
                 "bsdf" => bsdf = Some(el),
                 "emitter" => emitter = Some(el),
