@@ -75,38 +75,33 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
     // import mitsuba` (which groups shapes by BSDF id) gives every object back its group. A
     // shape named like its group goes without an id (Mitsuba's ids are one namespace); the
     // importer names such a shape after its BSDF.
-    let members = |g: usize| -> Vec<usize> {
-        (0..scene.objects.len())
-            .filter(|&oi| scene.objects[oi].group == g)
-            .collect()
-    };
+    // Each object's BSDF and its warnings, computed once.
+    let mut bsdfs: Vec<(String, Vec<String>)> = vec![Default::default(); scene.objects.len()];
     let mut shared: Vec<Option<String>> = vec![None; scene.groups.len()];
     for (g, group) in scene.groups.iter().enumerate() {
-        let objs = members(g);
+        let objs: Vec<usize> = (0..scene.objects.len())
+            .filter(|&oi| scene.objects[oi].group == g)
+            .collect();
+        for &oi in &objs {
+            let mut warnings = Vec::new();
+            bsdfs[oi] = (object_bsdf(scene, oi, &objs, &mut warnings), warnings);
+        }
         let id = mitsuba_id(&group.name, 'g');
         let taken = scene
             .objects
             .iter()
             .any(|o| o.group != g && mitsuba_id(&o.name, 'o') == id);
-        if objs.is_empty() || taken {
+        if objs.is_empty() || taken || objs.iter().any(|&oi| bsdfs[oi].0 != bsdfs[objs[0]].0) {
             continue;
         }
-        let xmls: Vec<String> = objs
-            .iter()
-            .map(|&oi| object_bsdf(scene, oi, &objs, &mut Vec::new()))
-            .collect();
-        if xmls.iter().any(|x| *x != xmls[0]) {
-            continue;
-        }
-        let bsdf = object_bsdf(scene, objs[0], &objs, &mut report.warnings);
+        let (bsdf, warnings) = &bsdfs[objs[0]];
+        report.warnings.extend(warnings.iter().cloned());
         let _ = writeln!(
             xml,
-            "
-    <!-- group '{}' -->
-    <bsdf type=\"twosided\" id=\"{}\">\n{}    </bsdf>",
+            "\n    <!-- group '{}' -->\n    <bsdf type=\"twosided\" id=\"{}\">\n{}    </bsdf>",
             escape_comment(&group.name),
             escape(&id),
-            indent(&bsdf, 8)
+            indent(bsdf, 8)
         );
         shared[g] = Some(id);
     }
@@ -147,11 +142,12 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
                 let _ = writeln!(xml, "        <ref id=\"{}\"/>", escape(gid));
             }
             None => {
-                let bsdf = object_bsdf(scene, oi, &members(obj.group), &mut report.warnings);
+                let (bsdf, warnings) = &bsdfs[oi];
+                report.warnings.extend(warnings.iter().cloned());
                 let _ = writeln!(
                     xml,
                     "        <bsdf type=\"twosided\">\n{}        </bsdf>",
-                    indent(&bsdf, 12)
+                    indent(bsdf, 12)
                 );
             }
         }
@@ -287,41 +283,30 @@ fn write_sensor(xml: &mut String, scene: &Scene, warnings: &mut Vec<String>) {
 }
 
 /// The scale k of the Beckmann lobe that stands for a Ward lobe in Mitsuba: the ratio of the
-/// two lobes' albedos ∫ f cosθi dωi, summed over the camera's view directions of `objects` (a 64 × 48 grid of rays) and estimated with 32 of Ward's own samples per view
-/// (common to both lobes, fixed hash: deterministic). `None` where the camera does not see it.
+/// two lobes' albedos ∫ f cosθi dωi, summed over the camera's view directions of `objects` (a
+/// 64 × 48 grid of camera rays) and estimated with 32 of Ward's own samples per view (common to
+/// both lobes, fixed hash: deterministic). `None` where the camera does not see them.
 fn ward_scale(scene: &Scene, objects: &[usize], lobe: WardLobe, theta: f32) -> Option<f32> {
-    let cam = &scene.camera;
-    let (nx, ny, spv) = (64u64, 48u64, 32u64);
+    let spv = 32u64;
     let (mut ward, mut beckmann) = (0.0f64, 0.0f64);
-    for j in 0..ny {
-        for i in 0..nx {
-            let film = Vec2::new(
-                (i as f32 + 0.5) / nx as f32 * cam.width as f32,
-                (j as f32 + 0.5) / ny as f32 * cam.height as f32,
-            );
-            let ray = cam.ray(film);
-            let Some(hit) = scene.intersect(&ray, f32::INFINITY) else {
+    for (v, ray, hit) in scene.camera_grid_hits(64, 48) {
+        if !objects.contains(&(hit.object as usize)) {
+            continue;
+        }
+        let mut wo = hit.frame.rotated(theta).to_local(-ray.d);
+        wo.z = wo.z.abs(); // both renderers' surfaces are two-sided
+        for k in 0..spv {
+            let h = mix64(u64::from(v) * spv + k);
+            let u = Vec2::new(unit_f32(h), unit_f32(mix64(h)));
+            let Some(wi) = lobe.sample(wo, u) else {
                 continue;
             };
-            if !objects.contains(&(hit.object as usize)) {
+            let pdf = lobe.pdf(wo, wi);
+            if !(pdf > 0.0) || wi.z <= 0.0 {
                 continue;
             }
-            let mut wo = hit.frame.rotated(theta).to_local(-ray.d);
-            wo.z = wo.z.abs(); // both renderers' surfaces are two-sided
-            for k in 0..spv {
-                let h = mix64((j * nx + i) * spv + k);
-                let u = Vec2::new(unit_f32(h), unit_f32(mix64(h)));
-                let Some(wi) = lobe.sample(wo, u) else {
-                    continue;
-                };
-                let pdf = lobe.pdf(wo, wi);
-                if !(pdf > 0.0) || wi.z <= 0.0 {
-                    continue;
-                }
-                ward += f64::from(lobe.eval(wo, wi) * wi.z / pdf);
-                beckmann +=
-                    f64::from(beckmann_lobe(lobe.alpha_x, lobe.alpha_y, wo, wi) * wi.z / pdf);
-            }
+            ward += f64::from(lobe.eval(wo, wi) * wi.z / pdf);
+            beckmann += f64::from(beckmann_lobe(lobe.alpha_x, lobe.alpha_y, wo, wi) * wi.z / pdf);
         }
     }
     (beckmann > 0.0).then(|| (ward / beckmann) as f32)
@@ -366,12 +351,6 @@ fn bsdf_xml(
     ward_scale: impl FnOnce() -> Option<f32>,
     warnings: &mut Vec<String>,
 ) -> String {
-    let diffuse = |c: Rgb| {
-        format!(
-            "<bsdf type=\"diffuse\">\n    {}\n</bsdf>\n",
-            rgb("reflectance", c)
-        )
-    };
     let mirror = |c: Rgb| {
         format!(
             "<bsdf type=\"conductor\">\n    <string name=\"material\" value=\"none\"/>\n    {}\n</bsdf>\n",
@@ -450,12 +429,6 @@ fn blend(
     kind: &str,
     warnings: &mut Vec<String>,
 ) -> String {
-    let diffuse = |c: Rgb| {
-        format!(
-            "<bsdf type=\"diffuse\">\n    {}\n</bsdf>\n",
-            rgb("reflectance", c)
-        )
-    };
     let (d, s) = (rho_d.max_element(), rho_s.max_element());
     if s <= 0.0 {
         return diffuse(rho_d);
@@ -556,6 +529,14 @@ fn object_ply_with(scene: &Scene, oi: usize, anisotropy: Option<f32>) -> Vec<u8>
         }
     }
     out
+}
+
+/// Mitsuba's Lambert BSDF of reflectance `c`.
+fn diffuse(c: Rgb) -> String {
+    format!(
+        "<bsdf type=\"diffuse\">\n    {}\n</bsdf>\n",
+        rgb("reflectance", c)
+    )
 }
 
 fn rgb(name: &str, c: Rgb) -> String {

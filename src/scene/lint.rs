@@ -3,7 +3,7 @@
 //! can receive light from. Commands run them before the long work.
 
 use super::Scene;
-use crate::math::{Vec2, Vec3};
+use crate::math::Vec3;
 
 /// What the camera's view says about the scene's lights.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -27,22 +27,14 @@ impl Lighting {
 /// Points the camera sees on a `nx`×`ny` grid of the film: (point, normal on the camera's
 /// side, object).
 fn visible_points(scene: &Scene, nx: u32, ny: u32) -> Vec<(Vec3, Vec3, usize)> {
-    let cam = &scene.camera;
-    let mut pts = Vec::new();
-    for j in 0..ny {
-        for i in 0..nx {
-            let film = Vec2::new(
-                (i as f32 + 0.5) / nx as f32 * cam.width as f32,
-                (j as f32 + 0.5) / ny as f32 * cam.height as f32,
-            );
-            let ray = cam.ray(film);
-            if let Some(h) = scene.intersect(&ray, f32::INFINITY) {
-                let n = if h.ng.dot(ray.d) < 0.0 { h.ng } else { -h.ng };
-                pts.push((h.p, n, h.object as usize));
-            }
-        }
-    }
-    pts
+    scene
+        .camera_grid_hits(nx, ny)
+        .into_iter()
+        .map(|(_, ray, h)| {
+            let n = if h.ng.dot(ray.d) < 0.0 { h.ng } else { -h.ng };
+            (h.p, n, h.object as usize)
+        })
+        .collect()
 }
 
 /// Which emitters can light what the camera sees. Geometric only (occlusion is not tested):

@@ -197,6 +197,27 @@ impl Scene {
         self.groups.iter().position(|g| g.name == name)
     }
 
+    /// What the camera sees through the centres of an `nx`×`ny` grid over its film: each camera
+    /// ray that hits something, with its grid index (row-major) and its hit (a cheap survey of
+    /// the view, not a render).
+    pub fn camera_grid_hits(&self, nx: u32, ny: u32) -> Vec<(u32, Ray, SurfaceHit)> {
+        let cam = &self.camera;
+        let mut hits = Vec::new();
+        for j in 0..ny {
+            for i in 0..nx {
+                let film = crate::math::Vec2::new(
+                    (i as f32 + 0.5) / nx as f32 * cam.width as f32,
+                    (j as f32 + 0.5) / ny as f32 * cam.height as f32,
+                );
+                let ray = cam.ray(film);
+                if let Some(h) = self.intersect(&ray, f32::INFINITY) {
+                    hits.push((j * nx + i, ray, h));
+                }
+            }
+        }
+        hits
+    }
+
     /// The closest surface along `ray` within `t_max`.
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<SurfaceHit> {
         let hit = self.geometry.bvh.intersect(ray, t_max)?;
