@@ -9,9 +9,9 @@ use matfit::render::film::{render, RenderOptions};
 use matfit::scene::{load_scene, Material, Scene};
 use std::path::Path;
 
-/// `matfit import mitsuba XML -o OUT`, which must succeed; returns its stderr (the warnings).
-fn import(xml: &Path, out: &Path) -> String {
-    let (code, stdout, stderr) = run(
+/// `matfit import mitsuba XML -o OUT`, run in OUT's folder: (exit code, stdout, stderr).
+fn run_import(xml: &Path, out: &Path) -> (i32, String, String) {
+    run(
         &[
             "import",
             "mitsuba",
@@ -20,7 +20,12 @@ fn import(xml: &Path, out: &Path) -> String {
             out.to_str().unwrap(),
         ],
         out.parent().unwrap(),
-    );
+    )
+}
+
+/// `matfit import mitsuba XML -o OUT`, which must succeed; returns its stderr (the warnings).
+fn import(xml: &Path, out: &Path) -> String {
+    let (code, stdout, stderr) = run_import(xml, out);
     assert_eq!(code, 0, "{stdout}\n{stderr}");
     stderr
 }
@@ -347,16 +352,7 @@ fn xml_with(dir: &Path, body: &str) -> std::path::PathBuf {
 
 fn import_fails(xml: &Path) -> String {
     let out = xml.with_file_name("out.toml");
-    let (code, stdout, stderr) = run(
-        &[
-            "import",
-            "mitsuba",
-            xml.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-        ],
-        xml.parent().unwrap(),
-    );
+    let (code, stdout, stderr) = run_import(xml, &out);
     assert_eq!(code, 2, "{stdout}\n{stderr}");
     assert!(!out.exists(), "nothing is written on an error");
     assert!(!stderr.contains("panicked"), "{stderr}");
