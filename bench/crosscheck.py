@@ -12,7 +12,9 @@ Cases
   figure6-mirror  scenes/figure6 with the floor an ideal mirror rho_s 0.8.
   figure6-ward    scenes/figure6 as it is: its anisotropic Ward floor (rho_s 0.9, alpha 0.07/0.11).
   glossy          scenes/glossy: a mirror, an isotropic Ward sphere, a diffuse+mirror box.
-For the figure6 and glossy cases Mitsuba loads the XML written by `matfit export mitsuba`.
+  sunroom         scenes/sunroom (no area light: a directional sun and a spot lamp) with its
+                  Ward ball made diffuse, so that the check measures the punctual lights alone.
+For the figure6, glossy and sunroom cases Mitsuba loads the XML written by `matfit export mitsuba`.
 Ward has no Mitsuba form: the export maps it to a Beckmann microfacet lobe (src/export/mitsuba.rs),
 so in figure6-ward and glossy the groups with a Ward material (and those they light) measure that
 mapping's error: their rows are marked "mapped" and do not fail the check (--mapped-cases).
@@ -168,6 +170,18 @@ def figure6_variant(dst_dir, floor_material, width, height):
     return path
 
 
+def sunroom_diffuse(dst_dir):
+    """scenes/sunroom/scene.toml with its one Ward material made diffuse (it names no files)."""
+    text = open(os.path.join(ROOT, "scenes", "sunroom", "scene.toml")).read()
+    text, n = re.subn(r'^material = \{ type = "ward".*$',
+                      'material = { type = "diffuse", rho_d = [0.3, 0.3, 0.1] }', text, flags=re.M)
+    assert n == 1, "sunroom's Ward material line changed"
+    path = os.path.join(dst_dir, "scene.toml")
+    with open(path, "w") as f:
+        f.write(text)
+    return path
+
+
 CALIBRATED = """
 [camera]
 width = 200
@@ -244,7 +258,8 @@ def main():
     ap.add_argument("--tol", type=float, default=0.01)
     ap.add_argument("--fig6-res", default="256x192",
                     help="figure6 resolution (same vertical fov; the scene's own is 512x384)")
-    ap.add_argument("--cases", default="cornell,figure6-diffuse,figure6-mirror,figure6-ward,glossy")
+    ap.add_argument("--cases",
+                    default="cornell,figure6-diffuse,figure6-mirror,figure6-ward,glossy,sunroom")
     ap.add_argument("--mapped-cases", default="figure6-ward,glossy",
                     help="cases whose Ward groups measure the export's mapping error")
     ap.add_argument("--out", help="keep images here (default: a temporary folder)")
@@ -278,9 +293,11 @@ def main():
             scene = os.path.join(ROOT, "scenes", "cornell", "scene.toml")
             xml_path, xml_text = CBOX, cornell_xml(args.spp)
             params = dict(res=256, max_depth=6)
-        elif case.startswith("figure6-") or case == "glossy":
+        elif case.startswith("figure6-") or case in ("glossy", "sunroom"):
             if case == "glossy":
                 scene = os.path.join(ROOT, "scenes", "glossy", "scene.toml")
+            elif case == "sunroom":
+                scene = sunroom_diffuse(d)
             else:
                 floor = {"figure6-diffuse": '{ type = "diffuse", rho_d = 0.5 }',
                          "figure6-mirror": '{ type = "mirror", rho_s = 0.8 }',

@@ -451,3 +451,61 @@ fn calibrated_cameras_map_to_gltf_nodes() {
         }
     }
 }
+
+#[test]
+fn sunroom_lights_are_khr_lights_punctual_aimed_along_their_nodes_minus_z() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scene, bytes, stderr) = export("sunroom", dir.path());
+    assert!(stderr.contains("KHR_lights_punctual"), "{stderr}");
+    let json = json_of(&bytes);
+    assert!(json["extensionsUsed"]
+        .as_array()
+        .unwrap()
+        .contains(&serde_json::json!("KHR_lights_punctual")));
+    let lights = json["extensions"]["KHR_lights_punctual"]["lights"]
+        .as_array()
+        .unwrap();
+    assert_eq!(lights.len(), scene.punctual_lights.len());
+    for l in &scene.punctual_lights {
+        let node = json["nodes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|n| n["name"] == l.name.as_str())
+            .unwrap();
+        let k = node["extensions"]["KHR_lights_punctual"]["light"]
+            .as_u64()
+            .unwrap() as usize;
+        let f = |v: &serde_json::Value| v.as_f64().unwrap() as f32;
+        let q = node["rotation"].as_array().unwrap();
+        let aim = Quat::from_xyzw(f(&q[0]), f(&q[1]), f(&q[2]), f(&q[3])) * Vec3::NEG_Z;
+        let (kind, direction, power) = match l.kind {
+            matfit::scene::Punctual::Directional {
+                direction,
+                irradiance,
+            } => ("directional", direction, irradiance),
+            matfit::scene::Punctual::Spot {
+                direction,
+                intensity,
+                position,
+                cutoff,
+                ..
+            } => {
+                let t = node["translation"].as_array().unwrap();
+                let t = Vec3::new(f(&t[0]), f(&t[1]), f(&t[2]));
+                assert!((t - position).length() < 1e-6);
+                assert!((f(&lights[k]["spot"]["outerConeAngle"]) - cutoff).abs() < 1e-6);
+                ("spot", direction, intensity)
+            }
+            matfit::scene::Punctual::Point { .. } => unreachable!("sunroom has no point light"),
+        };
+        assert_eq!(lights[k]["type"], kind);
+        assert!((aim - direction).length() < 1e-5, "{aim} vs {direction}");
+        // color × intensity = 683 lm/W × the light's RGB.
+        let c = lights[k]["color"].as_array().unwrap();
+        for ch in 0..3 {
+            let lm = f(&c[ch]) * f(&lights[k]["intensity"]);
+            assert!((lm / 683.0 - power[ch]).abs() < 1e-4, "{lm} vs {power}");
+        }
+    }
+}

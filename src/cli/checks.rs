@@ -28,10 +28,10 @@ fn object_at(sc: &Scene, o: usize) -> String {
 /// Refuses a scene whose render would be black (no light, or every light facing away from
 /// what the camera sees); warns of each light that faces away while others do not.
 pub fn require_light(sc: &Scene, l: &Lighting) -> Result<()> {
-    if l.emitters.is_empty() {
+    if l.none() {
         bail!(
-            "{}: no object emits light (give a light an `emission = [r, g, b]`): the image would be \
-             black",
+            "{}: no object emits light and there is no [[light]] (give a light an `emission = \
+             [r, g, b]`, or add a directional, point or spot [[light]]): the image would be black",
             sc.path.display()
         );
     }
@@ -108,6 +108,10 @@ pub fn exposure_report(sc: &Scene, photo: &Path, args: &PhotoArgs, p: &PreparedP
                 "default, not given"
             }
         ),
+    }
+    // The bound below holds for area lights alone (a punctual light has no radiance).
+    if !sc.punctual_lights.is_empty() {
+        return;
     }
     let Some((brightest, lmax)) = sc
         .objects

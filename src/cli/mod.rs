@@ -855,8 +855,43 @@ fn info(sc: &Scene, lighting: &matfit::scene::lint::Lighting) {
             }
         );
     }
-    if lighting.emitters.is_empty() {
-        out::warn(format!("{}: no object emits light", sc.path.display()));
+    for l in &sc.punctual_lights {
+        use matfit::scene::Punctual;
+        outln!(
+            "light {}: {}",
+            l.name,
+            match l.kind {
+                Punctual::Directional {
+                    direction,
+                    irradiance,
+                } => format!(
+                    "directional, travelling along {}, irradiance {}",
+                    vec3(direction),
+                    rgb(irradiance)
+                ),
+                Punctual::Point {
+                    position,
+                    intensity,
+                } => format!("point at {}, intensity {}", vec3(position), rgb(intensity)),
+                Punctual::Spot {
+                    position,
+                    direction,
+                    intensity,
+                    cutoff,
+                    beam_width,
+                } => format!(
+                    "spot at {} along {}, intensity {}, beam {}°, cutoff {}°",
+                    vec3(position),
+                    vec3(direction),
+                    rgb(intensity),
+                    num(beam_width.to_degrees(), 3),
+                    num(cutoff.to_degrees(), 3)
+                ),
+            }
+        );
+    }
+    if lighting.none() {
+        out::warn(format!("{}: nothing emits light", sc.path.display()));
     }
 }
 

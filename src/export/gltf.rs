@@ -51,7 +51,8 @@
 //!   chart seams are duplicated), CLAMP_TO_EDGE, and a one-texel border around every chart copied
 //!   from its edge, so that bilinear filtering reads what matfit's clamped lookup reads.
 //!
-//! **Lights.** glTF has no area lights (KHR_lights_punctual has points, spots and directional
+//! **Lights.** `[[light]]`s (directional, point, spot) are KHR_lights_punctual lights.
+//! glTF has no area lights (KHR_lights_punctual has points, spots and directional
 //! lights only, which would change the light's size and so the shadows and highlights). An
 //! emitter keeps its mesh: emissiveFactor = L/max L and `KHR_materials_emissive_strength` = max L,
 //! so their product is matfit's radiance L. Emission is one-sided in matfit (the wound normal's
@@ -67,7 +68,7 @@
 use super::ExportReport;
 use crate::math::{Frame, Mat3, Rgb, Vec2, Vec3};
 use crate::scene::texture::{Mapping, Texture};
-use crate::scene::{Material, Scene, WardVariant};
+use crate::scene::{Material, Punctual, PunctualLight, Scene, WardVariant};
 use serde_json::{json, Map, Value};
 use std::collections::HashMap;
 use std::f32::consts::FRAC_PI_2;
@@ -208,6 +209,21 @@ pub fn glb(scene: &Scene) -> Result<(Vec<u8>, Vec<String>), String> {
 
     let (camera, camera_node) = camera_json(scene, &mut warnings);
     nodes.push(camera_node);
+    let mut lights = Vec::new();
+    for l in &scene.punctual_lights {
+        let (light, node) = punctual_json(l, lights.len());
+        lights.push(light);
+        nodes.push(node);
+    }
+    if !lights.is_empty() {
+        ext_used.push("KHR_lights_punctual".into());
+        warnings.push(format!(
+            "{} light(s) written as KHR_lights_punctual with intensity = 683 lm/W × the largest \
+             channel (glTF's units are photometric) and color = RGB / that channel; spot lights' \
+             falloff between inner and outer cone is each viewer's own",
+            lights.len()
+        ));
+    }
 
     let mut root = json!({
         "asset": {
@@ -225,6 +241,9 @@ pub fn glb(scene: &Scene) -> Result<(Vec<u8>, Vec<String>), String> {
         "bufferViews": bin.views,
         "buffers": [{"byteLength": bin.bytes.len()}],
     });
+    if !lights.is_empty() {
+        root["extensions"] = json!({"KHR_lights_punctual": {"lights": lights}});
+    }
     if !textures.is_empty() {
         root["images"] = json!(images);
         root["samplers"] = json!(samplers);
@@ -793,6 +812,71 @@ fn camera_json(scene: &Scene, warnings: &mut Vec<String>) -> (Value, Value) {
         "translation": eye.to_array(),
     });
     (camera, node)
+}
+
+/// A `[[light]]` as a KHR_lights_punctual light (index `k`) and the node that places it: the
+/// light shines along the node's −z.
+fn punctual_json(l: &PunctualLight, k: usize) -> (Value, Value) {
+    // 683 lm/W: the luminous efficacy at 555 nm, the SI definition of the candela.
+    let power = |c: Rgb| {
+        let m = c.max_element();
+        let color = if m > 0.0 { c / m } else { Rgb::ONE };
+        (color.to_array(), 683.0 * m)
+    };
+    let aim = |d: Vec3| {
+        glam::Quat::from_rotation_arc(Vec3::NEG_Z, d)
+            .normalize()
+            .to_array()
+    };
+    let (light, rotation, translation) = match l.kind {
+        Punctual::Directional {
+            direction,
+            irradiance,
+        } => {
+            let (color, intensity) = power(irradiance);
+            (
+                json!({"type": "directional", "color": color, "intensity": intensity}),
+                Some(aim(direction)),
+                None,
+            )
+        }
+        Punctual::Point {
+            position,
+            intensity,
+        } => {
+            let (color, intensity) = power(intensity);
+            (
+                json!({"type": "point", "color": color, "intensity": intensity}),
+                None,
+                Some(position.to_array()),
+            )
+        }
+        Punctual::Spot {
+            position,
+            direction,
+            intensity,
+            cutoff,
+            beam_width,
+        } => {
+            let (color, intensity) = power(intensity);
+            (
+                json!({"type": "spot", "color": color, "intensity": intensity,
+                       "spot": {"innerConeAngle": beam_width, "outerConeAngle": cutoff}}),
+                Some(aim(direction)),
+                Some(position.to_array()),
+            )
+        }
+    };
+    let mut light = light;
+    light["name"] = json!(l.name);
+    let mut node = json!({"name": l.name, "extensions": {"KHR_lights_punctual": {"light": k}}});
+    if let Some(r) = rotation {
+        node["rotation"] = json!(r);
+    }
+    if let Some(t) = translation {
+        node["translation"] = json!(t);
+    }
+    (light, node)
 }
 
 /// Camera-to-world rotation of a glTF camera (x right, y up, looking down −z) from matfit's

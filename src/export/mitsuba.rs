@@ -47,7 +47,7 @@ use super::ExportReport;
 use crate::math::sampler::{mix64, unit_f32};
 use crate::math::{Rgb, Vec2, Vec3, PI};
 use crate::render::bsdf::WardLobe;
-use crate::scene::{Material, Scene};
+use crate::scene::{Material, Punctual, PunctualLight, Scene};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -160,6 +160,9 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
         }
         xml.push_str("    </shape>\n");
     }
+    for l in &scene.punctual_lights {
+        write_punctual(&mut xml, l);
+    }
     xml.push_str("</scene>\n");
 
     let xml_path = dir.join("scene.xml");
@@ -168,6 +171,65 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
     report.files.push(xml_path);
     report.files.extend(ply_files);
     Ok(report)
+}
+
+/// A `[[light]]` as the Mitsuba 3 emitter of the same meaning (`scene::light`).
+fn write_punctual(xml: &mut String, l: &PunctualLight) {
+    let id = escape(&mitsuba_id(&l.name, 'l'));
+    let _ = writeln!(xml, "\n    <!-- light '{}' -->", escape_comment(&l.name));
+    match l.kind {
+        Punctual::Directional {
+            direction,
+            irradiance,
+        } => {
+            let _ = writeln!(
+                xml,
+                "    <emitter type=\"directional\" id=\"{id}\">\n        <vector name=\"direction\" \
+                 value=\"{}\"/>\n        {}\n    </emitter>",
+                triple(direction),
+                rgb("irradiance", irradiance)
+            );
+        }
+        Punctual::Point {
+            position,
+            intensity,
+        } => {
+            let _ = writeln!(
+                xml,
+                "    <emitter type=\"point\" id=\"{id}\">\n        <point name=\"position\" \
+                 value=\"{}\"/>\n        {}\n    </emitter>",
+                triple(position),
+                rgb("intensity", intensity)
+            );
+        }
+        Punctual::Spot {
+            position,
+            direction,
+            intensity,
+            cutoff,
+            beam_width,
+        } => {
+            // The falloff is symmetric about the axis, so any `up` off the axis will do.
+            let up = if direction.y.abs() < 0.9 {
+                Vec3::Y
+            } else {
+                Vec3::X
+            };
+            let _ = writeln!(
+                xml,
+                "    <emitter type=\"spot\" id=\"{id}\">\n        <transform name=\"to_world\">\n            \
+                 <lookat origin=\"{}\" target=\"{}\" up=\"{}\"/>\n        </transform>\n        {}\n        \
+                 <float name=\"cutoff_angle\" value=\"{}\"/>\n        <float name=\"beam_width\" \
+                 value=\"{}\"/>\n    </emitter>",
+                triple(position),
+                triple(position + direction),
+                triple(up),
+                rgb("intensity", intensity),
+                cutoff.to_degrees(),
+                beam_width.to_degrees()
+            );
+        }
+    }
 }
 
 /// Mitsuba reserves ids that start with an underscore: such a name gets `prefix` in front.

@@ -349,29 +349,36 @@ pub fn build(
                 let (frame, ng) = facing(hit.frame, hit.ng, wo_world);
                 let wo = frame.to_local(wo_world);
                 if k < hl {
-                    // Next-event estimation, MIS-weighted against the mixture.
-                    let Some(ls) = pt.lights.sample(hit.p, &mut sampler) else {
-                        continue;
-                    };
-                    let wi = frame.to_local(ls.wi);
-                    if wi.z <= 0.0 || ng.dot(ls.wi) <= 0.0 {
-                        continue;
+                    // Next-event estimation: a point on an area light, MIS-weighted against
+                    // the mixture, and every punctual light (found by light sampling alone).
+                    let area = pt.lights.sample(hit.p, &mut sampler);
+                    for ls in area.into_iter().chain(pt.lights.punctual_samples(hit.p)) {
+                        let wi = frame.to_local(ls.wi);
+                        if wi.z <= 0.0 || ng.dot(ls.wi) <= 0.0 {
+                            continue;
+                        }
+                        if !pt
+                            .lights
+                            .visible(scene, offset_origin(hit.p, ng, ls.wi), &ls)
+                        {
+                            continue;
+                        }
+                        let w_l = if ls.delta {
+                            1.0
+                        } else {
+                            let pm = super::mixture::pdf(wo, wi, cw);
+                            nl as f32 * ls.pdf / (nl as f32 * ls.pdf + ni as f32 * pm)
+                        };
+                        entries.push(Entry {
+                            half,
+                            wo,
+                            wi,
+                            weight: Weight::Known(
+                                ls.radiance * (wi.z * w_l / (ls.pdf * nl as f32)),
+                            ),
+                            taps,
+                        });
                     }
-                    if !pt
-                        .lights
-                        .visible(scene, offset_origin(hit.p, ng, ls.wi), &ls)
-                    {
-                        continue;
-                    }
-                    let pm = super::mixture::pdf(wo, wi, cw);
-                    let w_l = nl as f32 * ls.pdf / (nl as f32 * ls.pdf + ni as f32 * pm);
-                    entries.push(Entry {
-                        half,
-                        wo,
-                        wi: frame.to_local(ls.wi),
-                        weight: Weight::Known(ls.radiance * (wi.z * w_l / (ls.pdf * nl as f32))),
-                        taps,
-                    });
                 } else {
                     let Some(wi) = super::mixture::sample(wo, &mut sampler, cw) else {
                         continue;

@@ -36,9 +36,10 @@
 //!   without one is named after its BSDF's id if no object has that name yet (how `matfit export
 //!   mitsuba` writes an object named like its group, ids being one namespace in Mitsuba), else
 //!   `TYPE_N`.
-//! - **Lights.** `area` emitters' `radiance` (rgb, a constant or a sampled spectrum) → emission.
-//!   Every other emitter (envmap, constant, point, spot, directional) is an error: the lights
-//!   are known inputs of a recovery, and one dropped would bias every group.
+//! - **Lights.** `area` emitters' `radiance` (rgb, a constant or a sampled spectrum) → emission;
+//!   `directional` (irradiance), `point` and `spot` (intensity, cutoff_angle, beam_width) →
+//!   `[[light]]` of the same meaning. Every other emitter (envmap, constant) is an error: the
+//!   lights are known inputs of a recovery, and one dropped would bias every group.
 //! - **BSDFs** (matfit's surfaces are two-sided: `twosided` is unwrapped, a one-sided BSDF is a
 //!   warning). Exact: `diffuse` (reflectance rgb / constant or sampled spectrum / bitmap texture →
 //!   textured) → diffuse; `conductor` with material `none` → mirror ρs = specular_reflectance;
@@ -59,7 +60,8 @@
 
 use super::ImportReport;
 use crate::scene::schema::{
-    CameraSpec, Color, MaterialSpec, ObjectSpec, RenderSpec, SceneFile, ShapeKind, TransformSpec,
+    CameraSpec, Color, LightKind, LightSpec, MaterialSpec, ObjectSpec, RenderSpec, SceneFile,
+    ShapeKind, TransformSpec,
 };
 use crate::scene::write::relative;
 use glam::{DMat3, DMat4, DQuat, DVec3, DVec4, EulerRot};
@@ -368,7 +370,8 @@ impl<'a> Ctx<'a> {
                         }
                     }
                 }
-                let rgb = super::spectrum::to_srgb(&samples, name == "radiance");
+                let emitted = matches!(name, "radiance" | "irradiance" | "intensity");
+                let rgb = super::spectrum::to_srgb(&samples, emitted);
                 self.warn(
                     p,
                     format!(
@@ -536,6 +539,7 @@ impl<'a> Ctx<'a> {
         let mut camera = None;
         let mut render = RenderSpec::default();
         let mut objects = Vec::new();
+        let mut lights = Vec::new();
         let mut names = HashSet::new();
         let mut shape_counts: HashMap<String, usize> = HashMap::new();
         for c in Self::children(root) {
@@ -568,14 +572,8 @@ impl<'a> Ctx<'a> {
                     objects.push(self.shape(c, &ty, name)?);
                 }
                 "emitter" => {
-                    let ty = self.attr(c, "type")?.unwrap_or_default();
-                    return Err(self.err(
-                        c,
-                        format!(
-                            "emitter type '{ty}' cannot be imported: matfit's lights are \
-                             emitting surfaces (an area emitter inside a <shape>)"
-                        ),
-                    ));
+                    let k = lights.len() + 1;
+                    lights.push(self.emitter(c, k)?);
                 }
                 "include" => return Err(self.err(c, "<include> is not supported: inline the file")),
                 other => self.warn(c, format!("<{other}> is ignored")),
@@ -590,7 +588,74 @@ impl<'a> Ctx<'a> {
             camera,
             groups: Vec::new(),
             objects,
+            lights,
         })
+    }
+
+    /// A light outside any shape: `directional`, `point` or `spot` (Mitsuba 3's meanings, which
+    /// are matfit's `[[light]]`s'); positions and directions from `to_world` or from the
+    /// `position`/`direction` shortcuts.
+    fn emitter(&mut self, n: N<'a>, k: usize) -> Result<LightSpec, String> {
+        let ty = self.need_attr(n, "type")?;
+        let name = self.attr(n, "id")?.unwrap_or_else(|| format!("{ty}_{k}"));
+        let m = self.transform(n, "to_world")?;
+        let vector = |s: &Self, key: &str| -> Result<Option<DVec3>, String> {
+            s.prop(n, key)?.map(|p| s.vec3_of(p, 0.0)).transpose()
+        };
+        let position = match vector(self, "position")? {
+            Some(p) => p,
+            None => m.transform_point3(DVec3::ZERO),
+        };
+        let axis = match vector(self, "direction")? {
+            Some(d) => d,
+            None => m.transform_vector3(DVec3::Z),
+        };
+        let mut spec = LightSpec {
+            name: Spanned::new(0..0, name),
+            kind: Spanned::new(0..0, LightKind::Point),
+            direction: None,
+            irradiance: None,
+            position: None,
+            target: None,
+            intensity: None,
+            cutoff_deg: None,
+            beam_width_deg: None,
+        };
+        let rgb = |v: DVec3| Color(f32s(v));
+        match ty.as_str() {
+            "directional" => {
+                spec.kind = Spanned::new(0..0, LightKind::Directional);
+                spec.direction = Some(f32s(axis));
+                spec.irradiance = Some(rgb(self.rgb(n, "irradiance", 1.0)?));
+            }
+            "point" => {
+                spec.position = Some(f32s(position));
+                spec.intensity = Some(rgb(self.rgb(n, "intensity", 1.0)?));
+            }
+            "spot" => {
+                spec.kind = Spanned::new(0..0, LightKind::Spot);
+                spec.position = Some(f32s(position));
+                spec.direction = Some(f32s(axis));
+                spec.intensity = Some(rgb(self.rgb(n, "intensity", 1.0)?));
+                let cutoff = self.float(n, "cutoff_angle", 20.0)?;
+                spec.cutoff_deg = Some(cutoff as f32);
+                spec.beam_width_deg = Some(self.float(n, "beam_width", 0.75 * cutoff)? as f32);
+                if self.prop(n, "texture")?.is_some() {
+                    return Err(self.err(n, "a textured spot light cannot be imported"));
+                }
+            }
+            _ => {
+                return Err(self.err(
+                    n,
+                    format!(
+                        "emitter type '{ty}' cannot be imported: matfit's lights are emitting \
+                         surfaces (an area emitter inside a <shape>) and directional, point and \
+                         spot lights"
+                    ),
+                ))
+            }
+        }
+        Ok(spec)
     }
 
     fn integrator(&mut self, n: N<'a>, render: &mut RenderSpec) -> Result<(), String> {

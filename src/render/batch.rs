@@ -164,10 +164,11 @@ fn flat_lambert(pt: &PathTracer, obj: &Object, hit: &Hit, d: Vec3) -> Option<(Ve
 
 /// Whether a Lambert vertex of reflectance `rho_d`, seen at `wo_z` (the outgoing direction's
 /// cosine in the shading frame), goes to the eight-lane `DiffuseLanes`: some reflectance, seen
-/// from above, in a scene with lights. Otherwise `PathTracer::scatter` handles it alone.
+/// from above, in a scene with lights, all of them area lights (the lanes sample triangles).
+/// Otherwise `PathTracer::scatter` handles it alone.
 #[inline(always)]
 fn gathers(pt: &PathTracer, rho_d: Rgb, wo_z: f32) -> bool {
-    rho_d.max_element() > 0.0 && wo_z > 0.0 && !pt.lights.is_empty()
+    rho_d.max_element() > 0.0 && wo_z > 0.0 && !pt.lights.is_empty() && pt.lights.area_only()
 }
 
 /// The next camera packet's paths: eight samples of a pixel, their rays traced together.

@@ -274,9 +274,10 @@ impl<'a> PathTracer<'a> {
     #[inline(always)]
     pub(super) fn scatter(&self, st: &mut PathState, v: &Vertex, sampler: &mut Sampler) -> bool {
         let (bsdf, frame, ng, wo) = (&v.bsdf, &v.frame, v.ng, v.wo);
-        // Next-event estimation.
+        // Next-event estimation: one point on an area light, and every punctual light.
         if bsdf.has_smooth_part() {
-            if let Some(ls) = self.lights.sample(v.p, sampler) {
+            let area = self.lights.sample(v.p, sampler);
+            for ls in area.into_iter().chain(self.lights.punctual_samples(v.p)) {
                 let wi = frame.to_local(ls.wi);
                 let cos_g = ng.dot(ls.wi);
                 if wi.z > 0.0 && cos_g > 0.0 {
@@ -284,7 +285,11 @@ impl<'a> PathTracer<'a> {
                     if f.max_element() > 0.0 {
                         let origin = offset_origin(v.p, ng, ls.wi);
                         if self.lights.visible(self.scene, origin, &ls) {
-                            let w = power_heuristic(ls.pdf, bsdf.pdf(wo, wi));
+                            let w = if ls.delta {
+                                1.0
+                            } else {
+                                power_heuristic(ls.pdf, bsdf.pdf(wo, wi))
+                            };
                             st.l += st.beta * f * ls.radiance * (wi.z * w / ls.pdf);
                         }
                     }

@@ -1,14 +1,26 @@
-//! Area lights: every triangle of an emissive object, chosen in proportion to its power
-//! (area × mean radiance) and sampled uniformly over its area. Emission is one-sided, along the
-//! triangle's geometric normal as wound (a quad emits along edge_u × edge_v).
+//! The lights next-event estimation samples: every triangle of an emissive object (an area
+//! light, sampled uniformly over its area; emission is one-sided, along the triangle's
+//! geometric normal as wound, so a quad emits along edge_u × edge_v; one triangle is chosen per
+//! sample in proportion to its power) and the punctual lights (`scene::light`: directional,
+//! point, spot), every one of which is evaluated at every vertex.
+//!
+//! A punctual light is a delta: its "sample" is the one direction it arrives from, with the
+//! radiance-like factor Li such that the reflected radiance is f · Li · cos θi (pbrt-v4's
+//! `LightLiSample` for delta lights, §12.1): a directional light's irradiance E, a point
+//! light's I / d², a spot's I · falloff / d². Its pdf is 1 (it is not chosen at random), and
+//! BSDF sampling never finds it, so it takes no MIS weight. Evaluating them all rather than
+//! choosing one leaves their light free of selection noise: a sun a hundred times stronger
+//! than a spot would otherwise starve the spot of samples.
 
 use crate::geometry::Ray;
 use crate::math::{luminance_mean, warp, Rgb, Sampler, Vec3};
-use crate::scene::Scene;
+use crate::scene::{Punctual, Scene};
 
 pub struct Lights {
     /// Emissive triangles, in the order of `cdf`.
     tris: Vec<LightTri>,
+    /// Punctual lights, after the triangles in the order of `cdf`.
+    punctual: Vec<Punctual>,
     /// Cumulative selection probability, last entry 1.
     cdf: Vec<f32>,
     /// Per scene triangle: probability of choosing it divided by its area (0 if not a light).
@@ -37,8 +49,11 @@ pub struct LightSample {
     /// The sampled point on the light.
     pub point: Vec3,
     pub radiance: Rgb,
-    /// Density per solid angle at the reference point.
+    /// Density per solid angle at the reference point; 1 for a punctual light.
     pub pdf: f32,
+    /// From a punctual light: no BSDF sample can find it (MIS weight 1), `dist` may be
+    /// infinite, and `radiance` is the Li of the module comment.
+    pub delta: bool,
 }
 
 impl Lights {
@@ -63,6 +78,7 @@ impl Lights {
                 areas.push(area);
             }
         }
+        let punctual: Vec<Punctual> = scene.punctual_lights.iter().map(|l| l.kind).collect();
         let total: f32 = weights.iter().sum();
         let mut cdf = Vec::with_capacity(weights.len());
         let mut acc = 0.0;
@@ -91,6 +107,7 @@ impl Lights {
             .collect();
         Lights {
             tris,
+            punctual,
             cdf,
             pdf_area,
             rows,
@@ -98,7 +115,12 @@ impl Lights {
     }
 
     pub fn is_empty(&self) -> bool {
-        self.tris.is_empty()
+        self.tris.is_empty() && self.punctual.is_empty()
+    }
+
+    /// Whether every light is an area light (the eight-lane path handles only those).
+    pub fn area_only(&self) -> bool {
+        self.punctual.is_empty()
     }
 
     /// Samples a point on a light as seen from `p`; None if there are no lights or the point is
@@ -110,7 +132,7 @@ impl Lights {
         if self.tris.is_empty() {
             return None;
         }
-        let light = self.pick(uc);
+        let light = &self.tris[self.pick_index(uc)];
         let [a, b, c] = light.v;
         let (b1, b2) = warp::uniform_triangle(u);
         let q = a * (1.0 - b1 - b2) + b * b1 + c * b2;
@@ -128,16 +150,27 @@ impl Lights {
             point: q,
             radiance: light.radiance,
             pdf: light.pdf_area * dist2 / cos_l,
+            delta: false,
         })
     }
 
-    /// [`Lights::pick`]'s triangle, by its index (for `row`).
+    /// The light triangle chosen by `uc` ∈ [0, 1) (there must be one), by its index (for
+    /// `row`).
     #[inline(always)]
     pub(super) fn pick_index(&self, uc: f32) -> usize {
         debug_assert!(!self.tris.is_empty());
         self.cdf
             .partition_point(|&c| c <= uc)
             .min(self.tris.len() - 1)
+    }
+
+    /// What every punctual light sends to `p` (the module comment): all of them at every
+    /// vertex, which costs a shadow ray each and leaves no noise from choosing among them.
+    #[inline]
+    pub fn punctual_samples(&self, p: Vec3) -> impl Iterator<Item = LightSample> + '_ {
+        self.punctual
+            .iter()
+            .filter_map(move |l| punctual_sample(l, p))
     }
 
     /// Triangle `k` as sixteen floats: vertices (`V`), normal (`N`), radiance (`LE`), and
@@ -150,12 +183,6 @@ impl Lights {
     pub(super) const N: usize = 9;
     pub(super) const LE: usize = 12;
     pub(super) const PDF_AREA: usize = 15;
-
-    /// The light triangle chosen by `uc` ∈ [0, 1) (there must be one).
-    #[inline(always)]
-    pub(super) fn pick(&self, uc: f32) -> &LightTri {
-        &self.tris[self.pick_index(uc)]
-    }
 
     /// Density per solid angle with which `sample` would have produced the point on triangle
     /// `prim` at distance `dist` along `wi`, whose geometric normal is `n`.
@@ -172,9 +199,49 @@ impl Lights {
     /// sampled light point is unblocked; the segment stops short of the light by the same
     /// scale-relative epsilon that `offset_origin` uses.
     pub fn visible(&self, scene: &Scene, origin: Vec3, s: &LightSample) -> bool {
+        if s.dist == f32::INFINITY {
+            return !scene.occluded(&Ray::new(origin, s.wi), f32::INFINITY);
+        }
         let d = s.point - origin;
         let len = d.length();
         let eps = 2e-4 * (1.0 + s.point.abs().max_element());
         len > eps && !scene.occluded(&Ray::new(origin, d / len), len - eps)
     }
+}
+
+/// The light a punctual light sends to `p` (module comment); None where it sends none (outside
+/// a spot's cone, nothing at all).
+fn punctual_sample(light: &Punctual, p: Vec3) -> Option<LightSample> {
+    let (wi, dist, li) = match *light {
+        Punctual::Directional {
+            direction,
+            irradiance,
+        } => (-direction, f32::INFINITY, irradiance),
+        Punctual::Point {
+            position,
+            intensity,
+        }
+        | Punctual::Spot {
+            position,
+            intensity,
+            ..
+        } => {
+            let d = position - p;
+            let dist2 = d.length_squared();
+            if !(dist2 > 0.0) {
+                return None;
+            }
+            let dist = dist2.sqrt();
+            let wi = d / dist;
+            (wi, dist, intensity * (light.falloff(-wi) / dist2))
+        }
+    };
+    (li.max_element() > 0.0).then_some(LightSample {
+        wi,
+        dist,
+        point: if dist.is_finite() { p + wi * dist } else { p },
+        radiance: li,
+        pdf: 1.0,
+        delta: true,
+    })
 }

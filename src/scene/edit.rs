@@ -3,7 +3,7 @@
 //! flags, applied to a scene file before it is loaded.
 //!
 //! ```toml
-//! remove = ["small_block"]             # objects, or groups (every object in them)
+//! remove = ["small_block"]             # objects, groups (every object in them), or lights
 //!
 //! [camera]                             # replaces the scene's camera (either form); width and
 //! eye = [0.5, 1.2, 3.0]                # height default to the scene's
@@ -27,8 +27,8 @@
 //! translate = [0.1, 0, -0.05]
 //!
 //! [[light]]                            # a light's emission, rescaled or replaced
-//! object = "light"
-//! scale = 0.5                          # or emission = [10, 9, 8]
+//! object = "light"                     # an emitting object or group, or a [[light]] of the
+//! scale = 0.5                          # scene (scale only); or emission = [10, 9, 8]
 //! ```
 //!
 //! Edits apply in the order: remove, material, move, light, object, camera; several edit files
@@ -167,6 +167,10 @@ pub fn apply(scene: &mut SceneFile, edit: &Edit) -> Result<(), SceneError> {
         message,
     };
     for name in &f.remove {
+        if let Some(i) = scene.lights.iter().position(|l| l.name.get_ref() == name) {
+            scene.lights.remove(i);
+            continue;
+        }
         let hit = resolve(scene, name).map_err(err)?;
         let mut i = 0;
         scene.objects.retain(|_| {
@@ -191,6 +195,24 @@ pub fn apply(scene: &mut SceneFile, edit: &Edit) -> Result<(), SceneError> {
         }
     }
     for l in &f.lights {
+        if let Some(p) = scene
+            .lights
+            .iter_mut()
+            .find(|p| p.name.get_ref() == &l.object)
+        {
+            let Some(s) = l.scale else {
+                return Err(err(format!(
+                    "light '{}' is a {} light: give `scale` (its irradiance or intensity is \
+                     multiplied), not `emission`",
+                    l.object,
+                    super::light::kind_name(*p.kind.get_ref())
+                )));
+            };
+            for c in [&mut p.irradiance, &mut p.intensity].into_iter().flatten() {
+                *c = Color(std::array::from_fn(|k| c.0[k] * s.0[k]));
+            }
+            continue;
+        }
         let hit = resolve(scene, &l.object).map_err(err)?;
         match (&l.scale, &l.emission) {
             (Some(_), Some(_)) | (None, None) => {
@@ -237,6 +259,7 @@ pub fn apply(scene: &mut SceneFile, edit: &Edit) -> Result<(), SceneError> {
             camera: camera.clone().unwrap_or_else(|| scene.camera.clone()),
             groups: Vec::new(),
             objects: f.add.clone(),
+            lights: Vec::new(),
         };
         if f.add.is_empty() {
             check_camera(&alone, &edit.text, &edit.path)?;

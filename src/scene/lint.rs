@@ -15,12 +15,19 @@ pub struct Lighting {
     pub facing_away: Vec<usize>,
     /// Emitters the camera sees directly.
     pub in_view: Vec<usize>,
+    /// Punctual lights (`[[light]]`), which are not checked for what they light.
+    pub punctual: usize,
 }
 
 impl Lighting {
-    /// True when no emitter can light anything the camera sees: a render would be black.
+    /// Whether the scene has no light at all.
+    pub fn none(&self) -> bool {
+        self.emitters.is_empty() && self.punctual == 0
+    }
+
+    /// True when no light can light anything the camera sees: a render would be black.
     pub fn dark(&self) -> bool {
-        self.emitters.len() == self.facing_away.len()
+        self.punctual == 0 && self.emitters.len() == self.facing_away.len()
     }
 }
 
@@ -42,7 +49,10 @@ fn visible_points(scene: &Scene, nx: u32, ny: u32) -> Vec<(Vec3, Vec3, usize)> {
 pub fn lighting(scene: &Scene) -> Lighting {
     let g = &scene.geometry;
     let pts = visible_points(scene, 48, 36);
-    let mut out = Lighting::default();
+    let mut out = Lighting {
+        punctual: scene.punctual_lights.len(),
+        ..Lighting::default()
+    };
     for (e, obj) in scene.objects.iter().enumerate() {
         if !obj.is_emitter() {
             continue;

@@ -4,7 +4,7 @@
 use super::error::SceneError;
 use super::schema::{Color, MaterialSpec, ObjectSpec, SceneFile, ShapeKind};
 use super::texture::Texture;
-use super::{Camera, Geometry, Group, Material, Object, RenderSettings, Scene, Tri};
+use super::{Camera, Geometry, Group, Material, Object, PunctualLight, RenderSettings, Scene, Tri};
 use crate::geometry::{shapes, Bvh, TriangleMesh};
 use crate::math::{Mat3, Rgb, Vec2, Vec3};
 use glam::{Affine3A, EulerRot, Quat};
@@ -312,6 +312,30 @@ pub(super) fn build_objects(file: SceneFile, text: &str, path: &Path) -> Result<
         )));
     }
 
+    let mut punctual_lights: Vec<PunctualLight> = Vec::new();
+    for spec in &file.lights {
+        let name = spec.name.get_ref();
+        let off = spec.name.span().start;
+        if name.trim().is_empty() {
+            return Err(cx.at(off, "a light has an empty name".into()));
+        }
+        if seen.contains_key(name.as_str()) || punctual_lights.iter().any(|l| &l.name == name) {
+            return Err(cx.at(
+                off,
+                format!("'{name}' names two things (lights and objects share one set of names)"),
+            ));
+        }
+        let kind = super::light::build(spec).map_err(|m| {
+            let k = super::light::kind_name(*spec.kind.get_ref());
+            cx.at(off, format!("{k} light '{name}': {m}"))
+        })?;
+        punctual_lights.push(PunctualLight {
+            name: name.clone(),
+            kind,
+            line: line_of(text, off),
+        });
+    }
+
     let geometry = build_geometry(&mut objects, meshes);
     map_atlas_textures(&mut objects, &groups, &geometry, &file, &cx)?;
     let scene = Scene {
@@ -320,6 +344,7 @@ pub(super) fn build_objects(file: SceneFile, text: &str, path: &Path) -> Result<
         render,
         groups,
         objects,
+        punctual_lights,
         geometry: Arc::new(geometry),
         source: file,
     };

@@ -5,6 +5,7 @@ pub mod atlas;
 pub mod camera;
 pub mod edit;
 pub mod error;
+pub mod light;
 pub mod lint;
 pub mod load;
 pub mod material;
@@ -15,6 +16,7 @@ pub mod write;
 
 pub use camera::Camera;
 pub use error::SceneError;
+pub use light::{Punctual, PunctualLight};
 pub use load::load_scene;
 pub use material::{Material, Varnish, WardVariant};
 
@@ -173,6 +175,8 @@ pub struct Scene {
     pub render: RenderSettings,
     pub groups: Vec<Group>,
     pub objects: Vec<Object>,
+    /// Lights that are not surfaces (`[[light]]`): directional, point, spot.
+    pub punctual_lights: Vec<PunctualLight>,
     pub geometry: Arc<Geometry>,
     /// Groups' options and everything else of the source, for writing the scene back out.
     pub source: schema::SceneFile,
@@ -287,6 +291,11 @@ impl Scene {
             object: tri.object,
             prim: hit.prim,
         }
+    }
+
+    /// Whether anything emits light: an emitting object or a punctual light.
+    pub fn has_lights(&self) -> bool {
+        !self.punctual_lights.is_empty() || self.objects.iter().any(Object::is_emitter)
     }
 
     /// The number of triangles.

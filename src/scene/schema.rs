@@ -46,6 +46,15 @@
 //! # a texture over the mesh's UVs (or `mapping = "atlas"`, `texel_size = 0.01`: the group's
 //! # chart atlas, as `recover` writes it), optionally varnished with a uniform Ward lobe:
 //! # material = { type = "textured", texture = "desk.png", rho_s = 0.06, alpha = 0.12 }
+//!
+//! [[light]]                     # lights that are not surfaces (`scene::light`)
+//! name = "sun"
+//! type = "directional"          # directional | point | spot
+//! direction = [0.3, -1, -0.2]   # the way the light travels
+//! irradiance = [3, 2.9, 2.6]    # W/m² per channel on a surface facing the light
+//! # type = "point": position = [0, 2, 0], intensity = 5 (W/sr per channel)
+//! # type = "spot": position, target (or direction), intensity, cutoff_deg = 20,
+//! #   beam_width_deg = 15 (full intensity inside, falling linearly in angle to 0 at the cutoff)
 //! ```
 
 use serde::{Deserialize, Serialize};
@@ -61,6 +70,8 @@ pub struct SceneFile {
     pub groups: Vec<GroupSpec>,
     #[serde(default, rename = "object")]
     pub objects: Vec<ObjectSpec>,
+    #[serde(default, rename = "light", skip_serializing_if = "Vec::is_empty")]
+    pub lights: Vec<LightSpec>,
 }
 
 #[derive(Clone, Debug, Deserialize, Serialize, Default, PartialEq)]
@@ -150,6 +161,39 @@ pub struct ObjectSpec {
     pub material: Option<Spanned<MaterialSpec>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub emission: Option<Spanned<Color>>,
+}
+
+/// A light that is not a surface (`scene::light`): which keys each type takes is checked by
+/// `load.rs`, so that a missing or stray key is named with the light.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct LightSpec {
+    pub name: Spanned<String>,
+    #[serde(rename = "type")]
+    pub kind: Spanned<LightKind>,
+    /// directional: the way the light travels; spot: the beam's axis (or give `target`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub direction: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub irradiance: Option<Color>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target: Option<[f32; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub intensity: Option<Color>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cutoff_deg: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beam_width_deg: Option<f32>,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum LightKind {
+    Directional,
+    Point,
+    Spot,
 }
 
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
