@@ -14,6 +14,8 @@ Cases
   glossy          scenes/glossy: a mirror, an isotropic Ward sphere, a diffuse+mirror box.
   sunroom         scenes/sunroom (no area light: a directional sun and a spot lamp) with its
                   Ward ball made diffuse, so that the check measures the punctual lights alone.
+  skyroom         the same room lit by an HDR environment map alone (scenes/skyroom/sky.pfm:
+                  sky, ground and a 3-degree sun), Ward ball made diffuse.
 For the figure6, glossy and sunroom cases Mitsuba loads the XML written by `matfit export mitsuba`.
 Ward has no Mitsuba form: the export maps it to a Beckmann microfacet lobe (src/export/mitsuba.rs),
 so in figure6-ward and glossy the groups with a Ward material (and those they light) measure that
@@ -170,12 +172,14 @@ def figure6_variant(dst_dir, floor_material, width, height):
     return path
 
 
-def sunroom_diffuse(dst_dir):
-    """scenes/sunroom/scene.toml with its one Ward material made diffuse (it names no files)."""
-    text = open(os.path.join(ROOT, "scenes", "sunroom", "scene.toml")).read()
+def ball_made_diffuse(name, dst_dir):
+    """scenes/NAME/scene.toml with its one Ward material made diffuse, written beside the
+    original so that the files it names resolve."""
+    text = open(os.path.join(ROOT, "scenes", name, "scene.toml")).read()
     text, n = re.subn(r'^material = \{ type = "ward".*$',
                       'material = { type = "diffuse", rho_d = [0.3, 0.3, 0.1] }', text, flags=re.M)
-    assert n == 1, "sunroom's Ward material line changed"
+    assert n == 1, f"{name}'s Ward material line changed"
+    text = text.replace('file = "', 'file = "' + os.path.join(ROOT, "scenes", name) + "/")
     path = os.path.join(dst_dir, "scene.toml")
     with open(path, "w") as f:
         f.write(text)
@@ -259,7 +263,7 @@ def main():
     ap.add_argument("--fig6-res", default="256x192",
                     help="figure6 resolution (same vertical fov; the scene's own is 512x384)")
     ap.add_argument("--cases",
-                    default="cornell,figure6-diffuse,figure6-mirror,figure6-ward,glossy,sunroom")
+                    default="cornell,figure6-diffuse,figure6-mirror,figure6-ward,glossy,sunroom,skyroom")
     ap.add_argument("--mapped-cases", default="figure6-ward,glossy",
                     help="cases whose Ward groups measure the export's mapping error")
     ap.add_argument("--out", help="keep images here (default: a temporary folder)")
@@ -293,11 +297,11 @@ def main():
             scene = os.path.join(ROOT, "scenes", "cornell", "scene.toml")
             xml_path, xml_text = CBOX, cornell_xml(args.spp)
             params = dict(res=256, max_depth=6)
-        elif case.startswith("figure6-") or case in ("glossy", "sunroom"):
+        elif case.startswith("figure6-") or case in ("glossy", "sunroom", "skyroom"):
             if case == "glossy":
                 scene = os.path.join(ROOT, "scenes", "glossy", "scene.toml")
-            elif case == "sunroom":
-                scene = sunroom_diffuse(d)
+            elif case in ("sunroom", "skyroom"):
+                scene = ball_made_diffuse(case, d)
             else:
                 floor = {"figure6-diffuse": '{ type = "diffuse", rho_d = 0.5 }',
                          "figure6-mirror": '{ type = "mirror", rho_s = 0.8 }',

@@ -31,7 +31,8 @@ pub fn require_light(sc: &Scene, l: &Lighting) -> Result<()> {
     if l.none() {
         bail!(
             "{}: no object emits light and there is no [[light]] (give a light an `emission = \
-             [r, g, b]`, or add a directional, point or spot [[light]]): the image would be black",
+             [r, g, b]`, add a directional, point or spot [[light]] or an [environment]): the image \
+             would be black",
             sc.path.display()
         );
     }
@@ -109,8 +110,9 @@ pub fn exposure_report(sc: &Scene, photo: &Path, args: &PhotoArgs, p: &PreparedP
             }
         ),
     }
-    // The bound below holds for area lights alone (a punctual light has no radiance).
-    if !sc.punctual_lights.is_empty() {
+    // The bound below holds for area lights alone (a punctual light has no radiance; an
+    // environment's is not checked here).
+    if !sc.punctual_lights.is_empty() || sc.environment.is_some() {
         return;
     }
     let Some((brightest, lmax)) = sc

@@ -890,6 +890,9 @@ fn info(sc: &Scene, lighting: &matfit::scene::lint::Lighting) {
             }
         );
     }
+    if let Some(e) = &sc.environment {
+        outln!("environment: {e:?}");
+    }
     if lighting.none() {
         out::warn(format!("{}: nothing emits light", sc.path.display()));
     }

@@ -215,6 +215,13 @@ pub fn glb(scene: &Scene) -> Result<(Vec<u8>, Vec<String>), String> {
         lights.push(light);
         nodes.push(node);
     }
+    if scene.environment.is_some() {
+        warnings.push(
+            "the [environment] light is not written: core glTF has no environment light (give \
+             the viewer the same HDR map as its sky)"
+                .into(),
+        );
+    }
     if !lights.is_empty() {
         ext_used.push("KHR_lights_punctual".into());
         warnings.push(format!(

@@ -163,6 +163,24 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
     for l in &scene.punctual_lights {
         write_punctual(&mut xml, l);
     }
+    if let Some(e) = &scene.environment {
+        // The map as matfit read it (linear EXR), so that Mitsuba reads the same radiance.
+        let path = dir.join("environment.exr");
+        e.image().write(&path)?;
+        report.files.push(path);
+        let r = e.to_world();
+        let m = |i: usize, j: usize| r.col(j)[i];
+        let _ = writeln!(
+            xml,
+            "\n    <emitter type=\"envmap\">\n        <string name=\"filename\" value=\"environment.exr\"/>\n        \
+             <float name=\"scale\" value=\"{}\"/>\n        <transform name=\"to_world\">\n            \
+             <matrix value=\"{} {} {} 0 {} {} {} 0 {} {} {} 0 0 0 0 1\"/>\n        </transform>\n    </emitter>",
+            e.scale,
+            m(0, 0), m(0, 1), m(0, 2),
+            m(1, 0), m(1, 1), m(1, 2),
+            m(2, 0), m(2, 1), m(2, 2)
+        );
+    }
     xml.push_str("</scene>\n");
 
     let xml_path = dir.join("scene.xml");

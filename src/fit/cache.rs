@@ -349,10 +349,13 @@ pub fn build(
                 let (frame, ng) = facing(hit.frame, hit.ng, wo_world);
                 let wo = frame.to_local(wo_world);
                 if k < hl {
-                    // Next-event estimation: a point on an area light, MIS-weighted against
-                    // the mixture, and every punctual light (found by light sampling alone).
+                    // Next-event estimation: a point on an area light and a direction to the
+                    // environment, MIS-weighted against the mixture, and every punctual light
+                    // (found by light sampling alone).
                     let area = pt.lights.sample(hit.p, &mut sampler);
-                    for ls in area.into_iter().chain(pt.lights.punctual_samples(hit.p)) {
+                    let env = pt.lights.sample_environment(hit.p, &mut sampler);
+                    let punctual = pt.lights.punctual_samples(hit.p);
+                    for ls in area.into_iter().chain(env).chain(punctual) {
                         let wi = frame.to_local(ls.wi);
                         if wi.z <= 0.0 || ng.dot(ls.wi) <= 0.0 {
                             continue;
@@ -404,6 +407,9 @@ pub fn build(
                             let w_b = ni as f32 * pm / (nl as f32 * pl + ni as f32 * pm);
                             emitted = Some(o2.emission * w_b);
                         }
+                    } else if let Some((le, pl)) = pt.lights.environment(wi_world) {
+                        let w_b = ni as f32 * pm / (nl as f32 * pl + ni as f32 * pm);
+                        emitted = Some(le * w_b);
                     }
                     entries.push(Entry {
                         half,

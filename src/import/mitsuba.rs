@@ -38,7 +38,8 @@
 //!   `TYPE_N`.
 //! - **Lights.** `area` emitters' `radiance` (rgb, a constant or a sampled spectrum) → emission;
 //!   `directional` (irradiance), `point` and `spot` (intensity, cutoff_angle, beam_width) →
-//!   `[[light]]` of the same meaning. Every other emitter (envmap, constant) is an error: the
+//!   `[[light]]` of the same meaning; `envmap` (filename, scale, a rotation) → `[environment]`.
+//!   Every other emitter (constant, …) is an error: the
 //!   lights are known inputs of a recovery, and one dropped would bias every group.
 //! - **BSDFs** (matfit's surfaces are two-sided: `twosided` is unwrapped, a one-sided BSDF is a
 //!   warning). Exact: `diffuse` (reflectance rgb / constant or sampled spectrum / bitmap texture →
@@ -60,8 +61,8 @@
 
 use super::ImportReport;
 use crate::scene::schema::{
-    CameraSpec, Color, LightKind, LightSpec, MaterialSpec, ObjectSpec, RenderSpec, SceneFile,
-    ShapeKind, TransformSpec,
+    CameraSpec, Color, EnvironmentSpec, LightKind, LightSpec, MaterialSpec, ObjectSpec, RenderSpec,
+    SceneFile, ShapeKind, TransformSpec,
 };
 use crate::scene::write::relative;
 use glam::{DMat3, DMat4, DQuat, DVec3, DVec4, EulerRot};
@@ -540,6 +541,7 @@ impl<'a> Ctx<'a> {
         let mut render = RenderSpec::default();
         let mut objects = Vec::new();
         let mut lights = Vec::new();
+        let mut environment = None;
         let mut names = HashSet::new();
         let mut shape_counts: HashMap<String, usize> = HashMap::new();
         for c in Self::children(root) {
@@ -571,6 +573,12 @@ impl<'a> Ctx<'a> {
                     }
                     objects.push(self.shape(c, &ty, name)?);
                 }
+                "emitter" if self.attr(c, "type")?.as_deref() == Some("envmap") => {
+                    if environment.is_some() {
+                        return Err(self.err(c, "a second envmap: matfit takes one environment"));
+                    }
+                    environment = Some(Spanned::new(0..0, self.envmap(c)?));
+                }
                 "emitter" => {
                     let k = lights.len() + 1;
                     lights.push(self.emitter(c, k)?);
@@ -589,6 +597,7 @@ impl<'a> Ctx<'a> {
             groups: Vec::new(),
             objects,
             lights,
+            environment,
         })
     }
 
@@ -656,6 +665,27 @@ impl<'a> Ctx<'a> {
             }
         }
         Ok(spec)
+    }
+
+    /// An `envmap` emitter: its file, scale and rotation (`to_world` must be a rotation).
+    fn envmap(&mut self, n: N<'a>) -> Result<EnvironmentSpec, String> {
+        let f = self
+            .string(n, "filename")?
+            .ok_or_else(|| self.err(n, "an envmap needs <string name=\"filename\">"))?;
+        let file = self.file_ref(n, &f)?;
+        let scale = self.float(n, "scale", 1.0)? as f32;
+        let m = self.transform(n, "to_world")?;
+        let t = decompose(m)
+            .filter(|t| {
+                let unit = |c: &Color| c.0.iter().all(|x| (x - 1.0).abs() < 1e-4);
+                t.translate.is_none() && t.scale.as_ref().is_none_or(unit)
+            })
+            .ok_or_else(|| self.err(n, "an envmap's to_world must be a rotation"))?;
+        Ok(EnvironmentSpec {
+            file,
+            scale: (scale != 1.0).then_some(scale),
+            rotate_deg: t.rotate_deg,
+        })
     }
 
     fn integrator(&mut self, n: N<'a>, render: &mut RenderSpec) -> Result<(), String> {

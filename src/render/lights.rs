@@ -2,7 +2,9 @@
 //! light, sampled uniformly over its area; emission is one-sided, along the triangle's
 //! geometric normal as wound, so a quad emits along edge_u × edge_v; one triangle is chosen per
 //! sample in proportion to its power) and the punctual lights (`scene::light`: directional,
-//! point, spot), every one of which is evaluated at every vertex.
+//! point, spot), every one of which is evaluated at every vertex, and the environment
+//! (`scene::environment`), sampled once at every vertex by its own importance and MIS-weighted
+//! against BSDF sampling like an area light.
 //!
 //! A punctual light is a delta: its "sample" is the one direction it arrives from, with the
 //! radiance-like factor Li such that the reflected radiance is f · Li · cos θi (pbrt-v4's
@@ -14,13 +16,17 @@
 
 use crate::geometry::Ray;
 use crate::math::{luminance_mean, warp, Rgb, Sampler, Vec3};
+use crate::scene::environment::Environment;
 use crate::scene::{Punctual, Scene};
+use std::sync::Arc;
 
 pub struct Lights {
     /// Emissive triangles, in the order of `cdf`.
     tris: Vec<LightTri>,
-    /// Punctual lights, after the triangles in the order of `cdf`.
+    /// Punctual lights, all evaluated at every vertex.
     punctual: Vec<Punctual>,
+    /// The environment, sampled once at every vertex besides the area light.
+    environment: Option<Arc<Environment>>,
     /// Cumulative selection probability, last entry 1.
     cdf: Vec<f32>,
     /// Per scene triangle: probability of choosing it divided by its area (0 if not a light).
@@ -108,6 +114,7 @@ impl Lights {
         Lights {
             tris,
             punctual,
+            environment: scene.environment.clone(),
             cdf,
             pdf_area,
             rows,
@@ -115,12 +122,35 @@ impl Lights {
     }
 
     pub fn is_empty(&self) -> bool {
-        self.tris.is_empty() && self.punctual.is_empty()
+        self.tris.is_empty() && self.punctual.is_empty() && self.environment.is_none()
     }
 
     /// Whether every light is an area light (the eight-lane path handles only those).
     pub fn area_only(&self) -> bool {
-        self.punctual.is_empty()
+        self.punctual.is_empty() && self.environment.is_none()
+    }
+
+    /// The environment's radiance seen along unit direction `d` and the density with which
+    /// `sample_environment` draws `d`, or None without an environment.
+    #[inline]
+    pub fn environment(&self, d: Vec3) -> Option<(Rgb, f32)> {
+        self.environment.as_ref().map(|e| (e.radiance(d), e.pdf(d)))
+    }
+
+    /// A direction towards the environment drawn by its importance (2 sampler dimensions, drawn
+    /// only when there is an environment); None without one or for a lost sample.
+    #[inline]
+    pub fn sample_environment(&self, p: Vec3, sampler: &mut Sampler) -> Option<LightSample> {
+        let env = self.environment.as_ref()?;
+        let (wi, radiance, pdf) = env.sample(sampler.next_2d())?;
+        (radiance.max_element() > 0.0).then_some(LightSample {
+            wi,
+            dist: f32::INFINITY,
+            point: p,
+            radiance,
+            pdf,
+            delta: false,
+        })
     }
 
     /// Samples a point on a light as seen from `p`; None if there are no lights or the point is

@@ -260,6 +260,7 @@ pub fn apply(scene: &mut SceneFile, edit: &Edit) -> Result<(), SceneError> {
             groups: Vec::new(),
             objects: f.add.clone(),
             lights: Vec::new(),
+            environment: None,
         };
         if f.add.is_empty() {
             check_camera(&alone, &edit.text, &edit.path)?;

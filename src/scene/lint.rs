@@ -15,7 +15,8 @@ pub struct Lighting {
     pub facing_away: Vec<usize>,
     /// Emitters the camera sees directly.
     pub in_view: Vec<usize>,
-    /// Punctual lights (`[[light]]`), which are not checked for what they light.
+    /// Punctual lights (`[[light]]`) and the environment, which are not checked for what they
+    /// light.
     pub punctual: usize,
 }
 
@@ -50,7 +51,7 @@ pub fn lighting(scene: &Scene) -> Lighting {
     let g = &scene.geometry;
     let pts = visible_points(scene, 48, 36);
     let mut out = Lighting {
-        punctual: scene.punctual_lights.len(),
+        punctual: scene.punctual_lights.len() + usize::from(scene.environment.is_some()),
         ..Lighting::default()
     };
     for (e, obj) in scene.objects.iter().enumerate() {

@@ -336,6 +336,32 @@ pub(super) fn build_objects(file: SceneFile, text: &str, path: &Path) -> Result<
         });
     }
 
+    let environment = match &file.environment {
+        None => None,
+        Some(e) => {
+            let spec = e.get_ref();
+            let path = cx.dir.join(&spec.file);
+            let image = crate::io::image::read_linear(&path)
+                .map_err(|m| cx.at(e.span().start, format!("[environment]: {m}")))?;
+            let rot = transform_of(&super::schema::TransformSpec {
+                rotate_deg: spec.rotate_deg,
+                ..Default::default()
+            });
+            let env = super::environment::Environment::new(
+                image,
+                spec.scale.unwrap_or(1.0),
+                Mat3::from(rot.matrix3),
+            )
+            .map_err(|m| {
+                cx.at(
+                    e.span().start,
+                    format!("[environment] {}: {m}", path.display()),
+                )
+            })?;
+            Some(Arc::new(env))
+        }
+    };
+
     let geometry = build_geometry(&mut objects, meshes);
     map_atlas_textures(&mut objects, &groups, &geometry, &file, &cx)?;
     let scene = Scene {
@@ -345,6 +371,7 @@ pub(super) fn build_objects(file: SceneFile, text: &str, path: &Path) -> Result<
         groups,
         objects,
         punctual_lights,
+        environment,
         geometry: Arc::new(geometry),
         source: file,
     };

@@ -4,6 +4,7 @@
 pub mod atlas;
 pub mod camera;
 pub mod edit;
+pub mod environment;
 pub mod error;
 pub mod light;
 pub mod lint;
@@ -177,6 +178,8 @@ pub struct Scene {
     pub objects: Vec<Object>,
     /// Lights that are not surfaces (`[[light]]`): directional, point, spot.
     pub punctual_lights: Vec<PunctualLight>,
+    /// The light arriving from infinitely far away (`[environment]`), if any.
+    pub environment: Option<Arc<environment::Environment>>,
     pub geometry: Arc<Geometry>,
     /// Groups' options and everything else of the source, for writing the scene back out.
     pub source: schema::SceneFile,
@@ -293,9 +296,11 @@ impl Scene {
         }
     }
 
-    /// Whether anything emits light: an emitting object or a punctual light.
+    /// Whether anything emits light: an emitting object, a punctual light, an environment.
     pub fn has_lights(&self) -> bool {
-        !self.punctual_lights.is_empty() || self.objects.iter().any(Object::is_emitter)
+        !self.punctual_lights.is_empty()
+            || self.environment.is_some()
+            || self.objects.iter().any(Object::is_emitter)
     }
 
     /// The number of triangles.

@@ -55,6 +55,11 @@
 //! # type = "point": position = [0, 2, 0], intensity = 5 (W/sr per channel)
 //! # type = "spot": position, target (or direction), intensity, cutoff_deg = 20,
 //! #   beam_width_deg = 15 (full intensity inside, falling linearly in angle to 0 at the cutoff)
+//!
+//! [environment]                 # an HDR light probe, equirectangular (`scene::environment`)
+//! file = "sky.exr"
+//! scale = 1.0
+//! rotate_deg = [0, 90, 0]       # about X, then Y, then Z
 //! ```
 
 use serde::{Deserialize, Serialize};
@@ -72,6 +77,21 @@ pub struct SceneFile {
     pub objects: Vec<ObjectSpec>,
     #[serde(default, rename = "light", skip_serializing_if = "Vec::is_empty")]
     pub lights: Vec<LightSpec>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub environment: Option<Spanned<EnvironmentSpec>>,
+}
+
+/// An environment light (`scene::environment`): an equirectangular HDR light probe.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct EnvironmentSpec {
+    /// EXR, HDR or PFM (linear radiance); an 8/16-bit image is read as sRGB.
+    pub file: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale: Option<f32>,
+    /// Rotation of the map into the scene, degrees about X, then Y, then Z (as a transform's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotate_deg: Option<[f32; 3]>,
 }
 
 #[derive(Clone, Debug, Deserialize, Serialize, Default, PartialEq)]
