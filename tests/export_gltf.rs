@@ -483,6 +483,7 @@ fn sunroom_lights_are_khr_lights_punctual_aimed_along_their_nodes_minus_z() {
             matfit::scene::Punctual::Directional {
                 direction,
                 irradiance,
+                ..
             } => ("directional", direction, irradiance),
             matfit::scene::Punctual::Spot {
                 direction,

@@ -392,10 +392,10 @@ fn bad_mitsuba_files_are_errors_naming_file_and_line() {
         "{e}"
     );
 
-    let xml = xml_with(d, "<emitter type=\"envmap\"/>");
+    let xml = xml_with(d, "<emitter type=\"constant\"/>");
     let e = import_fails(&xml);
     assert!(
-        e.contains(":5: emitter type 'envmap' cannot be imported"),
+        e.contains(":5: emitter type 'constant' cannot be imported"),
         "{e}"
     );
 

@@ -469,3 +469,59 @@ fn a_room_lit_by_an_hdr_sky_is_recovered_and_its_envmap_round_trips_through_mits
         );
     }
 }
+
+#[test]
+fn a_sun_with_an_angular_size_gives_the_same_irradiance_and_soft_shadows() {
+    // A directional light 15° wide: the floor still receives E cos θ (the disc's radiance is
+    // E / (π sin²7.5°)), and the shadow of a black slab has a penumbra that the parallel light
+    // lacks.
+    let dir = Vec3::new(0.5, -1.0, 0.2).normalize();
+    let light = |angle: &str| {
+        format!(
+            "[[object]]\nname = \"slab\"\ngroup = \"slab\"\nshape = \"box\"\nmin = [-0.3, 1.5, -0.3]\nmax = [0.3, 1.52, 0.3]\nmaterial = {{ type = \"black\" }}\n\
+             [[light]]\nname = \"sun\"\ntype = \"directional\"\ndirection = [{}, {}, {}]\nirradiance = 3\n{angle}",
+            dir.x, dir.y, dir.z
+        )
+    };
+    let sharp = floor_scene(&light(""));
+    let soft = floor_scene(&light("angle_deg = 15\n"));
+    let (a, b) = (rendered(&sharp, 64), rendered(&soft, 64));
+    let lit = RHO[1] / std::f32::consts::PI * 3.0 * dir.y.abs();
+    let (mut sum, mut n, mut penumbra_sharp, mut penumbra_soft) = (0.0f64, 0, 0, 0);
+    // Pixels that see some of the slab are partly black in both: left out.
+    let sees_slab = |i: usize| {
+        (0..16).any(|k| {
+            let film = Vec2::new(
+                (i % 24) as f32 + (k % 4) as f32 / 3.0,
+                (i / 24) as f32 + (k / 4) as f32 / 3.0,
+            );
+            let hit = sharp.intersect(&sharp.camera.ray(film), f32::INFINITY);
+            hit.is_some_and(|h| sharp.objects[h.object as usize].name == "slab")
+        })
+    };
+    for (i, (pa, pb)) in a.data.iter().zip(&b.data).enumerate() {
+        if sees_slab(i) {
+            continue;
+        }
+        // Far from the shadow both see the whole sun.
+        if (pa.y - lit).abs() < 1e-5 * lit {
+            sum += pb.y as f64;
+            n += 1;
+        }
+        let partial = |v: f32| v > 0.05 * lit && v < 0.95 * lit;
+        penumbra_sharp += usize::from(partial(pa.y));
+        penumbra_soft += usize::from(partial(pb.y));
+    }
+    let mean = (sum / n as f64) as f32;
+    assert!(n > 200, "{n}");
+    assert!(
+        (mean - lit).abs() < 0.01 * lit,
+        "lit floor {mean} vs E cos θ ρ/π {lit}"
+    );
+    // The penumbra: pixels partly lit. The sharp shadow has them only where a pixel straddles
+    // its edge.
+    assert!(
+        penumbra_soft > 2 * penumbra_sharp && penumbra_soft > 30,
+        "partly lit pixels: {penumbra_sharp} sharp, {penumbra_soft} soft"
+    );
+}

@@ -864,10 +864,16 @@ fn info(sc: &Scene, lighting: &matfit::scene::lint::Lighting) {
                 Punctual::Directional {
                     direction,
                     irradiance,
+                    angle,
                 } => format!(
-                    "directional, travelling along {}, irradiance {}",
+                    "directional, travelling along {}, irradiance {}{}",
                     vec3(direction),
-                    rgb(irradiance)
+                    rgb(irradiance),
+                    if angle > 0.0 {
+                        format!(", {}° wide", num(angle.to_degrees(), 3))
+                    } else {
+                        String::new()
+                    }
                 ),
                 Punctual::Point {
                     position,

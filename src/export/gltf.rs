@@ -839,6 +839,7 @@ fn punctual_json(l: &PunctualLight, k: usize) -> (Value, Value) {
         Punctual::Directional {
             direction,
             irradiance,
+            ..
         } => {
             let (color, intensity) = power(irradiance);
             (

@@ -161,7 +161,7 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
         xml.push_str("    </shape>\n");
     }
     for l in &scene.punctual_lights {
-        write_punctual(&mut xml, l);
+        write_punctual(&mut xml, l, &mut report.warnings);
     }
     if let Some(e) = &scene.environment {
         // The map as matfit read it (linear EXR), so that Mitsuba reads the same radiance.
@@ -192,14 +192,23 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
 }
 
 /// A `[[light]]` as the Mitsuba 3 emitter of the same meaning (`scene::light`).
-fn write_punctual(xml: &mut String, l: &PunctualLight) {
+fn write_punctual(xml: &mut String, l: &PunctualLight, warnings: &mut Vec<String>) {
     let id = escape(&mitsuba_id(&l.name, 'l'));
     let _ = writeln!(xml, "\n    <!-- light '{}' -->", escape_comment(&l.name));
     match l.kind {
         Punctual::Directional {
             direction,
             irradiance,
+            angle,
         } => {
+            if angle > 0.0 {
+                warnings.push(format!(
+                    "light '{}': Mitsuba's directional light is parallel; its {:.3}° angular \
+                     size is dropped (the same irradiance, sharp shadows)",
+                    l.name,
+                    angle.to_degrees()
+                ));
+            }
             let _ = writeln!(
                 xml,
                 "    <emitter type=\"directional\" id=\"{id}\">\n        <vector name=\"direction\" \

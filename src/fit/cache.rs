@@ -355,7 +355,9 @@ pub fn build(
                     let area = pt.lights.sample(hit.p, &mut sampler);
                     let env = pt.lights.sample_environment(hit.p, &mut sampler);
                     let punctual = pt.lights.punctual_samples(hit.p);
-                    for ls in area.into_iter().chain(env).chain(punctual) {
+                    let discs = (0..pt.lights.disc_count())
+                        .filter_map(|k| pt.lights.sample_disc(k, hit.p, &mut sampler));
+                    for ls in area.into_iter().chain(env).chain(punctual).chain(discs) {
                         let wi = frame.to_local(ls.wi);
                         if wi.z <= 0.0 || ng.dot(ls.wi) <= 0.0 {
                             continue;
@@ -407,9 +409,11 @@ pub fn build(
                             let w_b = ni as f32 * pm / (nl as f32 * pl + ni as f32 * pm);
                             emitted = Some(o2.emission * w_b);
                         }
-                    } else if let Some((le, pl)) = pt.lights.environment(wi_world) {
-                        let w_b = ni as f32 * pm / (nl as f32 * pl + ni as f32 * pm);
-                        emitted = Some(le * w_b);
+                    } else {
+                        pt.lights.at_infinity(wi_world, |le, pl| {
+                            let w_b = ni as f32 * pm / (nl as f32 * pl + ni as f32 * pm);
+                            *emitted.get_or_insert(Rgb::ZERO) += le * w_b;
+                        });
                     }
                     entries.push(Entry {
                         half,

@@ -629,6 +629,7 @@ impl<'a> Ctx<'a> {
             intensity: None,
             cutoff_deg: None,
             beam_width_deg: None,
+            angle_deg: None,
         };
         let rgb = |v: DVec3| Color(f32s(v));
         match ty.as_str() {

@@ -217,14 +217,14 @@ impl<'a> PathTracer<'a> {
         st.segments += 1;
         let Some(hit) = hit else {
             // The path leaves the scene: the environment, MIS-weighted as an emitter is.
-            if let Some((le, pl)) = self.lights.environment(st.ray.d) {
+            self.lights.at_infinity(st.ray.d, |le, pl| {
                 let w = match st.prev_pdf {
                     _ if st.first => f32::from(u8::from(st.count_emission)),
                     None => 1.0,
                     Some(pb) => power_heuristic(pb, pl),
                 };
                 st.l += st.beta * le * w;
-            }
+            });
             return None;
         };
         let g = &*self.scene.geometry;
@@ -285,13 +285,15 @@ impl<'a> PathTracer<'a> {
     #[inline(always)]
     pub(super) fn scatter(&self, st: &mut PathState, v: &Vertex, sampler: &mut Sampler) -> bool {
         let (bsdf, frame, ng, wo) = (&v.bsdf, &v.frame, v.ng, v.wo);
-        // Next-event estimation: one point on an area light, one direction to the environment,
-        // and every punctual light.
+        // Next-event estimation: one point on an area light, one direction to the environment
+        // and to each disc light, and every punctual light.
         if bsdf.has_smooth_part() {
             let area = self.lights.sample(v.p, sampler);
             let env = self.lights.sample_environment(v.p, sampler);
             let punctual = self.lights.punctual_samples(v.p);
-            for ls in area.into_iter().chain(env).chain(punctual) {
+            let discs = (0..self.lights.disc_count())
+                .filter_map(|k| self.lights.sample_disc(k, v.p, sampler));
+            for ls in area.into_iter().chain(env).chain(punctual).chain(discs) {
                 let wi = frame.to_local(ls.wi);
                 let cos_g = ng.dot(ls.wi);
                 if wi.z > 0.0 && cos_g > 0.0 {

@@ -27,6 +27,8 @@ pub struct Lights {
     punctual: Vec<Punctual>,
     /// The environment, sampled once at every vertex besides the area light.
     environment: Option<Arc<Environment>>,
+    /// Directional lights of some angular size, each sampled once at every vertex.
+    discs: Vec<Disc>,
     /// Cumulative selection probability, last entry 1.
     cdf: Vec<f32>,
     /// Per scene triangle: probability of choosing it divided by its area (0 if not a light).
@@ -84,7 +86,12 @@ impl Lights {
                 areas.push(area);
             }
         }
-        let punctual: Vec<Punctual> = scene.punctual_lights.iter().map(|l| l.kind).collect();
+        let (discs, punctual): (Vec<Punctual>, Vec<Punctual>) = scene
+            .punctual_lights
+            .iter()
+            .map(|l| l.kind)
+            .partition(|k| matches!(k, Punctual::Directional { angle, .. } if *angle > 0.0));
+        let discs = discs.iter().filter_map(Disc::new).collect();
         let total: f32 = weights.iter().sum();
         let mut cdf = Vec::with_capacity(weights.len());
         let mut acc = 0.0;
@@ -115,6 +122,7 @@ impl Lights {
             tris,
             punctual,
             environment: scene.environment.clone(),
+            discs,
             cdf,
             pdf_area,
             rows,
@@ -122,12 +130,54 @@ impl Lights {
     }
 
     pub fn is_empty(&self) -> bool {
-        self.tris.is_empty() && self.punctual.is_empty() && self.environment.is_none()
+        self.tris.is_empty()
+            && self.punctual.is_empty()
+            && self.environment.is_none()
+            && self.discs.is_empty()
     }
 
     /// Whether every light is an area light (the eight-lane path handles only those).
     pub fn area_only(&self) -> bool {
-        self.punctual.is_empty() && self.environment.is_none()
+        self.punctual.is_empty() && self.environment.is_none() && self.discs.is_empty()
+    }
+
+    /// The radiance of every light at infinity seen along unit direction `d` (the environment
+    /// and the discs whose cone holds `d`), each with the density its own sampling has for `d`.
+    #[inline]
+    pub fn at_infinity(&self, d: Vec3, mut f: impl FnMut(Rgb, f32)) {
+        if let Some((le, pl)) = self.environment(d) {
+            f(le, pl);
+        }
+        for disc in &self.discs {
+            if disc.axis.dot(d) >= disc.cos_max {
+                f(disc.radiance, disc.pdf);
+            }
+        }
+    }
+
+    /// One direction towards each disc light (2 sampler dimensions each), as `k` = 0, 1, …
+    #[inline]
+    pub fn sample_disc(&self, k: usize, p: Vec3, sampler: &mut Sampler) -> Option<LightSample> {
+        let disc = self.discs.get(k)?;
+        let u = sampler.next_2d();
+        let cos = 1.0 - u.x * (1.0 - disc.cos_max);
+        let sin = (1.0 - cos * cos).max(0.0).sqrt();
+        let phi = 2.0 * std::f32::consts::PI * u.y;
+        let wi = disc
+            .frame
+            .to_world(Vec3::new(sin * phi.cos(), sin * phi.sin(), cos));
+        Some(LightSample {
+            wi,
+            dist: f32::INFINITY,
+            point: p,
+            radiance: disc.radiance,
+            pdf: disc.pdf,
+            delta: false,
+        })
+    }
+
+    pub fn disc_count(&self) -> usize {
+        self.discs.len()
     }
 
     /// The environment's radiance seen along unit direction `d` and the density with which
@@ -246,6 +296,7 @@ fn punctual_sample(light: &Punctual, p: Vec3) -> Option<LightSample> {
         Punctual::Directional {
             direction,
             irradiance,
+            ..
         } => (-direction, f32::INFINITY, irradiance),
         Punctual::Point {
             position,
@@ -274,4 +325,39 @@ fn punctual_sample(light: &Punctual, p: Vec3) -> Option<LightSample> {
         pdf: 1.0,
         delta: true,
     })
+}
+
+/// A directional light of angular diameter 2θmax: a disc at infinity of uniform radiance
+/// L = E / (π sin²θmax), so that a surface facing it receives E (∫ L cos θ dω over the cone),
+/// sampled uniformly in solid angle over its cone: pdf = 1 / (2π (1 − cos θmax)).
+struct Disc {
+    /// Unit direction towards the light, and a frame around it.
+    axis: Vec3,
+    frame: crate::math::Frame,
+    cos_max: f32,
+    radiance: Rgb,
+    pdf: f32,
+}
+
+impl Disc {
+    fn new(light: &Punctual) -> Option<Disc> {
+        let Punctual::Directional {
+            direction,
+            irradiance,
+            angle,
+        } = *light
+        else {
+            return None;
+        };
+        let half = 0.5 * angle;
+        let (sin, cos) = half.sin_cos();
+        let axis = -direction;
+        Some(Disc {
+            axis,
+            frame: crate::math::Frame::from_normal(axis),
+            cos_max: cos,
+            radiance: irradiance / (std::f32::consts::PI * sin * sin),
+            pdf: 1.0 / (2.0 * std::f32::consts::PI * (1.0 - cos)),
+        })
+    }
 }

@@ -20,8 +20,15 @@ pub struct PunctualLight {
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Punctual {
-    /// Parallel light travelling along `direction` (unit).
-    Directional { direction: Vec3, irradiance: Rgb },
+    /// Light travelling along `direction` (unit) from a source of angular diameter `angle`
+    /// (radians; 0: parallel light, a delta; else a disc of uniform radiance
+    /// E / (π sin²(angle/2)), which gives irradiance E on a surface facing it, and soft
+    /// shadows).
+    Directional {
+        direction: Vec3,
+        irradiance: Rgb,
+        angle: f32,
+    },
     /// Light from `position`, the same radiant intensity in every direction.
     Point { position: Vec3, intensity: Rgb },
     /// A point light limited to a cone around `direction` (unit): full intensity within
@@ -101,9 +108,10 @@ pub fn build(spec: &LightSpec) -> Result<Punctual, String> {
         ("intensity", spec.intensity.is_some()),
         ("cutoff_deg", spec.cutoff_deg.is_some()),
         ("beam_width_deg", spec.beam_width_deg.is_some()),
+        ("angle_deg", spec.angle_deg.is_some()),
     ];
     let allowed: &[&str] = match kind {
-        LightKind::Directional => &["direction", "irradiance"],
+        LightKind::Directional => &["direction", "irradiance", "angle_deg"],
         LightKind::Point => &["position", "intensity"],
         LightKind::Spot => &[
             "position",
@@ -130,6 +138,10 @@ pub fn build(spec: &LightSpec) -> Result<Punctual, String> {
                 "direction",
             )?,
             irradiance: power(rgb(&spec.irradiance), "irradiance")?,
+            angle: match spec.angle_deg.unwrap_or(0.0) {
+                a if (0.0..=45.0).contains(&a) => a.to_radians(),
+                a => return Err(format!("`angle_deg` must be in [0, 45], got {a}")),
+            },
         },
         LightKind::Point => Punctual::Point {
             position: point(spec.position, "position")?,
@@ -195,7 +207,8 @@ mod tests {
             d,
             Punctual::Directional {
                 direction: Vec3::new(0.0, -1.0, 0.0),
-                irradiance: Rgb::splat(3.0)
+                irradiance: Rgb::splat(3.0),
+                angle: 0.0
             }
         );
         let e = spec("type = \"directional\"\nposition = [0, 1, 0]\nirradiance = 3").unwrap_err();

@@ -52,6 +52,7 @@
 //! type = "directional"          # directional | point | spot
 //! direction = [0.3, -1, -0.2]   # the way the light travels
 //! irradiance = [3, 2.9, 2.6]    # W/m² per channel on a surface facing the light
+//! angle_deg = 0.53              # optional: the source's angular diameter (soft shadows)
 //! # type = "point": position = [0, 2, 0], intensity = 5 (W/sr per channel)
 //! # type = "spot": position, target (or direction), intensity, cutoff_deg = 20,
 //! #   beam_width_deg = 15 (full intensity inside, falling linearly in angle to 0 at the cutoff)
@@ -206,6 +207,9 @@ pub struct LightSpec {
     pub cutoff_deg: Option<f32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub beam_width_deg: Option<f32>,
+    /// directional: the source's angular diameter (the sun: 0.53°); 0 or absent: a delta.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angle_deg: Option<f32>,
 }
 
 #[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
