@@ -772,6 +772,11 @@ pub fn texture_png(texture: &Texture, factor: Rgb) -> Result<(Vec<u8>, usize), S
 fn camera_json(scene: &Scene, warnings: &mut Vec<String>) -> (Value, Value) {
     let cam = &scene.camera;
     let eye = cam.eye();
+    if cam.distortion.is_some() {
+        warnings.push(
+            "the camera's lens distortion is not exported: a glTF camera is a pinhole".into(),
+        );
+    }
     if ((cam.fx - cam.fy) / cam.fy).abs() > 1e-4 {
         warnings.push(format!(
             "camera: fx {} ≠ fy {} but glTF cameras have square pixels; exported with fy's \

@@ -311,6 +311,13 @@ fn write_integrator(xml: &mut String, scene: &Scene) {
 fn write_sensor(xml: &mut String, scene: &Scene, warnings: &mut Vec<String>) {
     let cam = &scene.camera;
     let eye = cam.eye();
+    if cam.distortion.is_some() {
+        warnings.push(
+            "the camera's lens distortion is not exported: Mitsuba's perspective sensor is a \
+             pinhole, so its image is the undistorted one"
+                .into(),
+        );
+    }
     let forward = cam.r.row(2);
     let up = -cam.r.row(1);
     if ((cam.fx - cam.fy) / cam.fy).abs() > 1e-4 {

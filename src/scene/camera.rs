@@ -8,6 +8,16 @@
 //! film coordinates in which pixel (i, j) covers [i, i+1) × [j, j+1) (its centre at i + ½, as
 //! Mitsuba and pbrt do), so `cx_film = cx_opencv + ½`. A look-at camera is centred:
 //! cx_opencv = (width − 1)/2, fy = (height/2) / tan(fov_y/2), fx = fy (square pixels).
+//!
+//! Lens distortion, optional, is OpenCV's standard (Brown–Conrady) model on the normalised
+//! coordinates (x, y) = (x_cam / z_cam, y_cam / z_cam), with r² = x² + y²:
+//!
+//!   x_d = x (1 + k1 r² + k2 r⁴ + k3 r⁶) + 2 p1 x y + p2 (r² + 2x²)
+//!   y_d = y (1 + k1 r² + k2 r⁴ + k3 r⁶) + p1 (r² + 2y²) + 2 p2 x y
+//!
+//! and u = fx x_d + cx (OpenCV's `projectPoints`). `project` applies it; a primary ray inverts
+//! it by the fixed-point iteration of OpenCV's `undistortPoints`, run to convergence, so that
+//! the rendered image and the index buffers are the distorted photo's.
 
 use crate::geometry::Ray;
 use crate::math::{Mat3, Vec2, Vec3};
@@ -26,6 +36,8 @@ pub struct Camera {
     pub r: Mat3,
     /// World-to-camera translation.
     pub t: Vec3,
+    /// OpenCV distortion coefficients (k1, k2, p1, p2, k3), if the lens has any.
+    pub distortion: Option<[f32; 5]>,
 }
 
 impl Camera {
@@ -56,6 +68,7 @@ impl Camera {
             cy: 0.5 * height as f32,
             r,
             t: -(r * eye),
+            distortion: None,
         })
     }
 
@@ -88,6 +101,7 @@ impl Camera {
             cy: cy + 0.5,
             r,
             t,
+            distortion: None,
         })
     }
 
@@ -98,11 +112,12 @@ impl Camera {
 
     /// The primary ray through continuous film position (x, y); direction normalised.
     pub fn ray(&self, film: Vec2) -> Ray {
-        let d_cam = Vec3::new(
-            (film.x - self.cx) / self.fx,
-            (film.y - self.cy) / self.fy,
-            1.0,
-        );
+        let (x, y) = ((film.x - self.cx) / self.fx, (film.y - self.cy) / self.fy);
+        let (x, y) = match &self.distortion {
+            None => (x, y),
+            Some(k) => undistort(k, x, y),
+        };
+        let d_cam = Vec3::new(x, y, 1.0);
         Ray::new(self.eye(), (self.r.transpose() * d_cam).normalize())
     }
 
@@ -111,6 +126,12 @@ impl Camera {
     /// `Mat3 * Vec3` is x_axis·x + y_axis·y + z_axis·z; `normalize` multiplies by
     /// 1 / √(x² + y² + z²)).
     pub fn directions8(&self, x: f32x8, y: f32x8) -> [f32x8; 3] {
+        if self.distortion.is_some() {
+            // Lane by lane through `ray`: the undistortion iterates.
+            let (x, y) = (x.to_array(), y.to_array());
+            let d: [Vec3; 8] = std::array::from_fn(|i| self.ray(Vec2::new(x[i], y[i])).d);
+            return std::array::from_fn(|k| f32x8::from(d.map(|v| v[k])));
+        }
         let m = self.r.transpose();
         let dx = (x - f32x8::splat(self.cx)) / f32x8::splat(self.fx);
         let dy = (y - f32x8::splat(self.cy)) / f32x8::splat(self.fy);
@@ -133,10 +154,12 @@ impl Camera {
         if c.z <= 0.0 {
             return None;
         }
-        Some(Vec2::new(
-            self.fx * c.x / c.z + self.cx,
-            self.fy * c.y / c.z + self.cy,
-        ))
+        let (x, y) = (c.x / c.z, c.y / c.z);
+        let (x, y) = match &self.distortion {
+            None => (x, y),
+            Some(k) => distort(k, x, y),
+        };
+        Some(Vec2::new(self.fx * x + self.cx, self.fy * y + self.cy))
     }
 
     /// The same camera shifted by (dx, dy) pixels on the film: a misregistered model, for tests.
@@ -154,9 +177,77 @@ impl Camera {
     }
 }
 
+/// OpenCV's distortion of normalised coordinates (module comment).
+fn distort(k: &[f32; 5], x: f32, y: f32) -> (f32, f32) {
+    let [k1, k2, p1, p2, k3] = *k;
+    let r2 = x * x + y * y;
+    let radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+    (
+        x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
+        y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y,
+    )
+}
+
+/// The normalised coordinates that `distort` takes to (xd, yd): OpenCV's fixed-point
+/// iteration x ← (x_d − tangential(x)) / radial(x), until it moves less than 1e-7 (at most 50
+/// steps; strong distortion near the image corners converges slowest).
+fn undistort(k: &[f32; 5], xd: f32, yd: f32) -> (f32, f32) {
+    let [k1, k2, p1, p2, k3] = *k;
+    let (mut x, mut y) = (xd, yd);
+    for _ in 0..50 {
+        let r2 = x * x + y * y;
+        let radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+        let dx = 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
+        let dy = p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
+        let (nx, ny) = ((xd - dx) / radial, (yd - dy) / radial);
+        let moved = (nx - x).abs().max((ny - y).abs());
+        (x, y) = (nx, ny);
+        if moved < 1e-7 {
+            break;
+        }
+    }
+    (x, y)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn distortion_follows_opencv_and_rays_invert_it() {
+        // A calibration of the size a phone or DSLR lens gives (barrel, slight decentring).
+        let r = Mat3::IDENTITY;
+        let mut cam =
+            Camera::calibrated(640, 480, 500.0, 505.0, 321.0, 238.0, r, Vec3::ZERO).unwrap();
+        cam.distortion = Some([-0.28, 0.09, 0.0012, -0.0008, -0.012]);
+        // A point at normalised (0.4, −0.3): r² = 0.25, radial = 1 − 0.07 + 0.005625 −
+        // 0.0001875 = 0.9354375; x_d = 0.374175 + 2·0.0012·0.4·(−0.3) − 0.0008·(0.25 + 0.32)
+        // = 0.373431, y_d = −0.28063125 + 0.0012·(0.25 + 0.18) + 2·(−0.0008)·0.4·(−0.3)
+        // = −0.279923 (worked by hand from OpenCV's documented model).
+        let p = cam.project(Vec3::new(0.4, -0.3, 1.0)).unwrap();
+        assert!((p.x - (500.0 * 0.373431 + 321.5)).abs() < 1e-3, "{p}");
+        assert!((p.y - (505.0 * -0.279923 + 238.5)).abs() < 1e-3, "{p}");
+        // Every pixel's ray projects back onto the pixel.
+        for j in (0..=480).step_by(40) {
+            for i in (0..=640).step_by(40) {
+                let film = Vec2::new(i as f32, j as f32);
+                let ray = cam.ray(film);
+                let back = cam.project(ray.o + ray.d * 3.0).unwrap();
+                assert!((back - film).length() < 2e-3, "{film} → {back}");
+            }
+        }
+        // The eight-lane directions are the rays' to the bit.
+        let xs = f32x8::from([0.5, 100.0, 639.5, 320.0, 1.0, 200.25, 600.0, 7.0]);
+        let ys = f32x8::from([0.5, 50.0, 479.5, 240.0, 470.0, 10.75, 300.0, 400.0]);
+        let d = cam.directions8(xs, ys);
+        for i in 0..8 {
+            let r = cam.ray(Vec2::new(xs.to_array()[i], ys.to_array()[i]));
+            assert_eq!(
+                [d[0].to_array()[i], d[1].to_array()[i], d[2].to_array()[i]],
+                r.d.to_array()
+            );
+        }
+    }
 
     #[test]
     fn look_at_projects_known_points_analytically() {

@@ -479,6 +479,47 @@ pub(super) fn check_camera(
 }
 
 fn build_camera(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {
+    let mut cam = pinhole(file, cx)?;
+    let Some(k) = file.camera.distortion else {
+        return Ok(cam);
+    };
+    if !k.iter().all(|x| x.is_finite()) {
+        return Err(cx.camera_at(
+            "distortion",
+            "[camera] distortion has a NaN or infinite value".into(),
+        ));
+    }
+    cam.distortion = Some(k);
+    // The model must be invertible over the film: every border pixel's ray lands back on it.
+    let (w, h) = (cam.width as f32, cam.height as f32);
+    for i in 0..=16 {
+        let f = i as f32 / 16.0;
+        for film in [
+            Vec2::new(f * w, 0.0),
+            Vec2::new(f * w, h),
+            Vec2::new(0.0, f * h),
+            Vec2::new(w, f * h),
+        ] {
+            let ray = cam.ray(film);
+            let back = cam.project(ray.o + ray.d);
+            if back.is_none_or(|b| (b - film).length() > 0.01) {
+                return Err(cx.camera_at(
+                    "distortion",
+                    format!(
+                        "[camera] distortion {k:?} cannot be inverted at film position ({}, {}): \
+                         too strong for this field of view (are the coefficients OpenCV's k1, \
+                         k2, p1, p2, k3, for these fx, fy?)",
+                        film.x, film.y
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(cam)
+}
+
+/// The camera of `[camera]` without its lens distortion.
+fn pinhole(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {
     let c = &file.camera;
     if c.width == 0 || c.height == 0 || c.width > 65536 || c.height > 65536 {
         return Err(cx.whole(format!(

@@ -20,6 +20,7 @@
 //! # fx = 500, fy = 500, cx = 255.5, cy = 191.5      # ... or the calibrated (OpenCV) form:
 //! # rotation = [[1,0,0],[0,-1,0],[0,0,-1]]         # world-to-camera R (rows)
 //! # translation = [0, 1, 3]                         # world-to-camera t: x_cam = R x + t
+//! # distortion = [-0.28, 0.09, 0.001, -0.0008, 0]   # OpenCV's k1, k2, p1, p2, k3 (optional)
 //!
 //! [[group]]                     # optional: groups named by objects exist anyway
 //! name = "floor"
@@ -135,6 +136,9 @@ pub struct CameraSpec {
     pub rotation: Option<[[f32; 3]; 3]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub translation: Option<[f32; 3]>,
+    /// OpenCV lens distortion (k1, k2, p1, p2, k3), in either form.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub distortion: Option<[f32; 5]>,
 }
 
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
