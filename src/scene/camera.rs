@@ -18,6 +18,10 @@
 //! and u = fx x_d + cx (OpenCV's `projectPoints`). `project` applies it; a primary ray inverts
 //! it by the fixed-point iteration of OpenCV's `undistortPoints`, run to convergence, so that
 //! the rendered image and the index buffers are the distorted photo's.
+//!
+//! Or OpenCV's fisheye model (`cv::fisheye`, Kannala–Brandt): with θ = atan r the angle off the
+//! axis, θ_d = θ (1 + k1 θ² + k2 θ⁴ + k3 θ⁶ + k4 θ⁸) and (x_d, y_d) = (θ_d / r) (x, y); a ray
+//! inverts θ_d → θ by Newton's method, as `cv::fisheye::undistortPoints` does.
 
 use crate::geometry::Ray;
 use crate::math::{Mat3, Vec2, Vec3};
@@ -36,8 +40,72 @@ pub struct Camera {
     pub r: Mat3,
     /// World-to-camera translation.
     pub t: Vec3,
-    /// OpenCV distortion coefficients (k1, k2, p1, p2, k3), if the lens has any.
-    pub distortion: Option<[f32; 5]>,
+    /// The lens's distortion, if any (module comment).
+    pub distortion: Option<Lens>,
+}
+
+/// OpenCV's two distortion models.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Lens {
+    /// (k1, k2, p1, p2, k3): `cv::projectPoints`.
+    Brown([f32; 5]),
+    /// (k1, k2, k3, k4): `cv::fisheye::projectPoints`.
+    Fisheye([f32; 4]),
+}
+
+impl Lens {
+    /// Distorted normalised coordinates of undistorted (x, y).
+    fn distort(&self, x: f32, y: f32) -> (f32, f32) {
+        match self {
+            Lens::Brown(k) => distort(k, x, y),
+            Lens::Fisheye(k) => {
+                let r = (x * x + y * y).sqrt();
+                if r == 0.0 {
+                    return (x, y);
+                }
+                let t = r.atan();
+                let s = fisheye_theta_d(k, t) / r;
+                (x * s, y * s)
+            }
+        }
+    }
+
+    /// The camera-frame direction (not normalised) whose image is distorted (xd, yd).
+    fn undistort(&self, xd: f32, yd: f32) -> Vec3 {
+        match self {
+            Lens::Brown(k) => {
+                let (x, y) = undistort(k, xd, yd);
+                Vec3::new(x, y, 1.0)
+            }
+            Lens::Fisheye(k) => {
+                let rd = (xd * xd + yd * yd).sqrt();
+                if rd == 0.0 {
+                    return Vec3::Z;
+                }
+                // Newton on θ_d(θ) = rd from θ = rd.
+                let mut t = rd;
+                for _ in 0..20 {
+                    let (t2, [k1, k2, k3, k4]) = (t * t, *k);
+                    let f = fisheye_theta_d(k, t) - rd;
+                    let df =
+                        1.0 + t2 * (3.0 * k1 + t2 * (5.0 * k2 + t2 * (7.0 * k3 + t2 * 9.0 * k4)));
+                    let step = f / df;
+                    t -= step;
+                    if step.abs() < 1e-7 {
+                        break;
+                    }
+                }
+                let s = t.sin() / rd;
+                Vec3::new(xd * s, yd * s, t.cos())
+            }
+        }
+    }
+}
+
+/// θ (1 + k1 θ² + k2 θ⁴ + k3 θ⁶ + k4 θ⁸).
+fn fisheye_theta_d(k: &[f32; 4], t: f32) -> f32 {
+    let t2 = t * t;
+    t * (1.0 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3]))))
 }
 
 impl Camera {
@@ -113,11 +181,10 @@ impl Camera {
     /// The primary ray through continuous film position (x, y); direction normalised.
     pub fn ray(&self, film: Vec2) -> Ray {
         let (x, y) = ((film.x - self.cx) / self.fx, (film.y - self.cy) / self.fy);
-        let (x, y) = match &self.distortion {
-            None => (x, y),
-            Some(k) => undistort(k, x, y),
+        let d_cam = match &self.distortion {
+            None => Vec3::new(x, y, 1.0),
+            Some(lens) => lens.undistort(x, y),
         };
-        let d_cam = Vec3::new(x, y, 1.0);
         Ray::new(self.eye(), (self.r.transpose() * d_cam).normalize())
     }
 
@@ -157,7 +224,7 @@ impl Camera {
         let (x, y) = (c.x / c.z, c.y / c.z);
         let (x, y) = match &self.distortion {
             None => (x, y),
-            Some(k) => distort(k, x, y),
+            Some(lens) => lens.distort(x, y),
         };
         Some(Vec2::new(self.fx * x + self.cx, self.fy * y + self.cy))
     }
@@ -219,7 +286,7 @@ mod tests {
         let r = Mat3::IDENTITY;
         let mut cam =
             Camera::calibrated(640, 480, 500.0, 505.0, 321.0, 238.0, r, Vec3::ZERO).unwrap();
-        cam.distortion = Some([-0.28, 0.09, 0.0012, -0.0008, -0.012]);
+        cam.distortion = Some(Lens::Brown([-0.28, 0.09, 0.0012, -0.0008, -0.012]));
         // A point at normalised (0.4, −0.3): r² = 0.25, radial = 1 − 0.07 + 0.005625 −
         // 0.0001875 = 0.9354375; x_d = 0.374175 + 2·0.0012·0.4·(−0.3) − 0.0008·(0.25 + 0.32)
         // = 0.373431, y_d = −0.28063125 + 0.0012·(0.25 + 0.18) + 2·(−0.0008)·0.4·(−0.3)
@@ -233,6 +300,23 @@ mod tests {
                 let film = Vec2::new(i as f32, j as f32);
                 let ray = cam.ray(film);
                 let back = cam.project(ray.o + ray.d * 3.0).unwrap();
+                assert!((back - film).length() < 2e-3, "{film} → {back}");
+            }
+        }
+        // The same for a fisheye lens (a 150° field of view; OpenCV's fisheye model), whose
+        // θ_d at θ = 0.5: 0.5 (1 + 0.03·0.25 − 0.01·0.0625 + 0 + 0.001·0.00390625) = 0.5034394.
+        let mut fish = cam.clone();
+        fish.fx = 300.0;
+        fish.fy = 300.0;
+        let k = [0.03, -0.01, 0.0, 0.001];
+        fish.distortion = Some(Lens::Fisheye(k));
+        let p = fish.project(Vec3::new(0.5f32.tan(), 0.0, 1.0)).unwrap();
+        assert!((p.x - (300.0 * 0.5034394 + 321.5)).abs() < 1e-3, "{p}");
+        for j in (0..=480).step_by(40) {
+            for i in (0..=640).step_by(40) {
+                let film = Vec2::new(i as f32, j as f32);
+                let ray = fish.ray(film);
+                let back = fish.project(ray.o + ray.d * 3.0).unwrap();
                 assert!((back - film).length() < 2e-3, "{film} → {back}");
             }
         }

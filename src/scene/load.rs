@@ -1,6 +1,7 @@
 //! Scene loading: TOML → checked [`Scene`]. Every error names the scene file and the line, key or
 //! object at fault; nothing here panics on bad input.
 
+use super::camera::Lens;
 use super::error::SceneError;
 use super::schema::{Color, MaterialSpec, ObjectSpec, SceneFile, ShapeKind};
 use super::texture::Texture;
@@ -480,16 +481,22 @@ pub(super) fn check_camera(
 
 fn build_camera(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {
     let mut cam = pinhole(file, cx)?;
-    let Some(k) = file.camera.distortion else {
-        return Ok(cam);
+    let (key, lens, k): (&str, Lens, Vec<f32>) = match (file.camera.distortion, file.camera.fisheye)
+    {
+        (None, None) => return Ok(cam),
+        (Some(_), Some(_)) => {
+            return Err(cx.camera_at(
+                "fisheye",
+                "[camera] has both `distortion` and `fisheye`: give one lens model".into(),
+            ))
+        }
+        (Some(k), None) => ("distortion", Lens::Brown(k), k.to_vec()),
+        (None, Some(k)) => ("fisheye", Lens::Fisheye(k), k.to_vec()),
     };
     if !k.iter().all(|x| x.is_finite()) {
-        return Err(cx.camera_at(
-            "distortion",
-            "[camera] distortion has a NaN or infinite value".into(),
-        ));
+        return Err(cx.camera_at(key, format!("[camera] {key} has a NaN or infinite value")));
     }
-    cam.distortion = Some(k);
+    cam.distortion = Some(lens);
     // The model must be invertible over the film: every border pixel's ray lands back on it.
     let (w, h) = (cam.width as f32, cam.height as f32);
     for i in 0..=16 {
@@ -504,11 +511,11 @@ fn build_camera(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {
             let back = cam.project(ray.o + ray.d);
             if back.is_none_or(|b| (b - film).length() > 0.01) {
                 return Err(cx.camera_at(
-                    "distortion",
+                    key,
                     format!(
-                        "[camera] distortion {k:?} cannot be inverted at film position ({}, {}): \
-                         too strong for this field of view (are the coefficients OpenCV's k1, \
-                         k2, p1, p2, k3, for these fx, fy?)",
+                        "[camera] {key} {k:?} cannot be inverted at film position ({}, {}): \
+                         too strong for this field of view (are the coefficients OpenCV's, for \
+                         these fx, fy?)",
                         film.x, film.y
                     ),
                 ));

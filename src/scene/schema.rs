@@ -21,6 +21,7 @@
 //! # rotation = [[1,0,0],[0,-1,0],[0,0,-1]]         # world-to-camera R (rows)
 //! # translation = [0, 1, 3]                         # world-to-camera t: x_cam = R x + t
 //! # distortion = [-0.28, 0.09, 0.001, -0.0008, 0]   # OpenCV's k1, k2, p1, p2, k3 (optional)
+//! # fisheye = [0.03, -0.01, 0, 0.001]              # or cv::fisheye's k1..k4
 //!
 //! [[group]]                     # optional: groups named by objects exist anyway
 //! name = "floor"
@@ -139,6 +140,9 @@ pub struct CameraSpec {
     /// OpenCV lens distortion (k1, k2, p1, p2, k3), in either form.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub distortion: Option<[f32; 5]>,
+    /// Or OpenCV's fisheye model (k1, k2, k3, k4).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fisheye: Option<[f32; 4]>,
 }
 
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
