@@ -22,7 +22,7 @@
 //! the back wall's ρd by −3% (0.63 for 0.65). With the creases: 0.42 px, below the half-pixel
 //! at which `prepare` corrects anything.
 
-use crate::photo::{edges, Photo};
+use crate::photo::{edges, ignore, Photo};
 use crate::render::aov::IndexBuffers;
 
 /// Smallest angle between the shading normals of neighbouring pixels of one object that makes
@@ -45,11 +45,14 @@ pub fn estimate_shift(ib: &IndexBuffers, photo: &Photo, max_shift: i32) -> Regis
     let (w, h) = (ib.width as i64, ib.height as i64);
     let g = edges::log_gradient(photo);
     let boundary = model_edges(ib);
+    // The blur and Sobel of `log_gradient` reach 2 px: the ignored object's own outline is not
+    // the model's, so no shift may score on it.
+    let blocked = ignore::near_ignored(photo, 2);
     let score = |dx: i64, dy: i64| -> f64 {
         let (mut s, mut n) = (0.0f64, 0usize);
         for &(x, y) in &boundary {
             let (xx, yy) = (x + dx, y + dy);
-            if xx >= 0 && yy >= 0 && xx < w && yy < h {
+            if xx >= 0 && yy >= 0 && xx < w && yy < h && !blocked[(yy * w + xx) as usize] {
                 s += g[(yy * w + xx) as usize] as f64;
                 n += 1;
             }
