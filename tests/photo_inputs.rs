@@ -134,7 +134,24 @@ fn an_ignore_mask_removes_an_unmodelled_object() {
         out.contains("mask.png: 256 pixels masked by the user"),
         "{out}"
     );
-    assert!(out.contains("masked by the user"), "{out}");
+    assert!(
+        out.contains("\"pixels_lost\":\"256 masked by the user"),
+        "{out}"
+    );
+    let (code, out, err) = run(
+        &[
+            "inspect",
+            "scene.toml",
+            "box.exr",
+            "-o",
+            "check",
+            "--ignore-mask",
+            "mask.png",
+        ],
+        dir,
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("256 masked by the user (mask.png)"), "{out}");
     // A mask of another size: the file and both sizes named, exit code 2.
     image::GrayImage::new(32, 24)
         .save(dir.join("small.png"))
@@ -196,6 +213,12 @@ fn brackets_merged_by_hdr_are_recovered_within_twice_the_clean_tolerance() {
     ]);
     let (code, out, err) = run(&args, dir);
     assert_eq!(code, 0, "{err}");
+    eprintln!("{out}{err}");
+    // The background is black in every exposure: counted, and given 0.
+    assert!(
+        err.contains("have a channel black in every exposure"),
+        "{err}"
+    );
     assert!(
         out.contains("wrote merged.exr (64×48, 3 8-bit exposures"),
         "{out}"

@@ -87,7 +87,7 @@ pub fn run(a: &HdrArgs) -> Result<()> {
     };
     let m = merge(&b, &response);
     let n = b.width() * b.height();
-    if m.clipped_everywhere + m.black_everywhere == n {
+    if m.unmeasured == n {
         bail!(
             "no pixel has a well-exposed code in any of the {} images (all clipped or black): \
              check the exposure times and the images",

@@ -30,6 +30,11 @@ use std::path::PathBuf;
 /// Largest number of (pixel, channel) samples used: an evenly strided subset of a larger image.
 pub const MAX_SAMPLES: usize = 200_000;
 
+/// Largest root-mean-square misfit (ln units) of brackets to the curve: 8-bit quantisation
+/// alone gives 0.001–0.002 (the tests here, `tests/photo_inputs.rs`); one exposure twice,
+/// claimed 4× apart, 0.13–0.25.
+pub const MAX_RMS: f64 = 0.1;
+
 /// Number of basis functions of g.
 const K: usize = 5;
 
@@ -137,6 +142,14 @@ pub fn recover_response(b: &Brackets, bins: usize) -> Result<Recovered, String> 
     let mut values: Vec<f64> = (0..bins)
         .map(|m| if m == 0 { 0.0 } else { g(m as f64 / top).exp() })
         .collect();
+    let rms = (sq / rows.len().max(1) as f64).sqrt();
+    if rms > MAX_RMS || values.iter().any(|v| !(v.is_finite() && *v < 1e30)) {
+        return Err(format!(
+            "the brackets do not fit a response curve (rms misfit {rms:.3} ln units, more than \
+             {MAX_RMS}): check the exposure times and their order, and that neither the camera \
+             nor the scene moved"
+        ));
+    }
     // A table's values never decrease (a brighter code cannot mean less light).
     for m in 1..bins {
         values[m] = values[m].max(values[m - 1]);
@@ -147,7 +160,7 @@ pub fn recover_response(b: &Brackets, bins: usize) -> Result<Recovered, String> 
             codes: (0..bins).map(|m| m as f32 / top as f32).collect(),
             values: values.iter().map(|&v| [v as f32; 3]).collect(),
         },
-        rms: (sq / rows.len().max(1) as f64).sqrt(),
+        rms,
     })
 }
 
@@ -273,5 +286,10 @@ mod tests {
         let b = synthesize(&log_ramp(2000, 0.1, 0.9), &[1.0, 1.0], |x| x);
         let e = recover_response(&b, 256).unwrap_err();
         assert!(e.contains("exposure times are all equal"), "{e}");
+        // One exposure twice, claimed 4× apart: no curve fits.
+        let mut b = synthesize(&log_ramp(2000, 0.1, 0.9), &[1.0, 1.0], |x| x.powf(0.45));
+        b.times = vec![0.25, 1.0];
+        let e = recover_response(&b, 256).unwrap_err();
+        assert!(e.contains("do not fit a response curve"), "{e}");
     }
 }

@@ -31,17 +31,19 @@ pub struct Merged {
     pub clipped_everywhere: usize,
     /// Pixels with a channel black in every exposure (their value is an upper bound).
     pub black_everywhere: usize,
+    /// Pixels none of whose channels has a well-exposed code in any exposure.
+    pub unmeasured: usize,
 }
 
 /// Merges `b` through `response` (eq. 6 of the module documentation).
 pub fn merge(b: &Brackets, response: &Response) -> Merged {
     let (w, h) = (b.width(), b.height());
     let mut image = Image::new(w, h);
-    let (mut clipped, mut black) = (0, 0);
+    let (mut clipped, mut black, mut unmeasured) = (0, 0, 0);
     let shortest = argmin(&b.times, |t| t);
     let longest = argmin(&b.times, |t| -t);
     for i in 0..w * h {
-        let (mut is_clipped, mut is_black) = (false, false);
+        let (mut is_clipped, mut is_black, mut measured) = (false, false, false);
         let mut c = Rgb::ZERO;
         for ch in 0..3 {
             let (mut sw, mut sl) = (0.0f64, 0.0f64);
@@ -54,6 +56,7 @@ pub fn merge(b: &Brackets, response: &Response) -> Merged {
                     sl += wz * (f.ln() - (t as f64).ln());
                 }
             }
+            measured |= sw > 0.0;
             c[ch] = if sw > 0.0 {
                 (sl / sw).exp() as f32
             } else {
@@ -71,12 +74,14 @@ pub fn merge(b: &Brackets, response: &Response) -> Merged {
         }
         clipped += is_clipped as usize;
         black += is_black as usize;
+        unmeasured += !measured as usize;
         image.data[i] = c;
     }
     Merged {
         image,
         clipped_everywhere: clipped,
         black_everywhere: black,
+        unmeasured,
     }
 }
 
@@ -153,7 +158,10 @@ pub(crate) mod tests {
         // 20 is clipped at 1/8 (it gets 1 / (1/8) = 8); 1e-7 is black at 2.
         let b = synthesize(&[20.0, 1e-7, 1.0], &times, |x| g.encode_channel(x, 0));
         let m = merge(&b, &g);
-        assert_eq!((m.clipped_everywhere, m.black_everywhere), (1, 1));
+        assert_eq!(
+            (m.clipped_everywhere, m.black_everywhere, m.unmeasured),
+            (1, 1, 2)
+        );
         assert!(
             (m.image.data[0].x - 8.0).abs() < 1e-4,
             "{:?}",
