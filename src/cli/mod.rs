@@ -48,7 +48,8 @@ const SCENE_HELP: &str =
     "Scene file (TOML): camera, objects with their groups and materials, lights; see README";
 /// The photograph.
 const PHOTO_HELP: &str = "Photograph of the scene taken through the scene's camera: EXR, HDR or \
-                          PFM (linear), or PNG/JPEG (8/16-bit, through --response)";
+                          PFM (linear), or PNG/JPEG (8/16-bit, through --response); merge \
+                          exposure brackets into one with `matfit hdr`";
 
 #[derive(Subcommand)]
 pub enum Command {

@@ -99,13 +99,24 @@ pub(crate) mod tests {
     /// Brackets of `radiance` (one grey value per pixel) through `encode` (linear → code in
     /// [0, 1]) with 8-bit quantisation.
     pub fn synthesize(radiance: &[f32], times: &[f32], encode: impl Fn(f32) -> f32) -> Brackets {
+        synthesize_bits(radiance, times, encode, 8)
+    }
+
+    /// [`synthesize`] with `bits`-bit quantisation.
+    pub fn synthesize_bits(
+        radiance: &[f32],
+        times: &[f32],
+        encode: impl Fn(f32) -> f32,
+        bits: u32,
+    ) -> Brackets {
+        let top = ((1u32 << bits) - 1) as f32;
         let n = radiance.len();
         let images = times
             .iter()
             .map(|&t| {
                 let mut img = Image::new(n, 1);
                 for (c, &l) in img.data.iter_mut().zip(radiance) {
-                    *c = Rgb::splat((encode((l * t).min(1.0)) * 255.0).round() / 255.0);
+                    *c = Rgb::splat((encode((l * t).min(1.0)) * top).round() / top);
                 }
                 img
             })
@@ -114,7 +125,7 @@ pub(crate) mod tests {
             paths: Vec::new(),
             images,
             times: times.to_vec(),
-            bits: 8,
+            bits,
         }
     }
 
