@@ -138,6 +138,11 @@ fn an_ignore_mask_removes_an_unmodelled_object() {
         out.contains("\"pixels_lost\":\"256 masked by the user"),
         "{out}"
     );
+    let results = std::fs::read_to_string(dir.join("out/results.json")).unwrap();
+    assert!(
+        results.contains("\"ignore_mask\": \"mask.png\""),
+        "{results}"
+    );
     let (code, out, err) = run(
         &[
             "inspect",

@@ -662,6 +662,7 @@ pub fn run(cmd: Command) -> Result<()> {
                 &photo,
                 &prepared,
                 photo_args.exposure.is_some(),
+                photo_args.ignore_mask.as_deref(),
                 &opts,
             );
             let rec = recover::run_recover(
