@@ -156,6 +156,7 @@ fn help_describes_arguments_defaults_and_the_workflow() {
         "info",
         "export",
         "composite",
+        "hdr",
     ] {
         let (code, out, _) = run(&[cmd, "--help"], d.path());
         assert_eq!(code, 0);

@@ -12,6 +12,7 @@ mod import;
 mod low_resolution;
 mod mirrors;
 mod photo;
+mod photo_inputs;
 mod punctual;
 mod recover;
 mod render_physics;

@@ -25,6 +25,28 @@ fn object_at(sc: &Scene, o: usize) -> String {
     )
 }
 
+/// One line: how many pixels the user's ignore mask `mask` takes, and from which groups.
+pub fn masked_summary(sc: &Scene, mask: &Path, p: &PreparedPhoto) -> String {
+    let total = p.photo.ignored.iter().filter(|&&m| m).count();
+    let per_group: Vec<String> = p
+        .mask
+        .stats
+        .iter()
+        .enumerate()
+        .filter(|(_, st)| st.user > 0)
+        .map(|(g, st)| format!("{} {}", sc.groups[g].name, st.user))
+        .collect();
+    format!(
+        "{}: {total} pixels masked by the user{}",
+        mask.display(),
+        if per_group.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", per_group.join(", "))
+        }
+    )
+}
+
 /// Refuses a scene whose render would be black (no light, or every light facing away from
 /// what the camera sees); warns of each light that faces away while others do not.
 pub fn require_light(sc: &Scene, l: &Lighting) -> Result<()> {

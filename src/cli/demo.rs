@@ -242,7 +242,8 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
         );
     }
     model.camera = prepared.camera.clone();
-    let inputs = crate::cli::recover::inputs(&path, &photo_path, &prepared, false, &opts.recover);
+    let inputs =
+        crate::cli::recover::inputs(&path, &photo_path, &prepared, false, None, &opts.recover);
     let rec = crate::cli::recover::run_recover(
         &model,
         &prepared.photo,

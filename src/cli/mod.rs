@@ -5,6 +5,7 @@ pub mod bench;
 pub mod checks;
 pub mod composite;
 pub mod demo;
+pub mod hdr;
 pub mod out;
 pub mod recover;
 pub mod table;
@@ -29,6 +30,7 @@ use std::time::Instant;
     version,
     about = "Recover the materials of a scene from one photograph",
     after_help = "Workflow:\n  \
+        matfit hdr A.png B.png C.png --times 1/60,1/15,1/4 -o photo.exr   # brackets → one linear photo (optional)\n  \
         matfit inspect SCENE PHOTO -o check/    # does the model line up with the photo? which pixels are usable?\n  \
         matfit recover SCENE PHOTO -o result/   # fit every group's material; result/recovered.toml, report.html\n\n\
         Try it on a bundled scene first: matfit demo"
@@ -46,7 +48,8 @@ const SCENE_HELP: &str =
     "Scene file (TOML): camera, objects with their groups and materials, lights; see README";
 /// The photograph.
 const PHOTO_HELP: &str = "Photograph of the scene taken through the scene's camera: EXR, HDR or \
-                          PFM (linear), or PNG/JPEG (8/16-bit, through --response)";
+                          PFM (linear), or PNG/JPEG (8/16-bit, through --response); merge \
+                          exposure brackets into one with `matfit hdr`";
 
 #[derive(Subcommand)]
 pub enum Command {
@@ -142,6 +145,35 @@ pub enum Command {
         force: bool,
         #[command(flatten)]
         fit: FitArgs,
+    },
+    /// Merge LDR exposure brackets (8/16-bit PNG or JPEG of one scene from one viewpoint) into
+    /// one linear image for `recover`: the weighted average of response⁻¹(code) / time with
+    /// Debevec & Malik's hat weight (1997, eq. 6), which drops clipped and black codes.
+    #[command(after_help = "Example:\n  \
+        matfit hdr a.png b.png c.png --times 1/60,1/15,1/4 -o photo.exr --response-out curve.txt\n  \
+        matfit recover scene.toml photo.exr -o out --grey-card card=0.18\n\n\
+        A recovered response is known up to one factor (so is the merged radiance): calibrate \
+        the exposure in recover with --grey-card or --exposure-from-lights.")]
+    Hdr {
+        /// The brackets, in any order, all of one size and bit depth.
+        #[arg(required = true, num_args = 2.., value_name = "IMAGE")]
+        images: Vec<PathBuf>,
+        /// Exposure time of each image, in the images' order, fractions or decimals; required
+        /// (e.g. 1/60,1/15,0.25). Only their ratios matter to the merge.
+        #[arg(long, value_name = "T1,T2,...", value_parser = hdr::parse_times)]
+        times: hdr::Times,
+        /// Output image: .exr, .pfm or .hdr (linear).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Response curve of the brackets: recover (from the brackets themselves, Debevec &
+        /// Malik's least squares on a smooth curve), srgb, linear, gamma:G (linear = code^G) or
+        /// table:FILE.
+        #[arg(long, value_name = "R", default_value = "recover", value_parser = hdr::parse_response)]
+        response: hdr::HdrResponse,
+        /// Write the recovered response here, as a table that --response table:FILE reads
+        /// (linear values, one row per code) [default: not written].
+        #[arg(long, value_name = "FILE")]
+        response_out: Option<PathBuf>,
     },
     /// Print a summary of a scene file: camera, render settings, groups with their materials,
     /// lights.
@@ -349,6 +381,11 @@ pub struct PhotoCli {
     /// Largest misregistration searched, in pixels.
     #[arg(long, value_name = "PIXELS", default_value_t = 4)]
     pub max_shift: i32,
+    /// Ignore the pixels this image marks (a person, an object the scene does not model): a
+    /// PNG of the photo's size, any bit depth; with alpha, pixels of non-zero alpha are ignored,
+    /// without, pixels of any non-zero channel [default: none].
+    #[arg(long, value_name = "FILE")]
+    pub ignore_mask: Option<PathBuf>,
 }
 
 impl From<PhotoCli> for PhotoArgs {
@@ -363,6 +400,7 @@ impl From<PhotoCli> for PhotoArgs {
             planar_outliers: a.planar_outliers,
             register: a.register,
             max_shift: a.max_shift,
+            ignore_mask: a.ignore_mask,
         }
     }
 }
@@ -612,6 +650,9 @@ pub fn run(cmd: Command) -> Result<()> {
             // Once the photo is known to be readable (an unreadable one gets only its error).
             checks::exposure_warning(&photo, &photo_args, &lighting);
             checks::exposure_report(&sc, &photo, &photo_args, &prepared);
+            if let Some(m) = &photo_args.ignore_mask {
+                outln!("{}", checks::masked_summary(&sc, m, &prepared));
+            }
             // Render through the camera registered to the photo.
             sc.camera = prepared.camera.clone();
             checks::on_interrupt_say_resume(resume_command());
@@ -621,6 +662,7 @@ pub fn run(cmd: Command) -> Result<()> {
                 &photo,
                 &prepared,
                 photo_args.exposure.is_some(),
+                photo_args.ignore_mask.as_deref(),
                 &opts,
             );
             let rec = recover::run_recover(
@@ -670,6 +712,19 @@ pub fn run(cmd: Command) -> Result<()> {
             out::repeat_warnings();
             Ok(())
         }
+        Command::Hdr {
+            images,
+            times,
+            output,
+            response,
+            response_out,
+        } => hdr::run(&hdr::HdrArgs {
+            images,
+            times: times.0,
+            output,
+            response,
+            response_out,
+        }),
         Command::Info { scene } => {
             let (sc, lighting) = load(&scene)?;
             info(&sc, &lighting);

@@ -111,6 +111,7 @@ pub fn inputs(
     photo: &Path,
     prepared: &matfit::photo::PreparedPhoto,
     exposure_given: bool,
+    ignore_mask: Option<&Path>,
     opts: &RecoverOptions,
 ) -> matfit::report::Inputs {
     matfit::report::Inputs {
@@ -127,6 +128,7 @@ pub fn inputs(
         }
         .to_string(),
         registration_px: prepared.registration.as_ref().map(|r| [r.dx, r.dy]),
+        ignore_mask: ignore_mask.map(|m| m.display().to_string()),
         options: opts.clone(),
     }
 }

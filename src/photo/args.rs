@@ -5,10 +5,10 @@
 use crate::math::Rgb;
 use crate::photo::exposure::{self, ExposureCalibration, ExposureSource};
 use crate::photo::register::{estimate_shift, Registration};
-use crate::photo::{coverage, load_photo, mask, Photo, PhotoOptions, Response, UsableMask};
+use crate::photo::{coverage, ignore, load_photo, mask, Photo, PhotoOptions, Response, UsableMask};
 use crate::render::aov::{index_buffers, IndexBuffers};
 use crate::scene::{Camera, Scene};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// How to read a photograph and choose its usable pixels.
 #[derive(Clone, Debug)]
@@ -35,6 +35,8 @@ pub struct PhotoArgs {
     pub register: bool,
     /// Largest misregistration searched, in pixels.
     pub max_shift: i32,
+    /// An image of the photo's size whose marked pixels are ignored (`photo::ignore`).
+    pub ignore_mask: Option<PathBuf>,
 }
 
 impl Default for PhotoArgs {
@@ -49,6 +51,7 @@ impl Default for PhotoArgs {
             planar_outliers: false,
             register: true,
             max_shift: 4,
+            ignore_mask: None,
         }
     }
 }
@@ -127,6 +130,10 @@ pub struct PreparedPhoto {
 pub fn prepare(scene: &Scene, path: &Path, args: &PhotoArgs) -> Result<PreparedPhoto, String> {
     let mut camera = scene.camera.clone();
     let mut photo = load_photo(path, camera.width, camera.height, &args.photo_options())?;
+    if let Some(m) = &args.ignore_mask {
+        let n = photo.set_ignored(ignore::load_ignore_mask(m, camera.width, camera.height)?);
+        tracing::info!("{}: {n} pixels masked by the user", m.display());
+    }
     let mut index = index_buffers(scene, &camera);
     let mut registration = None;
     if args.register {

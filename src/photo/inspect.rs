@@ -5,7 +5,7 @@
 //!   yellow and boundaries between objects of one group in cyan; invalid pixels in red;
 //! - `usable.png`: usable pixels in their group's colour shaded by the photo, rejected pixels of
 //!   a group dark (band and edges darker grey-blue, planar outliers dark magenta, invalid dark
-//!   red), background black;
+//!   red, masked by the user dark olive), background black;
 //! - `edges.png`: the strong edges of the photo (white) over the darkened photo.
 
 use crate::io::image::Image;
@@ -92,6 +92,7 @@ pub fn inspect(
             Reject::Band | Reject::Edge => Rgb::new(0.03, 0.03, 0.06),
             Reject::Outlier => Rgb::new(0.12, 0.0, 0.12),
             Reject::Invalid => Rgb::new(0.15, 0.0, 0.0),
+            Reject::User => Rgb::new(0.1, 0.1, 0.0),
         };
         edges.data[i] = if p.mask.edges[i] {
             Rgb::ONE
@@ -145,16 +146,24 @@ pub fn inspect(
     }
     let _ = writeln!(
         r,
-        "invalid pixels: {} NaN/infinite, {} negative, {} saturated",
-        ph.invalid_nonfinite, ph.invalid_negative, ph.invalid_saturated
+        "invalid pixels: {} NaN/infinite, {} negative, {} saturated; {} masked by the user{}",
+        ph.invalid_nonfinite,
+        ph.invalid_negative,
+        ph.invalid_saturated,
+        ph.ignored.iter().filter(|&&m| m).count(),
+        match &args.ignore_mask {
+            Some(f) => format!(" ({})", f.display()),
+            None => String::new(),
+        }
     );
     let _ = writeln!(
         r,
-        "{:<16} {:>8} {:>8} {:>8}   {:>7} {:>7} {:>7} {:>7}   {:>12}  {:>5}",
+        "{:<16} {:>8} {:>8} {:>8}   {:>7} {:>7} {:>7} {:>7} {:>7}   {:>12}  {:>5}",
         "group",
         "visible",
         "usable",
         "rejected",
+        "user",
         "band",
         "edge",
         "invalid",
@@ -177,11 +186,12 @@ pub fn inspect(
             .unwrap_or_else(|| "-".into());
         let _ = writeln!(
             r,
-            "{:<16} {:>8} {:>8} {:>8}   {:>7} {:>7} {:>7} {:>7}   {:>12}  {:>5}{}",
+            "{:<16} {:>8} {:>8} {:>8}   {:>7} {:>7} {:>7} {:>7} {:>7}   {:>12}  {:>5}{}",
             scene.groups[g].name,
             st.visible,
             st.usable,
             st.rejected,
+            st.user,
             st.band,
             st.edge,
             st.invalid,
@@ -197,7 +207,7 @@ pub fn inspect(
     }
     let _ = writeln!(
         r,
-        "band: removed around id boundaries or not covered by one object at sub-pixel level; \
+        "user: in the --ignore-mask; band: removed around id boundaries or not covered by one object at sub-pixel level; \
          width: the band each group used (narrowed until it keeps min({}, {:.0}% of visible)), \
          * = edge test dropped to keep them",
         args.mask_options(scene).min_usable,

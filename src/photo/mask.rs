@@ -1,5 +1,6 @@
 //! Usable pixels per group (§3.3 of the notes): the index buffer, minus
 //!
+//! 0. pixels the user asked to ignore (`--ignore-mask`, [`ignore`](super::ignore));
 //! 1. photo pixels that are not valid (NaN/Inf, negative, saturated: see [`Photo`]);
 //! 2. a band of `band` pixels around every boundary between object ids, so a model a few pixels
 //!    off does not poison a group with its neighbour's pixels;
@@ -69,6 +70,8 @@ pub enum Reject {
     None,
     /// The model sees nothing there.
     Background,
+    /// In the user's ignore mask.
+    User,
     Invalid,
     Band,
     Edge,
@@ -81,6 +84,8 @@ pub struct GroupPixelStats {
     pub visible: usize,
     pub usable: usize,
     pub rejected: usize,
+    /// Rejected because the user's ignore mask covers them.
+    pub user: usize,
     /// Rejected because the photo pixel is NaN/Inf, negative or saturated.
     pub invalid: usize,
     /// Rejected by the band around id boundaries.
@@ -100,6 +105,7 @@ impl GroupPixelStats {
     pub fn why(&self) -> String {
         let mut parts = Vec::new();
         for (n, what) in [
+            (self.user, "masked by the user"),
             (self.band, "band/mixed"),
             (self.edge, "edge"),
             (self.invalid, "invalid/saturated"),
@@ -348,7 +354,7 @@ pub fn usable_pixels_covered(
             continue;
         }
         stats[g as usize].visible += 1;
-        if !photo.valid[i] || !is_pure(i) {
+        if photo.ignored[i] || !photo.valid[i] || !is_pure(i) {
             continue;
         }
         for (k, &(b, e)) in steps.iter().enumerate() {
@@ -381,7 +387,10 @@ pub fn usable_pixels_covered(
         }
         let (b, e) = chosen[g as usize];
         let s = &mut stats[g as usize];
-        reason[i] = if !photo.valid[i] {
+        reason[i] = if photo.ignored[i] {
+            s.user += 1;
+            Reject::User
+        } else if !photo.valid[i] {
             s.invalid += 1;
             Reject::Invalid
         } else if (radius[i] as usize) < b || !is_pure(i) {
@@ -419,7 +428,7 @@ pub fn usable_pixels_covered(
         }
     }
     for s in &mut stats {
-        s.rejected = s.invalid + s.band + s.edge + s.outlier;
+        s.rejected = s.user + s.invalid + s.band + s.edge + s.outlier;
         s.usable = s.visible - s.rejected;
     }
     UsableMask {
@@ -479,5 +488,31 @@ mod tests {
         assert_eq!(s.usable + s.rejected, s.visible);
         assert!(s.edge > 0 && s.band > 0);
         assert!(m.stats[0].usable > 100);
+    }
+
+    /// Pixels in the user's mask are usable for no group and counted as such, apart from the
+    /// invalid ones.
+    #[test]
+    fn ignored_pixels_have_their_own_reason() {
+        let (w, h) = (30, 10);
+        let ib = IndexBuffers {
+            width: w,
+            height: h,
+            group: vec![0; w * h],
+            object: vec![0; w * h],
+            mirror_object: vec![-1; w * h],
+            mirror_group: vec![-1; w * h],
+            normal: vec![crate::math::Vec3::new(0.0, 0.0, -1.0); w * h],
+        };
+        let mut photo = Photo::from_linear(Image::new(w, h));
+        photo.image.data.fill(Rgb::splat(0.5));
+        photo.valid[0] = false;
+        let ignored: Vec<bool> = (0..w * h).map(|i| i % w >= 20).collect();
+        assert_eq!(photo.set_ignored(ignored), 100);
+        let m = usable_pixels(&ib, &photo, 1, &MaskOptions::default());
+        let s = &m.stats[0];
+        assert_eq!((s.user, s.invalid, s.usable), (100, 1, 199), "{s:?}");
+        assert!(s.why().starts_with("100 masked by the user"), "{}", s.why());
+        assert!((0..w * h).all(|i| (m.reason[i] == Reject::User) == (i % w >= 20)));
     }
 }

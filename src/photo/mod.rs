@@ -5,10 +5,14 @@
 //! exposure and robust pixel selection lives here.
 
 pub mod args;
+pub mod brackets;
+pub mod calibrate;
 pub mod coverage;
 pub mod edges;
 pub mod estimate;
 pub mod exposure;
+pub mod hdr;
+pub mod ignore;
 pub mod inspect;
 pub mod mask;
 pub mod register;
@@ -58,19 +62,24 @@ pub struct Photo {
     pub bits: Option<u32>,
     /// The exposure factor the values have been divided by (1 until one is applied).
     pub exposure: f32,
+    /// Pixels the user asked to ignore (`--ignore-mask`, [`ignore`]); all false without one.
+    /// Kept apart from `valid`: such a pixel is not broken, the model just does not explain it.
+    pub ignored: Vec<bool>,
 }
 
 impl Photo {
     /// A photo from a linear image (e.g. a rendering), checking every pixel.
     pub fn from_linear(image: Image) -> Photo {
+        let n = image.data.len();
         let mut p = Photo {
-            valid: vec![true; image.data.len()],
+            valid: vec![true; n],
             image,
             invalid_nonfinite: 0,
             invalid_negative: 0,
             invalid_saturated: 0,
             bits: None,
             exposure: 1.0,
+            ignored: vec![false; n],
         };
         for (c, v) in p.image.data.iter_mut().zip(p.valid.iter_mut()) {
             if !c.is_finite() {
@@ -91,6 +100,13 @@ impl Photo {
             *c /= factor;
         }
         self.exposure *= factor;
+    }
+
+    /// Sets the pixels to ignore (one flag per pixel) and returns how many there are.
+    pub fn set_ignored(&mut self, ignored: Vec<bool>) -> usize {
+        assert_eq!(ignored.len(), self.valid.len(), "one flag per pixel");
+        self.ignored = ignored;
+        self.ignored.iter().filter(|&&m| m).count()
     }
 
     /// Number of invalid pixels.

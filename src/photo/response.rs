@@ -242,6 +242,23 @@ impl ResponseTable {
         })
     }
 
+    /// The table in its file format: one row per knot, the knots evenly spaced over the code
+    /// range (as `matfit hdr` recovers them), grey or R G B. `parse` reads it back.
+    pub fn to_text(&self) -> String {
+        let mut s = format!(
+            "# matfit response table: linear value of {} evenly spaced codes, darkest first\n",
+            self.codes.len()
+        );
+        for v in &self.values {
+            if v[0] == v[1] && v[1] == v[2] {
+                s.push_str(&format!("{:e}\n", v[0]));
+            } else {
+                s.push_str(&format!("{:e} {:e} {:e}\n", v[0], v[1], v[2]));
+            }
+        }
+        s
+    }
+
     /// Linear value of channel `ch` at normalised code `v`, interpolated linearly between knots
     /// and held constant outside them.
     pub fn eval(&self, v: f32, ch: usize) -> f32 {

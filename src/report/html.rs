@@ -153,13 +153,17 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
             });
             let options = serde_json::to_string_pretty(&i.options).unwrap_or_default();
             format!(
-                "<h2>Inputs</h2>\n<table id=\"inputs\"><tr><td>matfit</td><td>{}</td></tr><tr><td>scene</td><td>{}</td></tr><tr><td>photo</td><td>{}</td></tr><tr><td>exposure k</td><td>{} ({})</td></tr><tr><td>registration</td><td>{}</td></tr></table>\n<details><summary>options</summary><pre>{}</pre></details>\n",
+                "<h2>Inputs</h2>\n<table id=\"inputs\"><tr><td>matfit</td><td>{}</td></tr><tr><td>scene</td><td>{}</td></tr><tr><td>photo</td><td>{}</td></tr><tr><td>exposure k</td><td>{} ({})</td></tr><tr><td>registration</td><td>{}</td></tr>{}</table>\n<details><summary>options</summary><pre>{}</pre></details>\n",
                 esc(&i.matfit),
                 esc(&i.scene),
                 esc(&i.photo),
                 i.exposure,
                 esc(&i.exposure_rule),
                 esc(&reg),
+                i.ignore_mask.as_ref().map_or(String::new(), |m| format!(
+                    "<tr><td>ignore mask</td><td>{}</td></tr>",
+                    esc(m)
+                )),
                 esc(&options)
             )
         }

@@ -89,6 +89,9 @@ pub struct Inputs {
     pub exposure_rule: String,
     /// The shift (pixels) registration found between model and photo (None: registration off).
     pub registration_px: Option<[f32; 2]>,
+    /// The user's mask of pixels to ignore (`--ignore-mask`), if one was given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ignore_mask: Option<String>,
     pub options: crate::fit::RecoverOptions,
 }
 
