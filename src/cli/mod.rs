@@ -386,6 +386,15 @@ pub struct PhotoCli {
     /// without, pixels of any non-zero channel [default: none].
     #[arg(long, value_name = "FILE")]
     pub ignore_mask: Option<PathBuf>,
+    /// The lens's vignetting as Lensfun's radial model V = 1 + A1 r² + A2 r⁴ + A3 r⁶ (r = 1 at
+    /// the half-diagonal, from the principal point): the photo is divided by V [default: none].
+    #[arg(long, value_name = "A1,A2,A3", value_parser = matfit::photo::vignetting::parse_radial,
+          conflicts_with = "flat_field", allow_hyphen_values = true)]
+    pub vignetting: Option<[f32; 3]>,
+    /// A flat-field image (a uniform white target through the same lens, the photo's size): the
+    /// photo is divided by its luminance over its largest [default: none].
+    #[arg(long, value_name = "FILE")]
+    pub flat_field: Option<PathBuf>,
 }
 
 impl From<PhotoCli> for PhotoArgs {
@@ -401,6 +410,11 @@ impl From<PhotoCli> for PhotoArgs {
             register: a.register,
             max_shift: a.max_shift,
             ignore_mask: a.ignore_mask,
+            vignetting: match (a.vignetting, a.flat_field) {
+                (Some(r), _) => Some(matfit::photo::vignetting::Vignetting::Radial(r)),
+                (None, Some(f)) => Some(matfit::photo::vignetting::Vignetting::FlatField(f)),
+                (None, None) => None,
+            },
         }
     }
 }

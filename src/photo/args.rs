@@ -37,6 +37,8 @@ pub struct PhotoArgs {
     pub max_shift: i32,
     /// An image of the photo's size whose marked pixels are ignored (`photo::ignore`).
     pub ignore_mask: Option<PathBuf>,
+    /// The lens's vignetting, divided out of the photo first (`photo::vignetting`).
+    pub vignetting: Option<super::vignetting::Vignetting>,
 }
 
 impl Default for PhotoArgs {
@@ -52,6 +54,7 @@ impl Default for PhotoArgs {
             register: true,
             max_shift: 4,
             ignore_mask: None,
+            vignetting: None,
         }
     }
 }
@@ -130,6 +133,15 @@ pub struct PreparedPhoto {
 pub fn prepare(scene: &Scene, path: &Path, args: &PhotoArgs) -> Result<PreparedPhoto, String> {
     let mut camera = scene.camera.clone();
     let mut photo = load_photo(path, camera.width, camera.height, &args.photo_options())?;
+    if let Some(v) = &args.vignetting {
+        let dark = super::vignetting::correct(&mut photo, v, camera.cx, camera.cy)?;
+        if dark > 0 {
+            tracing::warn!(
+                "{}: {dark} pixels too dark in the flat field to correct; not used",
+                path.display()
+            );
+        }
+    }
     if let Some(m) = &args.ignore_mask {
         let n = photo.set_ignored(ignore::load_ignore_mask(m, camera.width, camera.height)?);
         tracing::info!("{}: {n} pixels masked by the user", m.display());

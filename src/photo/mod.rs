@@ -18,6 +18,7 @@ pub mod mask;
 pub mod register;
 pub mod response;
 pub mod robust;
+pub mod vignetting;
 
 pub use args::{prepare, PhotoArgs, PreparedPhoto};
 pub use mask::{usable_pixels, usable_pixels_covered, GroupPixelStats, MaskOptions, UsableMask};
