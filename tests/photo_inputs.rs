@@ -320,3 +320,26 @@ fn vignetting_is_divided_out_by_its_radial_model_or_a_flat_field() {
         "uncorrected {none} vs radial {radial}, flat field {flat_field}: {rho:?}"
     );
 }
+
+#[test]
+fn a_16_bit_tiff_read_as_linear_is_recovered_like_the_float_photo() {
+    // A raw converter's linear 16-bit TIFF: codes = radiance × 65535 / 4 (the stated scale is
+    // --exposure 0.25: photo = k × radiance with codes read as [0, 1]).
+    let d = tempfile::tempdir().unwrap();
+    let clean = photo(d.path());
+    let (w, h) = (clean.width as u32, clean.height as u32);
+    let codes: Vec<u16> = clean
+        .data
+        .iter()
+        .flat_map(|c| c.to_array())
+        .map(|x| (x * 0.25 * 65535.0).round().clamp(0.0, 65535.0) as u16)
+        .collect();
+    let tiff = image::ImageBuffer::<image::Rgb<u16>, Vec<u16>>::from_raw(w, h, codes).unwrap();
+    tiff.save(d.path().join("photo.tif")).unwrap();
+    let (rho, out) = recover_floor(
+        d.path(),
+        "photo.tif",
+        &["--response", "linear", "--exposure", "0.25"],
+    );
+    assert!(floor_error(rho) < TOL, "16-bit TIFF: {out}");
+}

@@ -84,7 +84,7 @@ fn is_ldr(photo: &Path) -> bool {
         .and_then(|e| e.to_str())
         .unwrap_or("")
         .to_ascii_lowercase();
-    matches!(ext.as_str(), "png" | "jpg" | "jpeg")
+    matches!(ext.as_str(), "png" | "jpg" | "jpeg" | "tif" | "tiff")
 }
 
 /// Warns when an 8/16-bit photo comes with no way to know its exposure: k = 1 then means the
