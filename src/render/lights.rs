@@ -145,7 +145,8 @@ impl Lights {
     /// and the discs whose cone holds `d`), each with the density its own sampling has for `d`.
     #[inline]
     pub fn at_infinity(&self, d: Vec3, mut f: impl FnMut(Rgb, f32)) {
-        if let Some((le, pl)) = self.environment(d) {
+        if let Some(e) = &self.environment {
+            let (le, pl) = e.radiance_and_pdf(d);
             f(le, pl);
         }
         for disc in &self.discs {
@@ -178,13 +179,6 @@ impl Lights {
 
     pub fn disc_count(&self) -> usize {
         self.discs.len()
-    }
-
-    /// The environment's radiance seen along unit direction `d` and the density with which
-    /// `sample_environment` draws `d`, or None without an environment.
-    #[inline]
-    pub fn environment(&self, d: Vec3) -> Option<(Rgb, f32)> {
-        self.environment.as_ref().map(|e| (e.radiance(d), e.pdf(d)))
     }
 
     /// A direction towards the environment drawn by its importance (2 sampler dimensions, drawn

@@ -123,24 +123,31 @@ impl Environment {
         self.to_world
     }
 
-    /// x = u · W − ½ of a unit world direction, in [0, W) (texel i at x = i: the module
-    /// comment), and the direction in the map's frame.
+    /// Where a unit world direction falls on the map: x = u · W − ½ in [0, W) (texel i at
+    /// x = i: the module comment), v, and cos θ (the map frame's y).
     #[inline]
-    fn x_of(&self, d: Vec3) -> (f32, Vec3) {
+    fn coords(&self, d: Vec3) -> (f32, f32, f32) {
         let m = self.to_map * d;
         let w = self.image.width as f32;
         let x = m.x.atan2(-m.z) / (2.0 * PI) * w - 0.5;
-        (x - (x / w).floor() * w, m)
+        let cos = m.y.clamp(-1.0, 1.0);
+        (x - (x / w).floor() * w, cos.acos() / PI, cos)
     }
 
     /// Radiance arriving along −d, i.e. seen looking along unit direction `d`.
     pub fn radiance(&self, d: Vec3) -> Rgb {
-        let (x, m) = self.x_of(d);
-        let v = m.y.clamp(-1.0, 1.0).acos() / PI;
+        let (x, v, _) = self.coords(d);
         self.lookup(x, v) * self.scale
     }
 
-    /// The bilinear interpolant at x ∈ [0, W) (`x_of`), v ∈ [0, 1].
+    /// [`Environment::radiance`] and [`Environment::pdf`] of one direction, which share their
+    /// map coordinates (a ray that leaves the scene needs both).
+    pub fn radiance_and_pdf(&self, d: Vec3) -> (Rgb, f32) {
+        let (x, v, cos) = self.coords(d);
+        (self.lookup(x, v) * self.scale, self.cell_pdf(x, v, cos))
+    }
+
+    /// The bilinear interpolant at x ∈ [0, W) (`coords`), v ∈ [0, 1].
     fn lookup(&self, x: f32, v: f32) -> Rgb {
         let (w, h) = (self.image.width, self.image.height);
         let y = v * (h - 1) as f32;
@@ -192,14 +199,17 @@ impl Environment {
 
     /// The density of `sample` per solid angle at unit world direction `d`.
     pub fn pdf(&self, d: Vec3) -> f32 {
-        let (x, m) = self.x_of(d);
+        let (x, v, cos) = self.coords(d);
+        self.cell_pdf(x, v, cos)
+    }
+
+    /// The density per solid angle at map coordinates (x, v) of `coords`, whose cos θ is `cos`.
+    fn cell_pdf(&self, x: f32, v: f32, cos: f32) -> f32 {
         let (w, rows) = (self.image.width, self.row_cdf.len());
-        let y = m.y.clamp(-1.0, 1.0);
-        let sin = (1.0 - y * y).max(0.0).sqrt();
+        let sin = (1.0 - cos * cos).max(0.0).sqrt();
         if !(sin > 0.0) {
             return 0.0;
         }
-        let v = y.acos() / PI;
         let i = (x as usize).min(w - 1);
         let j = ((v * rows as f32) as usize).min(rows - 1);
         self.cell_p[j * w + i] * (w * rows) as f32 / (2.0 * PI * PI * sin)
