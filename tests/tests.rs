@@ -21,3 +21,4 @@ mod scene_errors;
 mod texture;
 mod uncertainty;
 mod unseen;
+mod views;

@@ -248,6 +248,7 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
         &model,
         &prepared.photo,
         &prepared.mask,
+        &[],
         &opts.recover,
         &rec_dir,
         false,

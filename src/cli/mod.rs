@@ -70,6 +70,10 @@ pub enum Command {
         /// mirror), the normal, the depth (scene units) or the UV.
         #[arg(long, value_enum, default_value = "beauty")]
         aov: AovArg,
+        /// Render the scene as one of its [[view]]s sees it (its camera and lights): a number
+        /// from 1 or a view's name.
+        #[arg(long, value_name = "VIEW")]
+        view: Option<String>,
         #[command(flatten)]
         edits: EditCli,
     },
@@ -106,8 +110,15 @@ pub enum Command {
     Recover {
         #[arg(help = SCENE_HELP)]
         scene: PathBuf,
-        #[arg(help = PHOTO_HELP)]
-        photo: PathBuf,
+        /// Photograph(s) of the scene: EXR, HDR or PFM (linear), or PNG/JPEG/TIFF (8/16-bit,
+        /// through --response). Several photos are fitted together, photo K through the scene's
+        /// [[view]] K (its camera and lights), each with its own fitted exposure factor.
+        #[arg(required = true, num_args = 1.., value_name = "PHOTO")]
+        photos: Vec<PathBuf>,
+        /// The [[view]] each photo is taken through, in the photos' order: numbers from 1 or
+        /// names, comma-separated [default: 1, 2, 3, ...].
+        #[arg(long, value_name = "V1,V2,...", value_delimiter = ',')]
+        views: Vec<String>,
         /// Output folder (created if needed; a folder with other files is refused unless --force).
         #[arg(short, long)]
         output: PathBuf,
@@ -211,6 +222,10 @@ pub enum Command {
         /// Write into OUTPUT even if it holds files that are not a matfit output (mitsuba).
         #[arg(long)]
         force: bool,
+        /// Export the scene as one of its [[view]]s sees it (its camera and lights): a number
+        /// from 1 or a view's name.
+        #[arg(long, value_name = "VIEW")]
+        view: Option<String>,
     },
     /// Import another renderer's scene: `matfit import mitsuba SCENE.xml -o scene.toml` writes a
     /// matfit scene file (mesh and texture paths relative to it); approximations are printed as
@@ -469,6 +484,10 @@ pub struct FitArgs {
     /// default; log.jsonl's `hypotheses` events show what they chose).
     #[arg(long)]
     no_pseudo_textures: bool,
+    /// Fit every group as Lambertian (level 1) and never climb: a baseline to compare the
+    /// hierarchy's models against.
+    #[arg(long)]
+    lambert: bool,
 }
 
 /// A finite number > 0, for thresholds.
@@ -485,7 +504,7 @@ impl FitArgs {
     fn options(&self) -> matfit::fit::RecoverOptions {
         let d = matfit::fit::RecoverOptions::default();
         // --no-textures: thresholds no group can reach.
-        let textures_off = self.no_textures.then_some(f32::MAX);
+        let textures_off = (self.no_textures || self.lambert).then_some(f32::MAX);
         matfit::fit::RecoverOptions {
             seed: self.seed,
             max_iterations: self.max_iterations.max(1),
@@ -498,6 +517,12 @@ impl FitArgs {
             },
             hierarchy: matfit::fit::hierarchy::HierarchyOptions {
                 thresholds: matfit::fit::level::Thresholds {
+                    // --lambert: level 1's threshold met by every fit.
+                    diffuse: if self.lambert {
+                        f32::MAX
+                    } else {
+                        d.hierarchy.thresholds.diffuse
+                    },
                     texture_error: textures_off.unwrap_or(self.texture_error),
                     texture_detail: textures_off.unwrap_or(self.texture_detail),
                     ..d.hierarchy.thresholds.clone()
@@ -568,16 +593,22 @@ pub fn run(cmd: Command) -> Result<()> {
             spp,
             seed,
             aov,
+            view,
             edits,
         } => {
             let edits = edits.edits()?;
-            let (sc, lighting) = if edits.is_empty() {
+            let (mut sc, mut lighting) = if edits.is_empty() {
                 load(&scene)?
             } else {
                 let sc = load_edited(&scene, &edits)?;
                 let l = checks::scene_warnings(&sc);
                 (sc, l)
             };
+            if let Some(v) = &view {
+                let k = sc.view_index(v).map_err(anyhow::Error::msg)?;
+                sc = sc.in_view(k);
+                lighting = matfit::scene::lint::lighting(&sc);
+            }
             let ext = output
                 .extension()
                 .and_then(|e| e.to_str())
@@ -644,45 +675,99 @@ pub fn run(cmd: Command) -> Result<()> {
         }),
         Command::Recover {
             scene,
-            photo,
+            photos,
+            views: view_keys,
             output,
             fit,
             photo_args,
             resume,
             force,
         } => {
-            let (mut sc, lighting) = load(&scene)?;
+            let (sc, lighting) = load(&scene)?;
             checks::require_light(&sc, &lighting)?;
             let photo_args = PhotoArgs::from(photo_args);
+            // Photo k through view k (or --views); one photo of a scene without views: the
+            // scene itself.
+            if !view_keys.is_empty() && view_keys.len() != photos.len() {
+                bail!(
+                    "--views names {} view(s) for {} photo(s): give one per photo",
+                    view_keys.len(),
+                    photos.len()
+                );
+            }
+            let chosen: Vec<usize> = if view_keys.is_empty() {
+                if photos.len() > sc.views.len().max(1) {
+                    bail!(
+                        "{} photos given but {} has {} [[view]] table(s): photo K is taken \
+                         through view K (its camera and lights), so give a [[view]] for every \
+                         photo",
+                        photos.len(),
+                        scene.display(),
+                        sc.views.len()
+                    );
+                }
+                (0..photos.len()).collect()
+            } else {
+                view_keys
+                    .iter()
+                    .map(|k| sc.view_index(k))
+                    .collect::<Result<_, _>>()
+                    .map_err(anyhow::Error::msg)?
+            };
+            let mut scenes: Vec<Scene> = if sc.views.is_empty() {
+                vec![sc.clone()]
+            } else {
+                chosen.iter().map(|&k| sc.in_view(k)).collect()
+            };
             // Before any work: the output folder must be usable.
             if !resume {
                 checks::output_folder(&output, force)?;
             }
             prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
-            let prepared =
-                matfit::photo::prepare(&sc, &photo, &photo_args).map_err(anyhow::Error::msg)?;
-            // Once the photo is known to be readable (an unreadable one gets only its error).
-            checks::exposure_warning(&photo, &photo_args, &lighting);
-            checks::exposure_report(&sc, &photo, &photo_args, &prepared);
-            if let Some(m) = &photo_args.ignore_mask {
-                outln!("{}", checks::masked_summary(&sc, m, &prepared));
+            let mut prepared = Vec::new();
+            for (view, photo) in scenes.iter_mut().zip(&photos) {
+                let p =
+                    matfit::photo::prepare(view, photo, &photo_args).map_err(anyhow::Error::msg)?;
+                // Once the photo is known to be readable (an unreadable one gets only its error).
+                checks::exposure_warning(photo, &photo_args, &lighting);
+                checks::exposure_report(view, photo, &photo_args, &p);
+                if let Some(m) = &photo_args.ignore_mask {
+                    outln!("{}", checks::masked_summary(view, m, &p));
+                }
+                // Render through the camera registered to the photo.
+                view.camera = p.camera.clone();
+                prepared.push(p);
             }
-            // Render through the camera registered to the photo.
-            sc.camera = prepared.camera.clone();
             checks::on_interrupt_say_resume(resume_command());
             let opts = fit.options();
-            let inputs = recover::inputs(
+            let mut inputs = recover::inputs(
                 &scene,
-                &photo,
-                &prepared,
+                &photos[0],
+                &prepared[0],
                 photo_args.exposure.is_some(),
                 photo_args.ignore_mask.as_deref(),
                 &opts,
             );
+            if photos.len() > 1 {
+                inputs.photos = photos.iter().map(|p| p.display().to_string()).collect();
+            }
+            let (first, rest) = scenes.split_first().expect("one photo at least");
+            let views: Vec<matfit::fit::recover::PhotoView> = rest
+                .iter()
+                .zip(&prepared[1..])
+                .enumerate()
+                .map(|(k, (s, p))| matfit::fit::recover::PhotoView {
+                    name: sc.views[chosen[k + 1]].name.clone(),
+                    scene: s,
+                    photo: &p.photo,
+                    mask: &p.mask,
+                })
+                .collect();
             let rec = recover::run_recover(
-                &sc,
-                &prepared.photo,
-                &prepared.mask,
+                first,
+                &prepared[0].photo,
+                &prepared[0].mask,
+                &views,
                 &opts,
                 &output,
                 resume,
@@ -691,6 +776,19 @@ pub fn run(cmd: Command) -> Result<()> {
             .map_err(anyhow::Error::msg)?;
             outln!();
             out::print(format_args!("{}", table::recovered(&rec)));
+            if !rec.views.is_empty() {
+                outln!("photos fitted together (exposure factor k: photo = k × the recovered scene's radiance; geometric mean 1):");
+                for (v, p) in rec.views.iter().zip(&photos) {
+                    outln!(
+                        "  {:<12} {}  k = {:.4}  residual {:.2}% over {} px",
+                        v.name,
+                        p.display(),
+                        v.exposure,
+                        100.0 * v.residual,
+                        v.pixels
+                    );
+                }
+            }
             outln!(
                 "outputs in {} ({:.1} s): recovered.toml, results.json, report.html",
                 output.display(),
@@ -766,8 +864,12 @@ pub fn run(cmd: Command) -> Result<()> {
             scene,
             output,
             force,
+            view,
         } => {
-            let (sc, _) = load(&scene)?;
+            let (mut sc, _) = load(&scene)?;
+            if let Some(v) = &view {
+                sc = sc.in_view(sc.view_index(v).map_err(anyhow::Error::msg)?);
+            }
             let report = match format {
                 FormatArg::Mitsuba => {
                     checks::output_folder(&output, force)?;
@@ -967,6 +1069,26 @@ fn info(sc: &Scene, lighting: &matfit::scene::lint::Lighting) {
     }
     if let Some(e) = &sc.environment {
         outln!("environment: {e:?}");
+    }
+    for (k, v) in sc.views.iter().enumerate() {
+        outln!(
+            "view {} '{}': lights {}; camera {}",
+            k + 1,
+            v.name,
+            v.lights
+                .as_ref()
+                .map_or("all".to_string(), |l| l.join(", ")),
+            if v.camera == sc.camera {
+                "[camera]".to_string()
+            } else {
+                format!(
+                    "eye {}, {}×{} px",
+                    vec3(v.camera.eye()),
+                    v.camera.width,
+                    v.camera.height
+                )
+            }
+        );
     }
     if lighting.none() {
         out::warn(format!("{}: nothing emits light", sc.path.display()));

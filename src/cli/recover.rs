@@ -2,6 +2,7 @@
 //! every global iteration, then write the outputs. `resume` continues a run that was killed
 //! (even by `kill -9`) from its last checkpoint, to exactly the result of an uninterrupted run.
 
+use matfit::fit::recover::PhotoView;
 use matfit::fit::recover::{fingerprint, CHECKPOINT_VERSION};
 use matfit::fit::{recover_resumable, Checkpoint, RecoverOptions, Recovery};
 use matfit::io::atomic::write_atomic;
@@ -13,11 +14,13 @@ use std::path::Path;
 /// Recovers `scene`'s materials from `photo`, writing log.jsonl as it goes, checkpoint.json
 /// after every global iteration, and every other output at the end into `out` (which must
 /// exist). With `resume`, continues from `out/checkpoint.json`. `inputs` go into
-/// results.json and report.html.
+/// results.json and report.html. `views`: further photos fitted with the first.
+#[allow(clippy::too_many_arguments)]
 pub fn run_recover(
     scene: &Scene,
     photo: &Photo,
     mask: &UsableMask,
+    views: &[PhotoView],
     opts: &RecoverOptions,
     out: &Path,
     resume: bool,
@@ -26,7 +29,11 @@ pub fn run_recover(
     let log_path = out.join("log.jsonl");
     let ck_path = out.join("checkpoint.json");
     let scene_text = std::fs::read_to_string(&scene.path).unwrap_or_default();
-    let print = fingerprint(&scene_text, photo, mask, opts);
+    let print = views
+        .iter()
+        .fold(fingerprint(&scene_text, photo, mask, opts), |h, v| {
+            matfit::math::sampler::hash_seed(&[h, fingerprint("", v.photo, v.mask, opts)])
+        });
     let resume_from: Option<Checkpoint> = if resume {
         let text = std::fs::read_to_string(&ck_path)
             .map_err(|e| format!("cannot resume: {}: {e}", ck_path.display()))?;
@@ -65,6 +72,7 @@ pub fn run_recover(
         scene,
         photo,
         mask,
+        views,
         opts,
         resume_from.as_ref(),
         |line| {
@@ -128,6 +136,7 @@ pub fn inputs(
         }
         .to_string(),
         registration_px: prepared.registration.as_ref().map(|r| [r.dx, r.dy]),
+        photos: Vec::new(),
         ignore_mask: ignore_mask.map(|m| m.display().to_string()),
         options: opts.clone(),
     }

@@ -127,6 +127,9 @@ pub struct GroupCache {
     /// The mirror radiance with the groups still being analysed read from the photo (§5.1,
     /// `pseudo.rs`), when the build was asked for it.
     pub pseudo: Option<PseudoMirror>,
+    /// Where the pixels of each further photo begin, when the cache holds several photos'
+    /// pixels ([`GroupCache::append`]); empty for one photo. Pixel indices are per photo.
+    pub views: Vec<usize>,
 }
 
 /// How each pixel of a cache changes with the diffuse reflectance of the unseen groups it
@@ -181,6 +184,72 @@ pub struct TexelRows {
 }
 
 impl GroupCache {
+    /// The pixels of the first photo (all of them for a cache of one photo).
+    pub fn first_view(&self) -> &[CachePixel] {
+        &self.pixels[..self.views.first().copied().unwrap_or(self.pixels.len())]
+    }
+
+    /// Which photo cached pixel `k` belongs to (0: the first).
+    pub fn view_of(&self, k: usize) -> usize {
+        self.views.partition_point(|&start| start <= k)
+    }
+
+    /// Adds the cache of the same group in a further photo, whose values are divided by that
+    /// photo's exposure factor `exposure` (its photo = exposure × the scene's radiance). Its
+    /// tiles follow this cache's, so the error weighs every photo's tiles alike. The parts
+    /// that read pixels of one image (the pseudo-textured mirror radiance) are dropped.
+    pub fn append(&mut self, other: GroupCache, exposure: f32) {
+        let (base, tiles, rows) = (
+            self.samples.len() as u32,
+            self.tiles as u32,
+            self.texels.as_ref().map_or(0, |t| t.rows.len() as u32),
+        );
+        let (n0, n1) = (self.pixels.len() as f32, other.pixels.len() as f32);
+        self.views.push(self.pixels.len());
+        self.pixels
+            .extend(other.pixels.into_iter().map(|p| CachePixel {
+                photo: p.photo / exposure,
+                start: p.start + base,
+                mid: p.mid + base,
+                end: p.end + base,
+                tile: p.tile + tiles,
+                ..p
+            }));
+        self.samples = self
+            .samples
+            .iter()
+            .chain(other.samples.iter())
+            .copied()
+            .collect();
+        self.tiles += other.tiles;
+        self.stray += other.stray;
+        self.texels = match (self.texels.take(), other.texels) {
+            (Some(mut a), Some(b)) => {
+                a.ranges
+                    .extend(b.ranges.iter().map(|r| r.map(|i| i + rows)));
+                a.rows.extend(b.rows);
+                Some(a)
+            }
+            _ => None,
+        };
+        self.unseen = match (self.unseen.take(), other.unseen) {
+            (Some(mut a), Some(b)) if a.groups == b.groups => {
+                a.d_half.extend(b.d_half);
+                a.dc.extend(b.dc);
+                a.mirror_half.extend(b.mirror_half);
+                a.probed.extend(b.probed);
+                Some(a)
+            }
+            _ => None,
+        };
+        if n0 + n1 > 0.0 {
+            for (a, b) in self.light_from.iter_mut().zip(&other.light_from) {
+                *a = (*a * n0 + b * n1) / (n0 + n1);
+            }
+        }
+        self.pseudo = None;
+    }
+
     /// The pixels of the even and of the odd tiles as two caches (their samples copied, tiles
     /// renumbered). Tiles are numbered in scan order, so the two interleave over the group: a
     /// model fitted on one half is judged on pixels it has not seen but that see the same

@@ -28,6 +28,9 @@ pub struct Checkpoint {
     /// same ones.
     #[serde(default)]
     pub unseen_history: super::unseen::History,
+    /// Each photo's fitted exposure factor (several photos only; `fit/views.rs`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub exposures: Vec<f32>,
 }
 
 pub const CHECKPOINT_VERSION: u32 = 2;

@@ -18,6 +18,7 @@ pub mod solve;
 pub mod texture;
 pub mod uncertainty;
 pub mod unseen;
+pub mod views;
 
 pub use level::Level;
 pub use params::GroupParams;

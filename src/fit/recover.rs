@@ -156,6 +156,31 @@ pub struct Recovery {
     pub objective_evals: u64,
     pub total_s: f64,
     pub final_render_s: f64,
+    /// Per photo (the first included) when several were fitted together; else empty.
+    pub views: Vec<ViewFit>,
+}
+
+/// A further photo of the scene, fitted together with the first (`scene::view`, `fit/views.rs`).
+pub struct PhotoView<'a> {
+    pub name: String,
+    /// The scene as this photo's view sees it (its camera registered to the photo, its lights).
+    pub scene: &'a Scene,
+    pub photo: &'a Photo,
+    pub mask: &'a UsableMask,
+}
+
+/// What the fit made of each photo when several were fitted together.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ViewFit {
+    pub name: String,
+    /// The fitted factor k of photo = k × the recovered scene's radiance (their geometric mean
+    /// is 1: the materials' scale is the photos' consensus).
+    pub exposure: f32,
+    /// Σ|photo/k − model| / Σ photo/k over the photo's cached pixels of the uniform groups, in
+    /// the last iteration: how well the one set of materials explains this photo.
+    pub residual: f32,
+    /// Cached pixels of the photo in the last iteration.
+    pub pixels: usize,
 }
 
 /// Recovers the materials of `scene`'s non-fixed groups from `photo`, using the usable pixels
@@ -169,7 +194,7 @@ pub fn recover(
     opts: &RecoverOptions,
     log: impl FnMut(&LogLine),
 ) -> Result<Recovery, RecoverError> {
-    recover_resumable(scene, photo, mask, opts, None, log, |_| {})
+    recover_resumable(scene, photo, mask, &[], opts, None, log, |_| {})
 }
 
 /// [`recover`], starting from `resume` if given, and handing a [`Checkpoint`] to `checkpoint`
@@ -180,18 +205,20 @@ pub fn recover(
 /// group and the iteration: nothing is checkpointed for that iteration, so the last checkpoint
 /// stays the state before it. The parameters themselves are always clamped inside their
 /// physical bounds ([`GroupParams::clamped`]), so only the error can carry a NaN forward.
+#[allow(clippy::too_many_arguments)]
 pub fn recover_resumable(
     scene: &Scene,
     photo: &Photo,
     mask: &UsableMask,
+    views: &[PhotoView],
     opts: &RecoverOptions,
     resume: Option<&Checkpoint>,
     mut log: impl FnMut(&LogLine),
     mut checkpoint: impl FnMut(&Checkpoint),
 ) -> Result<Recovery, RecoverError> {
     let mut run = match resume {
-        Some(c) => RecoveryLoop::resume(scene, photo, mask, opts, c)?,
-        None => RecoveryLoop::start(scene, photo, mask, opts),
+        Some(c) => RecoveryLoop::resume(scene, photo, mask, views, opts, c)?,
+        None => RecoveryLoop::start(scene, photo, mask, views, opts),
     };
     // The bar advances once per group fitted (the iterations grow longer as the cache's pixel
     // budget doubles, so a bar per iteration stalled and then jumped); its message says which
@@ -296,6 +323,7 @@ emission = 5.0
             &scene,
             &photo,
             &mask,
+            &[],
             &opts,
             None,
             |_| logged += 1,
@@ -351,6 +379,7 @@ emission = 5.0
                 unseen: None,
                 light_from: Vec::new(),
                 pseudo: None,
+                views: Vec::new(),
             };
             let mut any_bad = false;
             for level in Level::FITTED {

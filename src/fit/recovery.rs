@@ -17,7 +17,9 @@ use super::hierarchy::{Event, GroupState, Motion, Status};
 use super::level::Level;
 use super::params::{largest_move, GroupParams};
 use super::pseudo::{self, PseudoTextures};
-use super::recover::{pixel_budget, LogLine, RecoverError, RecoverOptions, Recovery};
+use super::recover::{
+    pixel_budget, LogLine, PhotoView, RecoverError, RecoverOptions, Recovery, ViewFit,
+};
 use super::schedule;
 use crate::io::image::Image;
 use crate::math::sampler::hash_seed;
@@ -33,6 +35,17 @@ use std::time::Instant;
 
 /// The cached pixels of every group at one pixel budget: (pixels, their tiles, tile count).
 type PixelLists = Vec<(Vec<usize>, Vec<u32>, usize)>;
+
+/// A further photo's part of a recovery (`views.rs`).
+struct ViewRun<'a> {
+    name: String,
+    scene: &'a Scene,
+    photo: &'a Photo,
+    mask: UsableMask,
+    /// The view's scene with every group's current parameters.
+    current: Scene,
+    pixel_lists: PixelLists,
+}
 
 /// A recovery in progress.
 pub struct RecoveryLoop<'a> {
@@ -67,6 +80,12 @@ pub struct RecoveryLoop<'a> {
     /// Per group, the pixels a texture of it is fitted from (`texture_pixels`), found when a
     /// group first needs them.
     texture_pixels: std::cell::OnceCell<Vec<Vec<usize>>>,
+    /// The further photos fitted with the first (`views.rs`); empty for one photo.
+    extra: Vec<ViewRun<'a>>,
+    /// Per photo (the first included), its exposure factor: all 1 for one photo.
+    exposures: Vec<f32>,
+    /// Per photo, the residual and pixel count of the last iteration (several photos only).
+    residuals: Vec<(f32, usize)>,
 }
 
 /// The pixels a textured group is fitted from: its usable pixels, those the mask's edge test
@@ -109,10 +128,11 @@ impl<'a> RecoveryLoop<'a> {
         scene: &'a Scene,
         photo: &'a Photo,
         mask: &UsableMask,
+        views: &[PhotoView<'a>],
         opts: &'a RecoverOptions,
     ) -> RecoveryLoop<'a> {
-        let states = initial_states(scene, mask, opts);
-        Self::with_states(scene, photo, mask, opts, states, 0)
+        let states = initial_states(scene, &merged_mask(mask, views), opts);
+        Self::with_states(scene, photo, mask, views, opts, states, 0)
     }
 
     /// The recovery that wrote `c`, continued after its last iteration. Fails if the checkpoint
@@ -121,6 +141,7 @@ impl<'a> RecoveryLoop<'a> {
         scene: &'a Scene,
         photo: &'a Photo,
         mask: &UsableMask,
+        views: &[PhotoView<'a>],
         opts: &'a RecoverOptions,
         c: &Checkpoint,
     ) -> Result<RecoveryLoop<'a>, RecoverError> {
@@ -130,7 +151,18 @@ impl<'a> RecoveryLoop<'a> {
                 params: s.params,
             });
         }
-        let mut r = Self::with_states(scene, photo, mask, opts, c.states.clone(), c.next_iteration);
+        let mut r = Self::with_states(
+            scene,
+            photo,
+            mask,
+            views,
+            opts,
+            c.states.clone(),
+            c.next_iteration,
+        );
+        if c.exposures.len() == r.exposures.len() {
+            r.exposures = c.exposures.clone();
+        }
         r.elapsed_before = c.elapsed;
         r.settled = c.settled;
         r.cache_builds = c.cache_builds;
@@ -145,6 +177,7 @@ impl<'a> RecoveryLoop<'a> {
         scene: &'a Scene,
         photo: &'a Photo,
         mask: &UsableMask,
+        views: &[PhotoView<'a>],
         opts: &'a RecoverOptions,
         states: Vec<GroupState>,
         next: u32,
@@ -170,6 +203,21 @@ impl<'a> RecoveryLoop<'a> {
         let mut current = scene.clone();
         apply(&mut current, &states, &textures);
         let cap = pixel_budget(opts, next);
+        let extra: Vec<ViewRun> = views
+            .iter()
+            .map(|v| {
+                let mut current = v.scene.clone();
+                apply(&mut current, &states, &textures);
+                ViewRun {
+                    name: v.name.clone(),
+                    scene: v.scene,
+                    photo: v.photo,
+                    mask: v.mask.clone(),
+                    current,
+                    pixel_lists: Vec::new(),
+                }
+            })
+            .collect();
         let mut r = RecoveryLoop {
             scene,
             photo,
@@ -192,8 +240,11 @@ impl<'a> RecoveryLoop<'a> {
             atlases,
             textures,
             texture_pixels: std::cell::OnceCell::new(),
+            exposures: vec![1.0; 1 + extra.len()],
+            residuals: Vec::new(),
+            extra,
         };
-        r.pixel_lists = r.choose_all(cap);
+        r.choose_all(cap);
         r
     }
 
@@ -238,16 +289,42 @@ impl<'a> RecoveryLoop<'a> {
         self.elapsed_before + self.t0.elapsed().as_secs_f64()
     }
 
-    /// The pixels of every group's cache at a given pixel budget.
-    fn choose_all(&self, cap: usize) -> PixelLists {
+    /// Chooses the pixels of every group's cache, in every photo, at a given pixel budget.
+    fn choose_all(&mut self, cap: usize) {
         let cache_opts = CacheOptions {
             max_pixels: cap,
             ..self.opts.cache.clone()
         };
         let w = self.scene.camera.width as usize;
-        (0..self.scene.groups.len())
+        self.pixel_lists = (0..self.scene.groups.len())
             .map(|g| self.choose(g, &cache_opts, w))
-            .collect()
+            .collect();
+        for k in 0..self.extra.len() {
+            let lists = (0..self.scene.groups.len())
+                .map(|g| self.choose_in_view(k, g, &cache_opts))
+                .collect();
+            self.extra[k].pixel_lists = lists;
+        }
+    }
+
+    /// The cached pixels of group `g` in further photo `k`: a subsample of its usable pixels
+    /// within the budget, all of them at level 7.
+    fn choose_in_view(
+        &self,
+        k: usize,
+        g: usize,
+        cache_opts: &CacheOptions,
+    ) -> (Vec<usize>, Vec<u32>, usize) {
+        let v = &self.extra[k];
+        let opts = CacheOptions {
+            max_pixels: if self.states[g].level == Level::Textured {
+                usize::MAX
+            } else {
+                cache_opts.max_pixels
+            },
+            ..cache_opts.clone()
+        };
+        choose_pixels(&v.mask.pixels_of(g), v.scene.camera.width as usize, &opts)
     }
 
     /// The cached pixels of group `g`: at level 7 all of [`texture_pixels`] (every texel needs
@@ -278,7 +355,7 @@ impl<'a> RecoveryLoop<'a> {
         let budget = pixel_budget(opts, it);
         if budget != self.cap {
             self.cap = budget;
-            self.pixel_lists = self.choose_all(budget);
+            self.choose_all(budget);
         }
         let levels_before: Vec<_> = self.states.iter().map(|s| s.level).collect();
         self.iterations = it + 1;
@@ -292,6 +369,7 @@ impl<'a> RecoveryLoop<'a> {
             Vec::new()
         };
         let mut shares = Vec::new();
+        let mut sums = super::views::ExposureSums::new(self.exposures.len());
         for g in 0..self.states.len() {
             if !self.states[g].is_fitted() {
                 continue;
@@ -304,6 +382,9 @@ impl<'a> RecoveryLoop<'a> {
                     ..opts.cache.clone()
                 };
                 self.pixel_lists[g] = self.choose(g, &cache_opts, self.scene.camera.width as usize);
+                for k in 0..self.extra.len() {
+                    self.extra[k].pixel_lists[g] = self.choose_in_view(k, g, &cache_opts);
+                }
             }
             let cache_opts = if textured {
                 CacheOptions {
@@ -315,54 +396,83 @@ impl<'a> RecoveryLoop<'a> {
                 opts.cache.clone()
             };
             let (px, tiles, n_tiles) = &self.pixel_lists[g];
-            let pt = PathTracer::new(&self.current);
-            let moved: Vec<(Scene, Rgb)> = tracked
-                .iter()
-                .map(|&u| super::unseen::moved_scene(&self.current, &self.states[u]))
-                .collect();
-            let moved_pt: Vec<PathTracer> = moved.iter().map(|(s, _)| PathTracer::new(s)).collect();
-            let probes: Vec<UnseenProbe> = tracked
-                .iter()
-                .zip(&moved)
-                .zip(&moved_pt)
-                .map(|((&group, (_, step)), pt)| UnseenProbe {
-                    group,
-                    moved: pt,
-                    step: *step,
-                })
-                .collect();
             let atlas = self.atlases[g].as_deref();
             let needs = self.states[g].cache_needs(self.settled);
-            // §5.1: the groups still being analysed, as the mirror radiance may read them.
+            // §5.1: the groups still being analysed, as the mirror radiance may read them (one
+            // photo only: the pseudo-textures read the photo's pixels).
             let analysing: Vec<bool> = self
                 .states
                 .iter()
                 .enumerate()
                 .map(|(i, s)| i != g && s.is_fitted() && s.status == Status::Analysing)
                 .collect();
-            let pseudo =
-                (opts.pseudo_textures && needs.mirror && analysing.contains(&true)).then(|| {
-                    PseudoTextures {
-                        groups: analysing,
-                        usable: &self.mask.group,
-                        photo: &self.photo.image.data,
-                    }
-                });
-            let mut cache = build(
+            let pseudo = (opts.pseudo_textures
+                && self.extra.is_empty()
+                && needs.mirror
+                && analysing.contains(&true))
+            .then(|| PseudoTextures {
+                groups: analysing,
+                usable: &self.mask.group,
+                photo: &self.photo.image.data,
+            });
+            let view_cache = |current: &Scene,
+                              (px, tiles, n_tiles): (&[usize], &[u32], usize),
+                              photo: &Photo,
+                              pseudo: Option<&PseudoTextures>,
+                              seed: u64| {
+                let pt = PathTracer::new(current);
+                let moved: Vec<(Scene, Rgb)> = tracked
+                    .iter()
+                    .map(|&u| super::unseen::moved_scene(current, &self.states[u]))
+                    .collect();
+                let moved_pt: Vec<PathTracer> =
+                    moved.iter().map(|(s, _)| PathTracer::new(s)).collect();
+                let probes: Vec<UnseenProbe> = tracked
+                    .iter()
+                    .zip(&moved)
+                    .zip(&moved_pt)
+                    .map(|((&group, (_, step)), pt)| UnseenProbe {
+                        group,
+                        moved: pt,
+                        step: *step,
+                    })
+                    .collect();
+                build(
+                    current,
+                    &pt,
+                    g,
+                    px,
+                    tiles,
+                    n_tiles,
+                    &photo.image.data,
+                    needs,
+                    atlas,
+                    &probes,
+                    pseudo,
+                    &cache_opts,
+                    seed,
+                )
+            };
+            let mut cache = view_cache(
                 &self.current,
-                &pt,
-                g,
-                px,
-                tiles,
-                *n_tiles,
-                &self.photo.image.data,
-                needs,
-                atlas,
-                &probes,
+                (px, tiles, *n_tiles),
+                self.photo,
                 pseudo.as_ref(),
-                &cache_opts,
                 hash_seed(&[opts.seed, it as u64, g as u64]),
             );
+            if !self.extra.is_empty() {
+                let e0 = self.exposures[0];
+                for p in cache.pixels.iter_mut() {
+                    p.photo /= e0;
+                }
+                for (k, v) in self.extra.iter().enumerate() {
+                    let seed = hash_seed(&[opts.seed, it as u64, g as u64, k as u64 + 1]);
+                    let (px, tiles, n) = &v.pixel_lists[g];
+                    let c = view_cache(&v.current, (px, tiles, *n), v.photo, None, seed);
+                    cache.append(c, self.exposures[k + 1]);
+                }
+                self.cache_builds += self.extra.len() as u32;
+            }
             self.cache_builds += 1;
             let mut read = cache.pseudo.take().filter(|r| r.share >= pseudo::MIN_SHARE);
             let mut took = false;
@@ -386,6 +496,11 @@ impl<'a> RecoveryLoop<'a> {
                 // The unseen groups' derivatives are those of the rendered mirror radiance.
                 cache.swap_mirror(r);
             }
+            if !self.extra.is_empty() && self.states[g].level != Level::Textured {
+                let st = &self.states[g];
+                let model = super::texture::uniform_model(&cache, st.level, &st.params, variant);
+                sums.add(&cache, &model, &self.exposures);
+            }
             shares.extend(super::unseen::shares(&cache, g, &self.states[g], variant));
             self.states[g].lit_by = cache.light_from.clone();
             let secs = tg.elapsed().as_secs_f64();
@@ -405,6 +520,21 @@ impl<'a> RecoveryLoop<'a> {
             // Gauss–Seidel: the next groups' caches see this group's new parameters.
             self.textures[g] = texture_of(self.scene, &self.states[g], self.atlases[g].as_ref());
             apply(&mut self.current, &self.states, &self.textures);
+            for v in self.extra.iter_mut() {
+                apply(&mut v.current, &self.states, &self.textures);
+            }
+        }
+        // Several photos: each one's exposure factor against the refitted materials.
+        let mut exposure_moved = 0.0f32;
+        if !self.extra.is_empty() {
+            self.residuals = sums.residuals(&self.exposures);
+            if let Some(e) = sums.exposures() {
+                exposure_moved = e
+                    .iter()
+                    .zip(&self.exposures)
+                    .fold(0.0f32, |m, (a, b)| m.max((a / b - 1.0).abs()));
+                self.exposures = e;
+            }
         }
         // Unseen groups' ρd re-estimated against the refitted seen groups (issue 26).
         let (estimates, unseen_moved) = super::unseen::update(
@@ -417,6 +547,9 @@ impl<'a> RecoveryLoop<'a> {
             it + 1 >= opts.max_iterations,
         );
         self.unseen = estimates;
+        for v in self.extra.iter_mut() {
+            apply(&mut v.current, &self.states, &self.textures);
+        }
         let moves: Vec<Option<f32>> = self
             .states
             .iter()
@@ -426,7 +559,10 @@ impl<'a> RecoveryLoop<'a> {
                     .then(|| largest_move([(s.level, &s.params, b)]))
             })
             .collect();
-        let moved = moves.iter().flatten().fold(unseen_moved, |a, &b| a.max(b));
+        let moved = moves
+            .iter()
+            .flatten()
+            .fold(unseen_moved.max(exposure_moved), |a, &b| a.max(b));
         let mut motions = Vec::new();
         for (g, m) in moves.iter().enumerate() {
             let Some(m) = *m else { continue };
@@ -497,6 +633,11 @@ impl<'a> RecoveryLoop<'a> {
             log_bytes: 0,
             elapsed: self.elapsed(),
             unseen_history: self.unseen_history.clone(),
+            exposures: if self.extra.is_empty() {
+                Vec::new()
+            } else {
+                self.exposures.clone()
+            },
         }
     }
 
@@ -524,9 +665,42 @@ impl<'a> RecoveryLoop<'a> {
         for (s, bb) in synthetic.data.iter_mut().zip(&b.data) {
             *s = 0.5 * (*s + *bb);
         }
+        // The first photo against the render scaled by its exposure factor (1 for one photo).
+        let e0 = self.exposures[0];
+        let scaled = |im: &Image| {
+            let mut im = im.clone();
+            im.data.iter_mut().for_each(|c| *c *= e0);
+            im
+        };
+        let (syn_e, a_e, b_e) = if e0 != 1.0 {
+            (scaled(&synthetic), scaled(&a), scaled(&b))
+        } else {
+            (synthetic.clone(), a.clone(), b.clone())
+        };
         let final_error = (0..self.states.len())
-            .map(|g| image_error(&self.mask, g, &synthetic, &a, &b, &self.photo.image))
+            .map(|g| image_error(&self.mask, g, &syn_e, &a_e, &b_e, &self.photo.image))
             .collect();
+        let views = if self.extra.is_empty() {
+            Vec::new()
+        } else {
+            let first = match self.scene.view {
+                Some(k) => self.scene.views[k].name.clone(),
+                None => "photo 1".to_string(),
+            };
+            std::iter::once(first)
+                .chain(self.extra.iter().map(|v| v.name.clone()))
+                .enumerate()
+                .map(|(k, name)| {
+                    let (residual, pixels) = self.residuals.get(k).copied().unwrap_or_default();
+                    ViewFit {
+                        name,
+                        exposure: self.exposures[k],
+                        residual,
+                        pixels,
+                    }
+                })
+                .collect()
+        };
         let total_s = self.t0.elapsed().as_secs_f64();
         let mut states = self.states;
         for st in states.iter_mut().filter(|s| s.is_fitted()) {
@@ -554,6 +728,7 @@ impl<'a> RecoveryLoop<'a> {
             objective_evals: self.evals,
             total_s,
             final_render_s,
+            views,
         }
     }
 }
@@ -561,6 +736,19 @@ impl<'a> RecoveryLoop<'a> {
 /// Every group's state before the first iteration: lights and fixed groups keep their
 /// materials, groups with no usable pixels get the default diffuse reflectance, the rest are
 /// analysed from grey.
+/// The first photo's mask with the further photos' usable pixels counted in its statistics: a
+/// group is fitted if any photo shows it.
+fn merged_mask(mask: &UsableMask, views: &[PhotoView]) -> UsableMask {
+    let mut m = mask.clone();
+    for v in views {
+        for (a, b) in m.stats.iter_mut().zip(&v.mask.stats) {
+            a.usable += b.usable;
+            a.visible += b.visible;
+        }
+    }
+    m
+}
+
 fn initial_states(scene: &Scene, mask: &UsableMask, opts: &RecoverOptions) -> Vec<GroupState> {
     scene
         .groups

@@ -132,18 +132,19 @@ pub fn footprint(scene: &Scene, pixels: &[usize]) -> Option<f32> {
 /// detail away. Neighbours are those of the cache's pixel grid (every `stride`-th pixel).
 pub fn coherent_detail(cache: &GroupCache, model: &[Rgb], width: usize) -> f32 {
     use std::collections::HashMap;
-    let n = cache.pixels.len();
+    // Neighbours are those of one image: a cache of several photos is judged on its first.
+    let n = cache.first_view().len();
     if n < 16 {
         return 0.0;
     }
     let at: HashMap<u32, usize> = cache
-        .pixels
+        .first_view()
         .iter()
         .enumerate()
         .map(|(k, p)| (p.pixel, k))
         .collect();
     let stride = cache
-        .pixels
+        .first_view()
         .windows(2)
         .filter(|w| w[1].pixel / width as u32 == w[0].pixel / width as u32)
         .map(|w| (w[1].pixel - w[0].pixel) as usize)
@@ -186,7 +187,7 @@ pub fn coherent_detail(cache: &GroupCache, model: &[Rgb], width: usize) -> f32 {
             }
         }
     }
-    let mean = cache.pixels.iter().map(|p| lum(p.photo)).sum::<f32>() / n as f32;
+    let mean = cache.first_view().iter().map(|p| lum(p.photo)).sum::<f32>() / n as f32;
     if pairs == 0 || !(mean > 0.0) {
         return 0.0;
     }
@@ -262,6 +263,7 @@ pub fn fit_textured(
             samples: cache.samples.clone(),
             tiles: cache.tiles,
             width: cache.width,
+            views: cache.views.clone(),
             ..Default::default()
         };
         for (p, px) in rest.pixels.iter_mut().enumerate() {

@@ -598,6 +598,7 @@ impl<'a> Ctx<'a> {
             objects,
             lights,
             environment,
+            views: Vec::new(),
         })
     }
 

@@ -128,6 +128,27 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
             "<h2>Recovered textures (level 7)</h2>\n<p>Reflectance, the light that fell on them divided out (§5.2 of the notes); sRGB previews.</p>\n{textures}"
         );
     }
+    let mut views = String::new();
+    let photos = res
+        .inputs
+        .as_ref()
+        .map(|i| i.photos.as_slice())
+        .unwrap_or(&[]);
+    for (k, v) in res.views.iter().enumerate() {
+        views += &format!(
+            "<tr><td>{}</td><td>{}</td><td>{:.4}</td><td>{:.2}%</td><td>{}</td></tr>\n",
+            esc(&v.name),
+            esc(photos.get(k).map_or("", |p| p.as_str())),
+            v.exposure,
+            100.0 * v.residual,
+            v.pixels
+        );
+    }
+    if !views.is_empty() {
+        views = format!(
+            "<h2>Photos fitted together</h2>\n<p>One set of materials for every photo, each through its own view (camera and lights). k: the photo's fitted exposure factor (photo = k × the recovered scene's radiance; the factors' geometric mean is 1, so the materials' scale is the photos' consensus). Residual: Σ|photo/k − model| / Σ photo/k over the photo's cached pixels of the uniform groups, last iteration. The images above are the first photo's.</p>\n<table id=\"views\"><tr><th>view</th><th>photo</th><th>k</th><th>residual</th><th>pixels</th></tr>\n{views}</table>\n"
+        );
+    }
     let mut convergence = String::new();
     for (g, svg) in plots {
         convergence += &format!(
@@ -185,6 +206,7 @@ table{{border-collapse:collapse}} td,th{{border:1px solid #ccc;padding:4px 8px;f
 <input id="slider" type="range" min="0" max="100" value="50" aria-label="photo / synthetic">
 <table><tr><th>group</th><th>level</th><th>status</th><th>ε</th><th>noise floor</th><th>usable px</th><th>parameters</th><th>note</th></tr>
 {rows}</table>
+{views}
 {convergence}
 {textures}
 <p>{} global iterations, {} cache builds, {} objective evaluations; total {:.1} s, final render {:.1} s; Ward variant {}.</p>

@@ -89,6 +89,10 @@ pub struct Inputs {
     pub exposure_rule: String,
     /// The shift (pixels) registration found between model and photo (None: registration off).
     pub registration_px: Option<[f32; 2]>,
+    /// Every photo, in the order of the scene's views, when several were fitted together (the
+    /// exposure and registration above are then the first photo's).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub photos: Vec<String>,
     /// The user's mask of pixels to ignore (`--ignore-mask`), if one was given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ignore_mask: Option<String>,
@@ -106,6 +110,9 @@ pub struct Results {
     pub cache_builds: u32,
     pub objective_evals: u64,
     pub ward_variant: &'static str,
+    /// Per photo, when several were fitted together: its fitted exposure factor and residual.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub views: Vec<crate::fit::recover::ViewFit>,
 }
 
 /// The material of group `g`'s first object in the recovered scene.
@@ -189,6 +196,7 @@ pub fn results(rec: &Recovery) -> Results {
         cache_builds: rec.cache_builds,
         objective_evals: rec.objective_evals,
         ward_variant: rec.scene.render.ward_variant.name(),
+        views: rec.views.clone(),
     }
 }
 

@@ -261,6 +261,7 @@ pub fn apply(scene: &mut SceneFile, edit: &Edit) -> Result<(), SceneError> {
             objects: f.add.clone(),
             lights: Vec::new(),
             environment: None,
+            views: Vec::new(),
         };
         if f.add.is_empty() {
             check_camera(&alone, &edit.text, &edit.path)?;
@@ -363,7 +364,7 @@ fn translate(o: &mut ObjectSpec, t: [f32; 3]) {
 }
 
 /// The edit's camera table with the scene's width and height where it gives none.
-fn edited_camera(table: &toml::Table, scene: &CameraSpec) -> Result<CameraSpec, String> {
+pub(super) fn edited_camera(table: &toml::Table, scene: &CameraSpec) -> Result<CameraSpec, String> {
     let mut t = table.clone();
     t.entry("width")
         .or_insert(toml::Value::Integer(scene.width.into()));

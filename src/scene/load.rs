@@ -55,7 +55,7 @@ fn camera_key_line(text: &str, key: &str) -> Option<usize> {
 }
 
 /// 1-based line of a byte offset.
-fn line_of(text: &str, offset: usize) -> usize {
+pub(super) fn line_of(text: &str, offset: usize) -> usize {
     text.as_bytes()[..offset.min(text.len())]
         .iter()
         .filter(|&&b| b == b'\n')
@@ -170,7 +170,8 @@ impl Ctx<'_> {
 
 /// Checks and builds a parsed scene file; `text` and `path` are what errors point into.
 pub(super) fn build_scene(file: SceneFile, text: &str, path: &Path) -> Result<Scene, SceneError> {
-    let scene = build_objects(file, text, path)?;
+    let mut scene = build_objects(file, text, path)?;
+    scene.views = super::view::build_views(&scene.source, &scene, text, path)?;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     check_camera_sees_geometry(&scene, &Ctx { path, text, dir })?;
     Ok(scene)
@@ -375,6 +376,8 @@ pub(super) fn build_objects(file: SceneFile, text: &str, path: &Path) -> Result<
         environment,
         geometry: Arc::new(geometry),
         source: file,
+        views: Vec::new(),
+        view: None,
     };
     Ok(scene)
 }

@@ -13,6 +13,7 @@ pub mod material;
 pub mod meshio;
 pub mod schema;
 pub mod texture;
+pub mod view;
 pub mod write;
 
 pub use camera::Camera;
@@ -20,6 +21,7 @@ pub use error::SceneError;
 pub use light::{Punctual, PunctualLight};
 pub use load::load_scene;
 pub use material::{Material, Varnish, WardVariant};
+pub use view::View;
 
 use crate::geometry::packet::{Packet, LANES};
 use crate::geometry::{Bvh, Hit, Ray};
@@ -183,6 +185,10 @@ pub struct Scene {
     pub geometry: Arc<Geometry>,
     /// Groups' options and everything else of the source, for writing the scene back out.
     pub source: schema::SceneFile,
+    /// The photos' views (`view.rs`); empty for a scene of one photo.
+    pub views: Vec<View>,
+    /// The view this scene is seen as (`Scene::in_view`), if any.
+    pub view: Option<usize>,
 }
 
 /// Everything the renderer needs to know about a ray's hit point.

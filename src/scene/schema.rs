@@ -82,6 +82,24 @@ pub struct SceneFile {
     pub lights: Vec<LightSpec>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub environment: Option<Spanned<EnvironmentSpec>>,
+    /// The photos' views when several photos are fitted together (`scene::view`).
+    #[serde(default, rename = "view", skip_serializing_if = "Vec::is_empty")]
+    pub views: Vec<Spanned<ViewSpec>>,
+}
+
+/// One photo's view (`scene::view`): its camera and which of the scene's lights are on.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ViewSpec {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// A camera in either form; width and height default to `[camera]`'s. Absent: `[camera]`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<toml::Table>,
+    /// The lights on (names of [[light]]s, of emitting objects or groups, or "environment").
+    /// Absent: all of them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lights: Option<Vec<String>>,
 }
 
 /// An environment light (`scene::environment`): an equirectangular HDR light probe.
