@@ -71,7 +71,7 @@ pub enum Command {
         #[arg(long, value_enum, default_value = "beauty")]
         aov: AovArg,
         /// Render the scene as one of its [[view]]s sees it (its camera and lights): a number
-        /// from 1 or a view's name.
+        /// from 1 or a view's name [default: the scene's [camera] and every light].
         #[arg(long, value_name = "VIEW")]
         view: Option<String>,
         #[command(flatten)]
@@ -110,7 +110,7 @@ pub enum Command {
     Recover {
         #[arg(help = SCENE_HELP)]
         scene: PathBuf,
-        /// Photograph(s) of the scene: EXR, HDR or PFM (linear), or PNG/JPEG/TIFF (8/16-bit,
+        /// Photograph of the scene: EXR, HDR or PFM (linear), or PNG/JPEG/TIFF (8/16-bit,
         /// through --response). Several photos are fitted together, photo K through the scene's
         /// [[view]] K (its camera and lights), each with its own fitted exposure factor.
         #[arg(required = true, num_args = 1.., value_name = "PHOTO")]
@@ -223,7 +223,7 @@ pub enum Command {
         #[arg(long)]
         force: bool,
         /// Export the scene as one of its [[view]]s sees it (its camera and lights): a number
-        /// from 1 or a view's name.
+        /// from 1 or a view's name [default: the scene's [camera] and every light].
         #[arg(long, value_name = "VIEW")]
         view: Option<String>,
     },
