@@ -666,3 +666,121 @@ fn a_photo_through_a_distorting_lens_is_recovered_with_the_lens_model_and_not_wi
         "without: {worst}, {textured} textured"
     );
 }
+
+/// A Lambert sphere of reflectance ρ alone in the scene (nothing occludes it) against the
+/// analytic irradiance, binned by the hit's normal n (16 bins of n·a over the pixels whose 4×4
+/// sub-samples all hit): under a distant light of irradiance E along −l, L = ρ/π · E max(0, n·l);
+/// under a sky of radiance a + b ω_y (equirectangular, 512×256), E(n) = π a + (2π/3) b n_y, so
+/// L = ρ (a + (2/3) b n_y) (the irradiance of a linear radiance field: Ramamoorthi & Hanrahan
+/// 2001, the l ≤ 1 bands). Every bin within 0.5%.
+#[test]
+fn a_lambert_sphere_matches_the_analytic_irradiance_of_a_sun_and_of_a_sky() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (1.0f32, 0.8f32);
+    let (w, h) = (512, 256);
+    let mut sky = matfit::io::image::Image::new(w, h);
+    for y in 0..h {
+        let theta = (y as f32 + 0.5) / h as f32 * std::f32::consts::PI;
+        for x in 0..w {
+            sky.set(x, y, Rgb::splat(a + b * theta.cos()));
+        }
+    }
+    sky.write(&dir.path().join("sky.exr")).unwrap();
+    let l = Vec3::new(-0.4, 0.7, 0.6).normalize();
+    let sphere = |lights: &str| {
+        format!(
+            r#"
+[render]
+max_depth = 2
+[camera]
+width = 64
+height = 64
+eye = [0.0, 0.0, 4.0]
+target = [0.0, 0.0, 0.0]
+fov_y_deg = 30.0
+[[object]]
+name = "ball"
+group = "ball"
+shape = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 1.0
+segments = 512
+material = {{ type = "diffuse", rho_d = 0.6 }}
+{lights}"#
+        )
+    };
+    let sun = format!(
+        "[[light]]\nname = \"sun\"\ntype = \"directional\"\ndirection = [{}, {}, {}]\nirradiance = 3.0\n",
+        -l.x, -l.y, -l.z
+    );
+    let cases: [(String, u32, Vec3, Box<dyn Fn(Vec3) -> f32>); 2] = [
+        (
+            sun,
+            4,
+            l,
+            Box::new(move |n: Vec3| 0.6 / std::f32::consts::PI * 3.0 * n.dot(l).max(0.0)),
+        ),
+        (
+            "[environment]\nfile = \"sky.exr\"\n".to_string(),
+            1024,
+            Vec3::Y,
+            Box::new(move |n: Vec3| 0.6 * (a + 2.0 / 3.0 * b * n.y)),
+        ),
+    ];
+    for (lights, spp, axis, analytic) in cases {
+        let path = write(dir.path(), "scene.toml", &sphere(&lights));
+        let sc = matfit::scene::load_scene(&path).unwrap();
+        let img = rendered(&sc, spp);
+        let bins = 16;
+        let (mut got, mut want, mut n) = (vec![0.0f64; bins], vec![0.0f64; bins], vec![0; bins]);
+        for y in 0..64 {
+            for x in 0..64 {
+                // The pixel's mean analytic radiance over its 4×4 sub-samples, all on the ball.
+                let mut sum = 0.0f32;
+                let mut normal = Vec3::ZERO;
+                let mut all = true;
+                for k in 0..16 {
+                    let film = Vec2::new(
+                        x as f32 + (k % 4) as f32 / 4.0 + 0.125,
+                        y as f32 + (k / 4) as f32 / 4.0 + 0.125,
+                    );
+                    match sc.intersect(&sc.camera.ray(film), f32::INFINITY) {
+                        Some(hit) => {
+                            let nrm = hit.p.normalize();
+                            sum += analytic(nrm) / 16.0;
+                            normal += nrm;
+                        }
+                        None => all = false,
+                    }
+                }
+                let c = normal.normalize().dot(axis);
+                // Away from the terminator, where the mesh's facets and the sphere differ most.
+                if !all || c < 0.15 {
+                    continue;
+                }
+                let bin = ((c * bins as f32) as usize).min(bins - 1);
+                got[bin] += img.get(x, y).x as f64;
+                want[bin] += sum as f64;
+                n[bin] += 1;
+            }
+        }
+        let mut checked = 0;
+        for k in 0..bins {
+            if n[k] < 8 {
+                continue;
+            }
+            let rel = got[k] / want[k] - 1.0;
+            assert!(
+                rel.abs() < 0.005,
+                "{}: bin {k} ({} px): {:.4} vs analytic {:.4} ({:+.2}%)",
+                lights.lines().next().unwrap(),
+                n[k],
+                got[k] / n[k] as f64,
+                want[k] / n[k] as f64,
+                100.0 * rel
+            );
+            checked += 1;
+        }
+        assert!(checked >= 10, "{checked} bins checked");
+    }
+}
