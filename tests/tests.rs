@@ -1,6 +1,7 @@
 //! End-to-end tests, in one binary (quicker to build on two cores than one binary per file).
 
 mod bad_input;
+mod capture;
 mod cli;
 mod common;
 mod edit;
