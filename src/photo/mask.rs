@@ -383,7 +383,7 @@ pub fn usable_pixels_covered(
             continue;
         }
         for (k, &(b, e)) in steps.iter().enumerate() {
-            if !outside(i, b) && !(e && edge_near[i]) {
+            if !(outside(i, b) || e && edge_near[i]) {
                 counts[g as usize][k] += 1;
             }
         }
