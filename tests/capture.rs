@@ -71,14 +71,14 @@ fn capture_is_recovered(pose: bool) {
     // The camera that took the photo.
     let (eye, target) = if pose {
         // 1° about the vertical through the eye, and 2 cm to the right.
-        let (s, c) = 1f32.to_radians().sin_cos();
-        let (tx, tz) = (0.0f32, -1.139693 + 0.2);
+        let (s, c) = 1f64.to_radians().sin_cos();
+        let (tx, tz) = (0.0f64, -1.139693 + 0.2);
         (
             [0.02, 1.6, -0.2],
-            [0.02 + c * tx - s * tz, 1.257980, -0.2 + s * tx + c * tz],
+            [0.02 + c * tx - s * tz, 1.25798, -0.2 + s * tx + c * tz],
         )
     } else {
-        ([0.0, 1.6, -0.2], [0.0, 1.257980, -1.139693])
+        ([0.0f64, 1.6, -0.2], [0.0f64, 1.25798, -1.139693])
     };
     write(
         dir,
