@@ -120,7 +120,7 @@ fn capture_is_recovered(pose: bool) {
     let k = 0.5 / lum[lum.len() * 9 / 10];
     let mut linear = img.clone();
     for (i, c) in linear.data.iter_mut().enumerate() {
-        *c = *c * (v(i % w, i / w) * k);
+        *c *= v(i % w, i / w) * k;
     }
     linear.write(&dir.join("linear.exr")).unwrap();
     let times = [0.25f32, 1.0, 4.0];

@@ -713,7 +713,8 @@ material = {{ type = "diffuse", rho_d = 0.6 }}
         "[[light]]\nname = \"sun\"\ntype = \"directional\"\ndirection = [{}, {}, {}]\nirradiance = 3.0\n",
         -l.x, -l.y, -l.z
     );
-    let cases: [(String, u32, Vec3, Box<dyn Fn(Vec3) -> f32>); 2] = [
+    type Analytic = Box<dyn Fn(Vec3) -> f32>;
+    let cases: [(String, u32, Vec3, Analytic); 2] = [
         (
             sun,
             4,
