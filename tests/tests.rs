@@ -11,6 +11,7 @@ mod geometry;
 mod import;
 mod low_resolution;
 mod mirrors;
+mod orthographic;
 mod photo;
 mod photo_inputs;
 mod punctual;

@@ -853,7 +853,7 @@ fn info(sc: &Scene, lighting: &matfit::scene::lint::Lighting) {
     let c = &sc.camera;
     outln!("scene {}", sc.path.display());
     outln!(
-        "camera {}×{} px, eye {}, looking along {}, fov_y {}°, fx {} fy {} px",
+        "camera {}×{} px, eye {}, looking along {}, {}, fx {} fy {} px{}",
         c.width,
         c.height,
         vec3(c.eye()),
@@ -864,9 +864,18 @@ fn info(sc: &Scene, lighting: &matfit::scene::lint::Lighting) {
             ))
             .d
         ),
-        num(c.fov_y_deg(), 3),
+        match (c.fov_y_deg(), c.film_size_m()) {
+            (Some(fov), _) => format!("fov_y {}°", num(fov, 3)),
+            (None, Some(s)) => format!(
+                "orthographic, film {} × {} scene units",
+                num(s.x, 4),
+                num(s.y, 4)
+            ),
+            (None, None) => unreachable!("a camera is perspective or orthographic"),
+        },
         num(c.fx, 2),
-        num(c.fy, 2)
+        num(c.fy, 2),
+        if c.is_orthographic() { " per unit" } else { "" }
     );
     let r = &sc.render;
     outln!(
