@@ -14,6 +14,7 @@ mod mirrors;
 mod orthographic;
 mod photo;
 mod photo_inputs;
+mod pose;
 mod punctual;
 mod recover;
 mod render_physics;

@@ -374,11 +374,13 @@ pub struct PhotoCli {
     /// objects on diffuse walls; do not use it on glossy groups, it would drop highlights).
     #[arg(long)]
     pub planar_outliers: bool,
-    /// Keep the camera as given [default: shift it by the translation that best aligns the
-    /// model's outlines with the photo's edges].
-    #[arg(long = "no-register", action = clap::ArgAction::SetFalse)]
+    /// The camera is calibrated: use it exactly as given [default: refine its pose — a small
+    /// rotation and translation — so that the model's outlines and creases meet the photo's
+    /// edges, and apply it when it moves them by 0.1 px or more].
+    #[arg(long = "camera-is-calibrated", alias = "no-register", action = clap::ArgAction::SetFalse)]
     pub register: bool,
-    /// Largest misregistration searched, in pixels.
+    /// Largest misregistration searched by the pose refinement's first, film-shift step, in
+    /// pixels.
     #[arg(long, value_name = "PIXELS", default_value_t = 4)]
     pub max_shift: i32,
     /// Ignore the pixels this image marks (a person, an object the scene does not model): a
