@@ -35,6 +35,8 @@ pub struct DemoOptions {
     /// Misregisters the model: the camera given to the recovery is shifted by this many pixels
     /// (x right, y down) from the one that took the photo.
     pub shift: (f32, f32),
+    /// Refine the camera's pose against the photo (`photo::pose`), as `recover` does.
+    pub register: bool,
     pub recover: RecoverOptions,
 }
 
@@ -230,7 +232,11 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
             opts.shift.1
         );
     }
-    let prepared = matfit::photo::prepare(&model, &photo_path, &Default::default())?;
+    let args = matfit::photo::args::PhotoArgs {
+        register: opts.register,
+        ..Default::default()
+    };
+    let prepared = matfit::photo::prepare(&model, &photo_path, &args)?;
     if let Some(r) = &prepared.registration {
         let points: Vec<_> = scene
             .camera_grid_hits(64, 48)

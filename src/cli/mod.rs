@@ -140,6 +140,10 @@ pub enum Command {
         /// Misregister the model: shift the camera given to the recovery by DX,DY pixels.
         #[arg(long, value_name = "DX,DY", value_parser = parse_shift, default_value = "0,0")]
         shift: (f32, f32),
+        /// Give the recovery the camera as it is, without refining its pose (as `recover
+        /// --camera-is-calibrated`).
+        #[arg(long)]
+        camera_is_calibrated: bool,
         /// Write into OUTPUT even if it holds files that are not a matfit output.
         #[arg(long)]
         force: bool,
@@ -712,6 +716,7 @@ pub fn run(cmd: Command) -> Result<()> {
             photo_spp,
             noise,
             shift,
+            camera_is_calibrated,
             force,
             fit,
         } => {
@@ -722,6 +727,7 @@ pub fn run(cmd: Command) -> Result<()> {
                 photo_spp,
                 noise,
                 shift,
+                register: !camera_is_calibrated,
                 recover: fit.options(),
             };
             demo::run(&opts).map_err(anyhow::Error::msg)?;
