@@ -14,14 +14,17 @@ Cases
   glossy          scenes/glossy: a mirror, an isotropic Ward sphere, a diffuse+mirror box.
   sunroom         scenes/sunroom (no area light: a directional sun and a spot lamp) with its
                   Ward ball made diffuse, so that the check measures the punctual lights alone.
+  sunroom-ortho   sunroom through an orthographic camera (width_m 2.4, from the same eye):
+                  Mitsuba's `orthographic` sensor as the export writes it.
   skyroom         the same room lit by an HDR environment map alone (scenes/skyroom/sky.pfm:
                   sky, ground and a 3-degree sun), Ward ball made diffuse.
-For the figure6, glossy and sunroom cases Mitsuba loads the XML written by `matfit export mitsuba`.
+For the figure6, glossy and sunroom(-ortho) cases Mitsuba loads the XML written by `matfit export mitsuba`.
 Ward has no Mitsuba form: the export maps it to a Beckmann microfacet lobe (src/export/mitsuba.rs),
 so in figure6-ward and glossy the groups with a Ward material (and those they light) measure that
 mapping's error: their rows are marked "mapped" and do not fail the check (--mapped-cases).
 Before rendering, a calibrated camera with an off-centre principal point is exported and Mitsuba's
-camera rays are checked against the OpenCV projection (principal_point_offset_x/y).
+camera rays are checked against the OpenCV projection (principal_point_offset_x/y), and the same
+camera made orthographic (fx = 120, fy = 90 px per unit) against u = fx x_cam + cx.
 
 Both renderers use the same spp in a case (--spp; the mirror case --mirror-spp at --mirror-res:
 its caustics, light -> mirror floor -> diffuse walls and blocks, are found only by BSDF sampling
@@ -172,10 +175,14 @@ def figure6_variant(dst_dir, floor_material, width, height):
     return path
 
 
-def ball_made_diffuse(name, dst_dir):
+def ball_made_diffuse(name, dst_dir, ortho=False):
     """scenes/NAME/scene.toml with its one Ward material made diffuse, written beside the
-    original so that the files it names resolve."""
+    original so that the files it names resolve; `ortho`: its camera made orthographic."""
     text = open(os.path.join(ROOT, "scenes", name, "scene.toml")).read()
+    if ortho:
+        text, n = re.subn(r"^fov_y_deg = .*$", 'projection = "orthographic"\nwidth_m = 2.4',
+                          text, flags=re.M)
+        assert n == 1, f"{name}'s camera changed"
     text, n = re.subn(r'^material = \{ type = "ward".*$',
                       'material = { type = "diffuse", rho_d = [0.3, 0.3, 0.1] }', text, flags=re.M)
     assert n == 1, f"{name}'s Ward material line changed"
@@ -207,25 +214,41 @@ edge_v = [0.0, 100.0, 0.0]
 """
 
 
-def camera_check(exe, mi, work):
-    """Largest difference between Mitsuba's camera ray directions for the exported calibrated
-    camera and the OpenCV model (x_cam = R x + t, u = fx x/z + cx at pixel centres)."""
-    d = os.path.join(work, "camera")
+def exported_sensor(exe, mi, d, text):
     os.makedirs(d, exist_ok=True)
     with open(os.path.join(d, "scene.toml"), "w") as f:
-        f.write(CALIBRATED)
+        f.write(text)
     subprocess.run([exe, "export", "mitsuba", os.path.join(d, "scene.toml"), "-o",
                     os.path.join(d, "mitsuba")], check=True, capture_output=True)
     mi.set_variant("scalar_rgb")
-    sensor = mi.load_file(os.path.join(d, "mitsuba", "scene.xml")).sensors()[0]
+    return mi.load_file(os.path.join(d, "mitsuba", "scene.xml")).sensors()[0]
+
+
+def camera_check(exe, mi, work):
+    """Largest difference between Mitsuba's camera rays for the exported calibrated camera and
+    the OpenCV model (x_cam = R x + t, u = fx x/z + cx at pixel centres): directions of the
+    perspective camera, origins (on the plane z_cam = 0, after Mitsuba's near clip) and
+    directions of the orthographic one (u = fx x_cam + cx)."""
     w, h, fx, fy, cx, cy = 200, 100, 120.0, 120.0, 80.0, 60.0
     r = np.array([[0.8, 0.0, -0.6], [0.0, -1.0, 0.0], [-0.6, 0.0, -0.8]])
+    t = np.array([0.3, 0.2, 5.0])
+    pixels = [(80, 60), (0, 0), (199, 0), (0, 99), (199, 99), (37, 81)]
+    sensor = exported_sensor(exe, mi, os.path.join(work, "camera"), CALIBRATED)
     err = 0.0
-    for u, v in [(80, 60), (0, 0), (199, 0), (0, 99), (199, 99), (37, 81)]:
+    for u, v in pixels:
         want = r.T @ np.array([(u - cx) / fx, (v - cy) / fy, 1.0])
         want /= np.linalg.norm(want)
         ray, _ = sensor.sample_ray(0.0, 0.5, [(u + 0.5) / w, (v + 0.5) / h], [0.5, 0.5])
         err = max(err, float(np.abs(np.array(ray.d) - want).max()))
+    ortho = CALIBRATED.replace("fy = 120.0", 'fy = 90.0\nprojection = "orthographic"')
+    sensor = exported_sensor(exe, mi, os.path.join(work, "camera-ortho"), ortho)
+    fy = 90.0
+    for u, v in pixels:
+        o = r.T @ (np.array([(u - cx) / fx, (v - cy) / fy, 0.0]) - t)
+        ray, _ = sensor.sample_ray(0.0, 0.5, [(u + 0.5) / w, (v + 0.5) / h], [0.5, 0.5])
+        # Mitsuba's ray starts near_clip along the view: take it back to the film plane.
+        back = np.array(ray.o) - np.array(ray.d) * float(np.dot(np.array(ray.o) - o, r[2]))
+        err = max(err, float(np.abs(back - o).max()), float(np.abs(np.array(ray.d) - r[2]).max()))
     return err
 
 
@@ -263,7 +286,8 @@ def main():
     ap.add_argument("--fig6-res", default="256x192",
                     help="figure6 resolution (same vertical fov; the scene's own is 512x384)")
     ap.add_argument("--cases",
-                    default="cornell,figure6-diffuse,figure6-mirror,figure6-ward,glossy,sunroom,skyroom")
+                    default="cornell,figure6-diffuse,figure6-mirror,figure6-ward,glossy,sunroom,"
+                    "sunroom-ortho,skyroom")
     ap.add_argument("--mapped-cases", default="figure6-ward,glossy",
                     help="cases whose Ward groups measure the export's mapping error")
     ap.add_argument("--out", help="keep images here (default: a temporary folder)")
@@ -285,7 +309,7 @@ def main():
 
     rows, timings, worst, failed, noisy, mapped = [], [], 0.0, [], [], []
     cam_err = camera_check(exe, mi, work)
-    print(f"calibrated camera: largest ray-direction difference {cam_err:.1e}")
+    print(f"calibrated cameras: largest ray difference {cam_err:.1e}")
     if cam_err > 1e-5:
         failed.append("camera")
     t_all = time.perf_counter()
@@ -297,11 +321,14 @@ def main():
             scene = os.path.join(ROOT, "scenes", "cornell", "scene.toml")
             xml_path, xml_text = CBOX, cornell_xml(args.spp)
             params = dict(res=256, max_depth=6)
-        elif case.startswith("figure6-") or case in ("glossy", "sunroom", "skyroom"):
+        elif case.startswith("figure6-") or case in ("glossy", "sunroom", "sunroom-ortho",
+                                                      "skyroom"):
             if case == "glossy":
                 scene = os.path.join(ROOT, "scenes", "glossy", "scene.toml")
             elif case in ("sunroom", "skyroom"):
                 scene = ball_made_diffuse(case, d)
+            elif case == "sunroom-ortho":
+                scene = ball_made_diffuse("sunroom", d, ortho=True)
             else:
                 floor = {"figure6-diffuse": '{ type = "diffuse", rho_d = 0.5 }',
                          "figure6-mirror": '{ type = "mirror", rho_s = 0.8 }',

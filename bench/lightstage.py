@@ -3,7 +3,8 @@
 photo, fit three together, predict the other photos (issue 23's acceptance).
 
     bash bench/setup_mitsuba.sh && source bench/mitsuba_env.sh
-    python bench/lightstage.py [--matfit PATH] [--spp 256] [--calibration-error 0.05] [--md FILE]
+    python bench/lightstage.py [--matfit PATH] [--spp 256] [--calibration-error 0.05]
+                               [--fit-args=--no-textures] [--md FILE]
 
 scenes/lightstage has one [[view]] per light. Each view is exported with `matfit export mitsuba
 --view K`, the ball's BSDF replaced by Mitsuba's `roughplastic` (GGX, alpha 0.15, diffuse
@@ -70,6 +71,8 @@ def main():
     ap.add_argument("--calibration-error", type=float, default=0.0)
     ap.add_argument("--threads", type=int, default=0)
     ap.add_argument("--variant", default="scalar_rgb")
+    ap.add_argument("--fit-args", default="", help="further `matfit recover` arguments, e.g. "
+                    "'--no-textures'")
     ap.add_argument("--work", default=None, help="folder for the photos and fits [a temp dir]")
     ap.add_argument("--md", default=None, help="also write the table to this Markdown file")
     args = ap.parse_args()
@@ -112,6 +115,7 @@ def main():
                    "--exposure", "1"]
             if lambert:
                 cmd.append("--lambert")
+            cmd += args.fit_args.split()
             t = time.perf_counter()
             run(cmd)
             t_rec = time.perf_counter() - t
@@ -132,7 +136,8 @@ def main():
     lines = [
         f"Mitsuba 3 ({args.variant}) photos 192x192 at {args.spp} spp, 24 views, ball = "
         f"roughplastic GGX alpha 0.15, diffuse (0.35, 0.2, 0.12), IOR 1.5; light calibration "
-        f"error {args.calibration_error:.0%} (uniform draw per light). Photos in {t_photos:.0f} s. "
+        f"error {args.calibration_error:.0%} (uniform draw per light); recover {args.fit_args or '(defaults)'}. "
+        f"Photos in {t_photos:.0f} s. "
         f"Machine: {machine()}.",
         "",
         "Prediction error Σ|prediction − photo| / Σ photo on the ball (eroded 2 px), median and "

@@ -65,12 +65,25 @@ fn an_aligned_128x96_photo_is_not_shifted_and_the_back_wall_is_recovered() {
     };
     let prep = prepare(&scene, &photo_path, &args).unwrap();
     let reg = prep.registration.clone().unwrap();
-    eprintln!("registration ({:.3}, {:.3}) px", reg.dx, reg.dy);
+    eprintln!("registration {reg:?}");
     assert!(
-        reg.dx.abs() < 0.5 && reg.dy.abs() < 0.5,
+        reg.mean_px.x.abs() < 0.5 && reg.mean_px.y.abs() < 0.5,
         "the photo lines up with the model, registration found {reg:?}"
     );
     assert!(prep.camera == scene.camera, "the camera was 'corrected'");
+    // The 6-DoF refinement (`--refine-pose`) leaves it alone too: under 0.1 px of edge motion.
+    let pose = prepare(
+        &scene,
+        &photo_path,
+        &PhotoArgs {
+            refine_pose: true,
+            ..args.clone()
+        },
+    )
+    .unwrap()
+    .registration
+    .unwrap();
+    assert!(pose.rms_px < 0.1 && !pose.applied, "{pose:?}");
 
     let scene = Scene {
         camera: prep.camera.clone(),

@@ -128,6 +128,39 @@ fn cases() -> Vec<Case> {
             vec!["scene.toml:9", "rotation is not a rotation matrix", "determinant +1 (it is 2"],
         ),
         (
+            "orthographic camera with a field of view",
+            s.replace("fov_y_deg = 45.0", "fov_y_deg = 45.0\nprojection = \"orthographic\""),
+            vec![],
+            vec!["scene.toml:7", "orthographic camera has no field of view", "width_m"],
+        ),
+        (
+            "width_m on a perspective camera",
+            s.replace("fov_y_deg = 45.0", "fov_y_deg = 45.0\nwidth_m = 2.0"),
+            vec![],
+            vec!["scene.toml:8", "width_m", "projection = \"orthographic\""],
+        ),
+        (
+            "orthographic camera of no width",
+            s.replace("fov_y_deg = 45.0", "projection = \"orthographic\"\nwidth_m = 0.0"),
+            vec![],
+            vec!["scene.toml:8", "width_m", "must be > 0"],
+        ),
+        (
+            "orthographic camera with lens distortion",
+            s.replace(
+                "fov_y_deg = 45.0",
+                "projection = \"orthographic\"\nwidth_m = 3.0\ndistortion = [0.1, 0.0, 0.0, 0.0, 0.0]",
+            ),
+            vec![],
+            vec!["scene.toml:9", "distortion", "orthographic camera has no lens"],
+        ),
+        (
+            "unknown projection",
+            s.replace("fov_y_deg = 45.0", "fov_y_deg = 45.0\nprojection = \"orthogonal\""),
+            vec![],
+            vec!["scene.toml", "line 8", "orthogonal", "did you mean `orthographic`?"],
+        ),
+        (
             "ward without alpha",
             s.replace("type = \"diffuse\", rho_d = 0.5", "type = \"ward\", rho_d = 0.5, rho_s = 0.2"),
             vec![],

@@ -35,6 +35,8 @@ pub struct DemoOptions {
     /// Misregisters the model: the camera given to the recovery is shifted by this many pixels
     /// (x right, y down) from the one that took the photo.
     pub shift: (f32, f32),
+    /// Refine the camera's pose against the photo (`photo::pose`), as `recover` does.
+    pub register: bool,
     pub recover: RecoverOptions,
 }
 
@@ -230,15 +232,21 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
             opts.shift.1
         );
     }
-    let prepared = matfit::photo::prepare(&model, &photo_path, &Default::default())?;
+    let args = matfit::photo::args::PhotoArgs {
+        register: opts.register,
+        ..Default::default()
+    };
+    let prepared = matfit::photo::prepare(&model, &photo_path, &args)?;
     if let Some(r) = &prepared.registration {
-        let (dx, dy) = (
-            prepared.camera.cx - scene.camera.cx,
-            prepared.camera.cy - scene.camera.cy,
-        );
+        let points: Vec<_> = scene
+            .camera_grid_hits(64, 48)
+            .into_iter()
+            .map(|(_, _, h)| h.p)
+            .collect();
+        let (_, off) = matfit::photo::pose::motion(&scene.camera, &prepared.camera, &points);
         crate::outln!(
-            "registration: found a shift of ({:.2}, {:.2}) px; the model's camera is now ({:.2}, {:.2}) px off the photo's",
-            r.dx, r.dy, dx, dy
+            "registration: camera turned by {:.3}°, moved by {:.4} units (edges move {:.2} px RMS); the model's camera is now {:.2} px RMS off the photo's",
+            r.rotation_deg, r.translation.length(), r.rms_px, off
         );
     }
     model.camera = prepared.camera.clone();

@@ -135,7 +135,11 @@ pub fn inputs(
             "default"
         }
         .to_string(),
-        registration_px: prepared.registration.as_ref().map(|r| [r.dx, r.dy]),
+        registration_px: prepared
+            .registration
+            .as_ref()
+            .map(|r| [r.mean_px.x, r.mean_px.y]),
+        registration: prepared.registration.clone(),
         photos: Vec::new(),
         ignore_mask: ignore_mask.map(|m| m.display().to_string()),
         options: opts.clone(),

@@ -7,7 +7,8 @@
 //! the object has UVs or an atlas texture, TANGENT where the material is anisotropic. glTF's v
 //! runs down the image, matfit's up: v_gltf = 1 − v.
 //!
-//! **Camera.** A perspective camera node. glTF cameras look down −Z with +Y up and +X right;
+//! **Camera.** A perspective camera node (or an orthographic one, exact:
+//! `orthographic_camera_json`). glTF cameras look down −Z with +Y up and +X right;
 //! matfit's rows of R are right, down, forward (OpenCV), so the node's rotation (camera to world)
 //! has columns (right, −down, −forward) = Rᵀ·diag(1, −1, −1), a proper rotation, and its
 //! translation is the eye. yfov = 2·atan(height / 2fy), aspectRatio = width / height. zfar is
@@ -771,6 +772,9 @@ pub fn texture_png(texture: &Texture, factor: Rgb) -> Result<(Vec<u8>, usize), S
 /// The glTF camera and its node (see the module comment).
 fn camera_json(scene: &Scene, warnings: &mut Vec<String>) -> (Value, Value) {
     let cam = &scene.camera;
+    if cam.is_orthographic() {
+        return orthographic_camera_json(scene);
+    }
     let eye = cam.eye();
     if cam.distortion.is_some() {
         warnings.push(
@@ -822,6 +826,30 @@ fn camera_json(scene: &Scene, warnings: &mut Vec<String>) -> (Value, Value) {
         "camera": 0,
         "rotation": q.to_array(),
         "translation": eye.to_array(),
+    });
+    (camera, node)
+}
+
+/// An orthographic camera: glTF's `xmag`, `ymag` are half the film's width and height in scene
+/// units (glTF 2.0 §5.12), the node at the film's centre, so that fx ≠ fy and an off-centre
+/// principal point are exact.
+fn orthographic_camera_json(scene: &Scene) -> (Value, Value) {
+    let cam = &scene.camera;
+    let (w, h) = (cam.width as f32, cam.height as f32);
+    let centre = cam.ray(Vec2::new(0.5 * w, 0.5 * h)).o;
+    let size = Vec2::new(w / cam.fx, h / cam.fy);
+    let far = super::far_clip(scene, centre);
+    let q = glam::Quat::from_mat3(&camera_rotation(cam.r)).normalize();
+    let camera = json!({
+        "type": "orthographic",
+        "name": "camera",
+        "orthographic": { "xmag": 0.5 * size.x, "ymag": 0.5 * size.y, "znear": 0.0, "zfar": far },
+    });
+    let node = json!({
+        "name": "camera",
+        "camera": 0,
+        "rotation": q.to_array(),
+        "translation": centre.to_array(),
     });
     (camera, node)
 }
@@ -1008,6 +1036,46 @@ mod tests {
         assert!(ward.anisotropic && ward.anisotropy.unwrap().1 == FRAC_PI_2);
         assert_eq!(w.len(), 1, "{w:?}");
         assert!(w[0].contains("ward1992"), "{w:?}");
+    }
+
+    #[test]
+    fn an_orthographic_camera_node_gives_matfit_rays() {
+        let eye = Vec3::new(1.0, 2.0, 3.0);
+        let cam = Camera::orthographic_look_at(320, 200, eye, Vec3::ZERO, Vec3::Y, 2.5).unwrap();
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/figure6/scene.toml");
+        let mut scene = crate::scene::load_scene(&path).unwrap();
+        scene.camera = cam.clone();
+        let (c, node) = orthographic_camera_json(&scene);
+        let f = |v: &Value| v.as_f64().unwrap() as f32;
+        let (xmag, ymag) = (f(&c["orthographic"]["xmag"]), f(&c["orthographic"]["ymag"]));
+        assert!((xmag - 1.25).abs() < 1e-6 && (ymag - 1.25 * 200.0 / 320.0).abs() < 1e-6);
+        let q = node["rotation"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(f)
+            .collect::<Vec<_>>();
+        let q = glam::Quat::from_array([q[0], q[1], q[2], q[3]]);
+        let t = node["translation"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(f)
+            .collect::<Vec<_>>();
+        for (x, y) in [(0.0, 0.0), (320.0, 0.0), (0.0, 200.0), (100.5, 33.25)] {
+            // glTF: NDC x right, y up; the ray through NDC (u, v) starts at (u·xmag, v·ymag, 0)
+            // and runs along −z.
+            let (u, v) = (2.0 * x / 320.0 - 1.0, 1.0 - 2.0 * y / 200.0);
+            let o = Vec3::new(t[0], t[1], t[2]) + q * Vec3::new(u * xmag, v * ymag, 0.0);
+            let want = cam.ray(Vec2::new(x, y));
+            assert!(
+                (o - want.o).length() < 1e-5,
+                "({x}, {y}): {o} vs {}",
+                want.o
+            );
+            assert!((q * -Vec3::Z - want.d).length() < 1e-5);
+        }
     }
 
     #[test]

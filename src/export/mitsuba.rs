@@ -16,7 +16,8 @@
 //!   offset_x = ½ − cx/width, offset_y = ½ − cy/height (cx, cy in matfit's continuous film
 //!   coordinates; checked with Mitsuba 3.9.1's `sample_ray`). Mitsuba has square pixels only:
 //!   fx ≠ fy is a warning and fy wins. Near/far clipping planes are set from the scene's bounds so
-//!   that they cut nothing.
+//!   that they cut nothing. An orthographic camera becomes an `orthographic` sensor whose
+//!   `to_world` scales the film's local square to its extent ([`write_orthographic_sensor`]).
 //! - **Film.** `hdrfilm`, the same width and height, `rfilter = box` (matfit's pixel filter),
 //!   `pixel_format = rgb`. **Sampler** `independent` with the scene's spp.
 //! - **Integrator.** `path` with `max_depth` and `rr_depth` = the scene's (same meanings:
@@ -311,6 +312,9 @@ fn write_integrator(xml: &mut String, scene: &Scene) {
 fn write_sensor(xml: &mut String, scene: &Scene, warnings: &mut Vec<String>) {
     let cam = &scene.camera;
     let eye = cam.eye();
+    if cam.is_orthographic() {
+        return write_orthographic_sensor(xml, scene);
+    }
     if cam.distortion.is_some() {
         warnings.push(
             "the camera's lens distortion is not exported: Mitsuba's perspective sensor is a \
@@ -338,7 +342,7 @@ fn write_sensor(xml: &mut String, scene: &Scene, warnings: &mut Vec<String>) {
     let _ = writeln!(
         xml,
         "        <float name=\"fov\" value=\"{}\"/>",
-        cam.fov_y_deg()
+        cam.fov_y_deg().unwrap_or_default()
     );
     if off_x.abs() > 1e-7 || off_y.abs() > 1e-7 {
         let _ = writeln!(
@@ -361,6 +365,47 @@ fn write_sensor(xml: &mut String, scene: &Scene, warnings: &mut Vec<String>) {
         triple(target),
         triple(up)
     );
+    write_sampler_and_film(xml, scene);
+}
+
+/// Mitsuba's `orthographic` sensor sees local [−1, 1] × [−1/aspect, 1/aspect] on its z = 0
+/// plane, looking along +z, with film u = 0 at local +x (Mitsuba 3.9.1's `sample_ray`:
+/// a `scale(2, 1.5, 1)` then `lookat` on a 200×100 film put pixel (0, 0)'s corner at local
+/// (2, 0.75)). So `to_world` = lookat ∘ scale(width / 2fx, width / 2fy, 1), the lookat from
+/// the film's centre: fx ≠ fy and an off-centre principal point are exact.
+fn write_orthographic_sensor(xml: &mut String, scene: &Scene) {
+    let cam = &scene.camera;
+    let (w, h) = (cam.width as f32, cam.height as f32);
+    let centre = cam.ray(Vec2::new(0.5 * w, 0.5 * h)).o;
+    let forward = cam.r.row(2);
+    let up = -cam.r.row(1);
+    // Mitsuba starts the rays at the near plane, matfit at the film plane: the sensor goes
+    // `near` behind the film plane (and the importer adds it back).
+    let far = super::far_clip(scene, centre);
+    let near = far * 1e-6;
+    let origin = centre - forward * near;
+    let _ = writeln!(
+        xml,
+        "    <sensor type=\"orthographic\">\n        \
+         <float name=\"near_clip\" value=\"{near}\"/>\n        \
+         <float name=\"far_clip\" value=\"{far}\"/>"
+    );
+    let _ = writeln!(
+        xml,
+        "        <transform name=\"to_world\">\n            \
+         <scale x=\"{}\" y=\"{}\"/>\n            \
+         <lookat origin=\"{}\" target=\"{}\" up=\"{}\"/>\n        </transform>",
+        0.5 * w / cam.fx,
+        0.5 * w / cam.fy,
+        triple(origin),
+        triple(origin + forward),
+        triple(up)
+    );
+    write_sampler_and_film(xml, scene);
+}
+
+fn write_sampler_and_film(xml: &mut String, scene: &Scene) {
+    let cam = &scene.camera;
     let _ = writeln!(
         xml,
         "        <sampler type=\"independent\">\n            \

@@ -14,6 +14,8 @@
 //!   `to_world` is an error (matfit cameras are rotations). Principal point offsets make the
 //!   calibrated form with cx = (½ − offset_x)·width − ½ and cy = (½ − offset_y)·height − ½
 //!   (OpenCV pixel centres), the exporter's rule inverted; otherwise the look-at form.
+//!   `orthographic` becomes `projection = "orthographic"`: `to_world`'s x and y scales are half
+//!   the film's width (`width_m`), or fx, fy in the calibrated form when they differ.
 //!   `hdrfilm` width/height (Mitsuba's defaults 768×576); an rfilter other than `box` is a
 //!   warning (matfit's pixel filter is a box). `sampler` `sample_count` → `[render] spp`.
 //! - **Integrator.** `path` (or `volpath`, the same without media) `max_depth` and `rr_depth` →
@@ -61,8 +63,8 @@
 
 use super::ImportReport;
 use crate::scene::schema::{
-    CameraSpec, Color, EnvironmentSpec, LightKind, LightSpec, MaterialSpec, ObjectSpec, RenderSpec,
-    SceneFile, ShapeKind, TransformSpec,
+    CameraSpec, Color, EnvironmentSpec, LightKind, LightSpec, MaterialSpec, ObjectSpec,
+    ProjectionKind, RenderSpec, SceneFile, ShapeKind, TransformSpec,
 };
 use crate::scene::write::relative;
 use glam::{DMat3, DMat4, DQuat, DVec3, DVec4, EulerRot};
@@ -719,12 +721,14 @@ impl<'a> Ctx<'a> {
     fn sensor(&mut self, n: N<'a>) -> Result<(CameraSpec, Option<u32>), String> {
         let ty = self.need_attr(n, "type")?;
         match ty.as_str() {
-            "perspective" => {}
+            "perspective" | "orthographic" => {}
             "thinlens" => self.warn(n, "thinlens sensor imported as a pinhole (no defocus)"),
             _ => {
                 return Err(self.err(
                     n,
-                    format!("sensor type '{ty}' is not supported (only perspective)"),
+                    format!(
+                        "sensor type '{ty}' is not supported (only perspective and orthographic)"
+                    ),
                 ))
             }
         }
@@ -763,38 +767,21 @@ impl<'a> Ctx<'a> {
             None => None,
         };
         let aspect = w as f64 / h as f64;
+        let m = self.transform(n, "to_world")?;
+        if ty == "orthographic" {
+            return Ok((self.orthographic(n, m, w, h)?, spp));
+        }
         let fov_x = self.fov_x(n, aspect)?;
         let fov_y = 2.0 * ((0.5 * fov_x.to_radians()).tan() / aspect).atan();
 
-        let m = self.transform(n, "to_world")?;
         let eye = m.w_axis.truncate();
-        let (c0, c1, c2) = (
-            m.x_axis.truncate(),
-            m.y_axis.truncate(),
-            m.z_axis.truncate(),
-        );
-        let (l0, l1, l2) = (c0.length(), c1.length(), c2.length());
-        let ortho = [(c0, c1), (c1, c2), (c0, c2)]
-            .iter()
-            .map(|(a, b)| a.dot(*b).abs() / (a.length() * b.length()).max(1e-300))
-            .fold(0.0f64, f64::max);
-        if !(l0 > 0.0 && l1 > 0.0 && l2 > 0.0) || ortho > 1e-4 {
-            return Err(self.err(n, "the sensor's to_world shears or collapses the view"));
-        }
-        if DMat3::from_cols(c0, c1, c2).determinant() < 0.0 {
-            return Err(self.err(
-                n,
-                "the sensor's to_world mirrors the image (a negative scale): matfit's cameras \
-                 cannot",
-            ));
-        }
+        let ([right, down, fwd], [l0, l1, l2]) = self.sensor_frame(n, &m)?;
         if (l0 - l1).abs() > 1e-6 * l0 || (l1 - l2).abs() > 1e-6 * l1 {
             self.warn(
                 n,
                 "the sensor's to_world scales unevenly; its scale is ignored",
             );
         }
-        let (right, down, fwd) = (-c0 / l0, -c1 / l1, c2 / l2);
         let off_x = self.float(n, "principal_point_offset_x", 0.0)?;
         let off_y = self.float(n, "principal_point_offset_y", 0.0)?;
         let cam = if off_x == 0.0 && off_y == 0.0 {
@@ -825,6 +812,69 @@ impl<'a> Ctx<'a> {
             }
         };
         Ok((cam, spp))
+    }
+
+    /// A sensor's `to_world` as matfit's camera axes (right, down, forward; module comment) and
+    /// the lengths of its three columns, or an error if it shears, collapses or mirrors.
+    fn sensor_frame(&self, n: N<'a>, m: &DMat4) -> Result<([DVec3; 3], [f64; 3]), String> {
+        let (c0, c1, c2) = (
+            m.x_axis.truncate(),
+            m.y_axis.truncate(),
+            m.z_axis.truncate(),
+        );
+        let (l0, l1, l2) = (c0.length(), c1.length(), c2.length());
+        let shear = [(c0, c1), (c1, c2), (c0, c2)]
+            .iter()
+            .map(|(a, b)| a.dot(*b).abs() / (a.length() * b.length()).max(1e-300))
+            .fold(0.0f64, f64::max);
+        if !(l0 > 0.0 && l1 > 0.0 && l2 > 0.0) || shear > 1e-4 {
+            return Err(self.err(n, "the sensor's to_world shears or collapses the view"));
+        }
+        if DMat3::from_cols(c0, c1, c2).determinant() < 0.0 {
+            return Err(self.err(
+                n,
+                "the sensor's to_world mirrors the image (a negative scale): matfit's cameras \
+                 cannot",
+            ));
+        }
+        Ok(([-c0 / l0, -c1 / l1, c2 / l2], [l0, l1, l2]))
+    }
+
+    /// An `orthographic` sensor: its `to_world` scales local [−1, 1] × [−1/aspect, 1/aspect]
+    /// to the film (the inverse of the export's `write_orthographic_sensor`), and its rays start
+    /// `near_clip` along the view, where matfit's film plane goes.
+    fn orthographic(&self, n: N<'a>, m: DMat4, w: u32, h: u32) -> Result<CameraSpec, String> {
+        let ([right, down, fwd], [l0, l1, _]) = self.sensor_frame(n, &m)?;
+        let near = self.float(n, "near_clip", 0.01)?;
+        let centre = m.w_axis.truncate() + fwd * near;
+        let (fx, fy) = (w as f64 / (2.0 * l0), w as f64 / (2.0 * l1));
+        Ok(if (l0 - l1).abs() <= 1e-6 * l0 {
+            CameraSpec {
+                width: w,
+                height: h,
+                eye: Some(f32s(centre)),
+                target: Some(f32s(centre + fwd)),
+                up: Some(f32s(-down)),
+                projection: Some(ProjectionKind::Orthographic),
+                width_m: Some((2.0 * l0) as f32),
+                ..Default::default()
+            }
+        } else {
+            let r = DMat3::from_cols(right, down, fwd).transpose();
+            let rows = [r.row(0), r.row(1), r.row(2)].map(|v| v.as_vec3().to_array());
+            CameraSpec {
+                width: w,
+                height: h,
+                fx: Some(fx as f32),
+                fy: Some(fy as f32),
+                cx: Some(0.5 * w as f32 - 0.5),
+                cy: Some(0.5 * h as f32 - 0.5),
+                rotation: Some(rows),
+                translation: Some(f32s(-(r * centre))),
+                projection: Some(ProjectionKind::Orthographic),
+                ..Default::default()
+            }
+        })
     }
 
     /// Mitsuba's horizontal field of view in degrees (its `parse_fov`).

@@ -4,7 +4,7 @@
 
 use crate::math::Rgb;
 use crate::photo::exposure::{self, ExposureCalibration, ExposureSource};
-use crate::photo::register::{estimate_shift, Registration};
+use crate::photo::pose::{self, Pose};
 use crate::photo::{coverage, ignore, load_photo, mask, Photo, PhotoOptions, Response, UsableMask};
 use crate::render::aov::{index_buffers, IndexBuffers};
 use crate::scene::{Camera, Scene};
@@ -30,9 +30,12 @@ pub struct PhotoArgs {
     /// Reject pixels of planar groups far from a plane fitted to their intensity (unmodelled
     /// objects on diffuse walls; do not use it on glossy groups, it would drop highlights).
     pub planar_outliers: bool,
-    /// Correct the camera by the translation that aligns the model's outlines with the photo's
-    /// edges (`photo::register`).
+    /// Refine the camera's pose so that the model's edges meet the photo's (`photo::pose`);
+    /// false: the camera is calibrated, use it as given.
     pub register: bool,
+    /// Refine all six degrees of freedom of the pose (`photo::pose::refine`) rather than a
+    /// shift of the film (`photo::pose::from_shift`).
+    pub refine_pose: bool,
     /// Largest misregistration searched, in pixels.
     pub max_shift: i32,
     /// An image of the photo's size whose marked pixels are ignored (`photo::ignore`).
@@ -52,6 +55,7 @@ impl Default for PhotoArgs {
             edge_threshold: 0.12,
             planar_outliers: false,
             register: true,
+            refine_pose: false,
             max_shift: 4,
             ignore_mask: None,
             vignetting: None,
@@ -118,8 +122,8 @@ pub struct PreparedPhoto {
     /// The scene's camera corrected by `registration`: render the synthetic images with it,
     /// so that they line up with the photo pixel for pixel.
     pub camera: Camera,
-    /// The translation found between model and photo (None when registration is off).
-    pub registration: Option<Registration>,
+    /// The pose correction found between model and photo (None when registration is off).
+    pub registration: Option<Pose>,
     /// The index buffers through `camera`.
     pub index: IndexBuffers,
     pub mask: UsableMask,
@@ -149,18 +153,23 @@ pub fn prepare(scene: &Scene, path: &Path, args: &PhotoArgs) -> Result<PreparedP
     let mut index = index_buffers(scene, &camera);
     let mut registration = None;
     if args.register {
-        let r = estimate_shift(&index, &photo, args.max_shift);
-        // Sub-pixel refinement is biased by the scene's shading near its edges (figure6, a
-        // photo through the model's own camera: 0.1 px at 512×384, 0.16 at 256×192, 0.4 at
-        // 128×96, all vertical): correct only a misregistration of half a pixel or more.
-        if r.dx.abs().max(r.dy.abs()) >= 0.5 {
-            camera = camera.shifted(r.dx, r.dy);
+        let r = if args.refine_pose {
+            pose::refine(scene, &camera, &photo, args.max_shift)
+        } else {
+            pose::from_shift(&camera, &index, &photo, args.max_shift)
+        };
+        if r.applied {
+            camera = r.camera.clone();
             index = index_buffers(scene, &camera);
             tracing::info!(
-                "{}: the model is off the photo by ({:.2}, {:.2}) px; camera corrected",
+                "{}: camera turned by {:.3}° and moved by {:.4} scene units: the model's edges \
+                 move by ({:.2}, {:.2}) px (RMS {:.2})",
                 path.display(),
-                r.dx,
-                r.dy
+                r.rotation_deg,
+                r.translation.length(),
+                r.mean_px.x,
+                r.mean_px.y,
+                r.rms_px
             );
         }
         registration = Some(r);

@@ -1,4 +1,5 @@
-//! Registration: how far the model's projection is off the photo, as a translation on the film.
+//! Registration: how far the model's projection is off the photo, as a translation on the film
+//! — the coarse first step of the pose refinement (`photo::pose`), which takes its whole pixels.
 //!
 //! Why it is needed beyond the band and the edge detector: those keep the pixels of the wrong
 //! surface out of a group, but a model off by d pixels also makes *every* pixel of the group
@@ -10,8 +11,8 @@
 //! The estimate: the model's edges, shifted by every integer (dx, dy) within `max_shift`, scored
 //! by the mean photo edge strength (|∇ ln Y|, [`edges::log_gradient`]) under them; the best
 //! integer shift is refined to sub-pixel by a parabola through its neighbours' scores on each
-//! axis. Only a translation: a rotation or a wrong focal length shows as a poor `gain` and must
-//! be fixed in the calibration.
+//! axis. Only a translation, and its sub-pixel part biased by shading beside the edges (below):
+//! `photo::pose` refines the rotation and translation of the camera from here.
 //!
 //! The model's edges are its id boundaries *and* its creases: neighbouring pixels of one object
 //! whose shading normals differ by more than [`CREASE_DEG`]. A box's faces are one object but

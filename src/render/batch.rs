@@ -212,6 +212,8 @@ pub fn render_pixels(
         pixel: [usize::MAX; LANES],
     };
     let eye = camera.eye();
+    // An orthographic camera's rays start across its film plane, each at its own point.
+    let ortho = camera.is_orthographic();
     let jobs = |job: &mut Job| {
         let pk = &mut packet;
         if pk.k == pk.n {
@@ -242,7 +244,12 @@ pub fn render_pixels(
             let d = camera.directions8(f32x8::from(film_x), f32x8::from(film_y));
             let d = d.map(|c| c.to_array());
             for (k, ray) in pk.rays.iter_mut().enumerate() {
-                *ray = Ray::new(eye, Vec3::new(d[0][k], d[1][k], d[2][k]));
+                let o = if ortho {
+                    camera.ray(Vec2::new(film_x[k], film_y[k])).o
+                } else {
+                    eye
+                };
+                *ray = Ray::new(o, Vec3::new(d[0][k], d[1][k], d[2][k]));
             }
             pt.scene
                 .intersect8_into(pk.rays, (1u32 << pk.n) - 1, &mut pk.hits);

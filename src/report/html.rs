@@ -169,9 +169,19 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
     let bar = colour_bar(scale);
     let inputs = match &res.inputs {
         Some(i) => {
-            let reg = i.registration_px.map_or("off".to_string(), |[dx, dy]| {
-                format!("model shifted by ({dx:.2}, {dy:.2}) px onto the photo")
-            });
+            let reg =
+                i.registration.as_ref().map_or("off".to_string(), |r| {
+                    format!(
+                    "camera turned by {:.3}° and moved by {:.4} scene units: model edges move by \
+                     ({:.2}, {:.2}) px, RMS {:.2} px{}",
+                    r.rotation_deg,
+                    r.translation.length(),
+                    r.mean_px.x,
+                    r.mean_px.y,
+                    r.rms_px,
+                    if r.applied { "" } else { " (below 0.1 px: not applied)" }
+                )
+                });
             let options = serde_json::to_string_pretty(&i.options).unwrap_or_default();
             format!(
                 "<h2>Inputs</h2>\n<table id=\"inputs\"><tr><td>matfit</td><td>{}</td></tr><tr><td>scene</td><td>{}</td></tr><tr><td>photo</td><td>{}</td></tr><tr><td>exposure k</td><td>{} ({})</td></tr><tr><td>registration</td><td>{}</td></tr>{}</table>\n<details><summary>options</summary><pre>{}</pre></details>\n",

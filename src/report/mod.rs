@@ -87,12 +87,16 @@ pub struct Inputs {
     /// "calibrated", "default").
     pub exposure: f32,
     pub exposure_rule: String,
-    /// The shift (pixels) registration found between model and photo (None: registration off).
+    /// The mean image motion (pixels) of the model's edges under the pose correction found
+    /// (None: registration off, `--camera-is-calibrated`).
     pub registration_px: Option<[f32; 2]>,
     /// Every photo, in the order of the scene's views, when several were fitted together (the
     /// exposure and registration above are then the first photo's).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub photos: Vec<String>,
+    /// The pose correction: rotation (degrees), camera centre's move (scene units), image
+    /// motion (px) and whether it was applied.
+    pub registration: Option<crate::photo::pose::Pose>,
     /// The user's mask of pixels to ignore (`--ignore-mask`), if one was given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ignore_mask: Option<String>,

@@ -4,6 +4,13 @@
 //!   x_cam = R x_world + t            (camera x right, y down, z forward: OpenCV)
 //!   u = fx x_cam / z_cam + cx,  v = fy y_cam / z_cam + cy
 //!
+//! Or orthographic cameras (`Projection::Orthographic`), the same without the perspective
+//! divide: u = fx x_cam + cx, v = fy y_cam + cy, fx and fy in pixels per scene unit (the affine
+//! camera of Hartley & Zisserman, "Multiple View Geometry", 2nd ed., §6.3.1, with its image
+//! plane at z_cam = 0). Every primary ray travels along the camera's z from its film point on
+//! that plane, so the "eye" −Rᵀ t is the film's centre for cx, cy at the image centre, and
+//! points with z_cam < 0, behind the film plane where the rays start, are not seen.
+//!
 //! In OpenCV's convention integer (u, v) are pixel *centres*. Internally matfit uses continuous
 //! film coordinates in which pixel (i, j) covers [i, i+1) × [j, j+1) (its centre at i + ½, as
 //! Mitsuba and pbrt do), so `cx_film = cx_opencv + ½`. A look-at camera is centred:
@@ -40,8 +47,19 @@ pub struct Camera {
     pub r: Mat3,
     /// World-to-camera translation.
     pub t: Vec3,
-    /// The lens's distortion, if any (module comment).
+    /// The lens's distortion, if any (module comment); always None for an orthographic camera.
     pub distortion: Option<Lens>,
+    pub projection: Projection,
+}
+
+/// How camera coordinates reach the film (module comment).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Projection {
+    /// A pinhole at the camera centre: u = fx x/z + cx.
+    #[default]
+    Perspective,
+    /// Parallel rays along the camera's z: u = fx x + cx, fx in pixels per scene unit.
+    Orthographic,
 }
 
 /// OpenCV's two distortion models.
@@ -119,24 +137,60 @@ impl Camera {
         up: Vec3,
         fov_y_deg: f32,
     ) -> Option<Camera> {
+        if !(fov_y_deg > 0.0 && fov_y_deg < 180.0) {
+            return None;
+        }
+        let fy = 0.5 * height as f32 / (0.5 * fov_y_deg.to_radians()).tan();
+        Self::centred(width, height, eye, target, up, fy, Projection::Perspective)
+    }
+
+    /// An orthographic camera whose film plane is centred on `eye`, looking towards `target`,
+    /// its film `width_m` scene units wide (square pixels: as tall as the aspect makes it).
+    /// Returns None if the view direction is zero or parallel to `up`, or the width is not > 0.
+    pub fn orthographic_look_at(
+        width: u32,
+        height: u32,
+        eye: Vec3,
+        target: Vec3,
+        up: Vec3,
+        width_m: f32,
+    ) -> Option<Camera> {
+        if !(width_m > 0.0 && width_m.is_finite()) {
+            return None;
+        }
+        let f = width as f32 / width_m;
+        Self::centred(width, height, eye, target, up, f, Projection::Orthographic)
+    }
+
+    /// A camera at `eye` looking at `target` with square pixels, `f` = fx = fy, and the
+    /// principal point at the film's centre.
+    fn centred(
+        width: u32,
+        height: u32,
+        eye: Vec3,
+        target: Vec3,
+        up: Vec3,
+        f: f32,
+        projection: Projection,
+    ) -> Option<Camera> {
         let fwd = (target - eye).normalize_or_zero();
         let right = fwd.cross(up).normalize_or_zero();
-        if fwd == Vec3::ZERO || right == Vec3::ZERO || !(fov_y_deg > 0.0 && fov_y_deg < 180.0) {
+        if fwd == Vec3::ZERO || right == Vec3::ZERO {
             return None;
         }
         let down = fwd.cross(right);
         let r = Mat3::from_cols(right, down, fwd).transpose();
-        let fy = 0.5 * height as f32 / (0.5 * fov_y_deg.to_radians()).tan();
         Some(Camera {
             width,
             height,
-            fx: fy,
-            fy,
+            fx: f,
+            fy: f,
             cx: 0.5 * width as f32,
             cy: 0.5 * height as f32,
             r,
             t: -(r * eye),
             distortion: None,
+            projection,
         })
     }
 
@@ -170,10 +224,25 @@ impl Camera {
             r,
             t,
             distortion: None,
+            projection: Projection::Perspective,
         })
     }
 
-    /// Camera centre in world coordinates: −Rᵀ t.
+    /// The same camera, orthographic: fx and fy are then pixels per scene unit.
+    pub fn orthographic(self) -> Camera {
+        Camera {
+            projection: Projection::Orthographic,
+            distortion: None,
+            ..self
+        }
+    }
+
+    pub fn is_orthographic(&self) -> bool {
+        self.projection == Projection::Orthographic
+    }
+
+    /// Camera centre in world coordinates: −Rᵀ t. For an orthographic camera, the point of
+    /// the film plane whose ray projects to (cx, cy); the rays of other pixels start beside it.
     pub fn eye(&self) -> Vec3 {
         -(self.r.transpose() * self.t)
     }
@@ -181,6 +250,10 @@ impl Camera {
     /// The primary ray through continuous film position (x, y); direction normalised.
     pub fn ray(&self, film: Vec2) -> Ray {
         let (x, y) = ((film.x - self.cx) / self.fx, (film.y - self.cy) / self.fy);
+        if self.is_orthographic() {
+            let m = self.r.transpose();
+            return Ray::new(self.eye() + m * Vec3::new(x, y, 0.0), m.z_axis.normalize());
+        }
         let d_cam = match &self.distortion {
             None => Vec3::new(x, y, 1.0),
             Some(lens) => lens.undistort(x, y),
@@ -193,6 +266,10 @@ impl Camera {
     /// `Mat3 * Vec3` is x_axis·x + y_axis·y + z_axis·z; `normalize` multiplies by
     /// 1 / √(x² + y² + z²)).
     pub fn directions8(&self, x: f32x8, y: f32x8) -> [f32x8; 3] {
+        if self.is_orthographic() {
+            let d = self.r.transpose().z_axis.normalize();
+            return [d.x, d.y, d.z].map(f32x8::splat);
+        }
         if self.distortion.is_some() {
             // Lane by lane through `ray`: the undistortion iterates.
             let (x, y) = (x.to_array(), y.to_array());
@@ -215,9 +292,14 @@ impl Camera {
         d.map(|c| c * recip)
     }
 
-    /// Continuous film position of a world point, or None if it is behind the camera.
+    /// Continuous film position of a world point, or None if it is behind the camera (for an
+    /// orthographic camera: behind its film plane, z_cam < 0).
     pub fn project(&self, p: Vec3) -> Option<Vec2> {
         let c = self.r * p + self.t;
+        if self.is_orthographic() {
+            return (c.z >= 0.0)
+                .then(|| Vec2::new(self.fx * c.x + self.cx, self.fy * c.y + self.cy));
+        }
         if c.z <= 0.0 {
             return None;
         }
@@ -230,6 +312,7 @@ impl Camera {
     }
 
     /// The same camera shifted by (dx, dy) pixels on the film: a misregistered model, for tests.
+    /// (An orthographic camera's rays move sideways by (dx / fx, dy / fy) scene units.)
     pub fn shifted(&self, dx: f32, dy: f32) -> Camera {
         Camera {
             cx: self.cx + dx,
@@ -238,9 +321,16 @@ impl Camera {
         }
     }
 
-    /// Vertical field of view in degrees.
-    pub fn fov_y_deg(&self) -> f32 {
-        (2.0 * (0.5 * self.height as f32 / self.fy).atan()).to_degrees()
+    /// Vertical field of view in degrees; None for an orthographic camera, which has none.
+    pub fn fov_y_deg(&self) -> Option<f32> {
+        (!self.is_orthographic())
+            .then(|| (2.0 * (0.5 * self.height as f32 / self.fy).atan()).to_degrees())
+    }
+
+    /// An orthographic camera's film size in scene units (width, height); None for a pinhole.
+    pub fn film_size_m(&self) -> Option<Vec2> {
+        self.is_orthographic()
+            .then(|| Vec2::new(self.width as f32 / self.fx, self.height as f32 / self.fy))
     }
 }
 
@@ -400,6 +490,69 @@ mod tests {
                 assert_eq!(got, want, "film ({}, {})", x[i], y[i]);
             }
         }
+    }
+
+    #[test]
+    fn orthographic_projects_known_points_and_rays_project_back() {
+        // Film plane centred on (0, 0, 5), looking down −z, 4 units wide on 200×100 pixels:
+        // 50 px per unit. The point (1, 0.5, −3) is 1·50 px right of the centre and 0.5·50 px
+        // above it, at any depth in front of the plane.
+        let cam = Camera::orthographic_look_at(
+            200,
+            100,
+            Vec3::new(0.0, 0.0, 5.0),
+            Vec3::ZERO,
+            Vec3::Y,
+            4.0,
+        )
+        .unwrap();
+        assert_eq!((cam.fx, cam.fy), (50.0, 50.0));
+        assert_eq!(cam.film_size_m(), Some(Vec2::new(4.0, 2.0)));
+        assert_eq!(cam.fov_y_deg(), None);
+        for z in [-3.0, 0.0, 4.9] {
+            let p = cam.project(Vec3::new(1.0, 0.5, z)).unwrap();
+            assert!((p - Vec2::new(150.0, 25.0)).length() < 1e-4, "{p}");
+        }
+        // Behind the film plane: not seen.
+        assert!(cam.project(Vec3::new(0.0, 0.0, 5.1)).is_none());
+        // Every ray is parallel to the view and starts on the film plane; a point along it
+        // projects back onto its film position.
+        for j in (0..=100).step_by(10) {
+            for i in (0..=200).step_by(20) {
+                let film = Vec2::new(i as f32, j as f32);
+                let ray = cam.ray(film);
+                assert_eq!(ray.d, -Vec3::Z);
+                assert!((ray.o.z - 5.0).abs() < 1e-6);
+                let back = cam.project(ray.o + ray.d * 7.0).unwrap();
+                assert!((back - film).length() < 1e-4, "{film} → {back}");
+            }
+        }
+        // The eight-lane directions are the rays' to the bit.
+        let tilted = Camera::orthographic_look_at(
+            64,
+            48,
+            Vec3::new(0.3, 1.6, 2.0),
+            Vec3::new(0.1, 0.2, -0.3),
+            Vec3::Y,
+            1.7,
+        )
+        .unwrap();
+        let xs = f32x8::from([0.5, 10.0, 63.5, 32.0, 1.0, 20.25, 60.0, 7.0]);
+        let ys = f32x8::from([0.5, 5.0, 47.5, 24.0, 47.0, 10.75, 30.0, 40.0]);
+        let d = tilted.directions8(xs, ys);
+        for i in 0..8 {
+            let r = tilted.ray(Vec2::new(xs.to_array()[i], ys.to_array()[i]));
+            let got = [0, 1, 2].map(|k| d[k].to_array()[i].to_bits());
+            assert_eq!(got, r.d.to_array().map(f32::to_bits));
+        }
+        // The calibrated form: fx, fy in pixels per unit, OpenCV's integer pixel centres.
+        let cal = Camera::calibrated(64, 48, 20.0, 25.0, 31.5, 23.5, tilted.r, tilted.t)
+            .unwrap()
+            .orthographic();
+        let p = Vec3::new(0.2, 0.4, -0.1);
+        let c = tilted.r * p + tilted.t;
+        let want = Vec2::new(20.0 * c.x + 32.0, 25.0 * c.y + 24.0);
+        assert!((cal.project(p).unwrap() - want).length() < 1e-4);
     }
 
     #[test]

@@ -3,7 +3,7 @@
 
 use super::camera::Lens;
 use super::error::SceneError;
-use super::schema::{Color, MaterialSpec, ObjectSpec, SceneFile, ShapeKind};
+use super::schema::{Color, MaterialSpec, ObjectSpec, ProjectionKind, SceneFile, ShapeKind};
 use super::texture::Texture;
 use super::{Camera, Geometry, Group, Material, Object, PunctualLight, RenderSettings, Scene, Tri};
 use crate::geometry::{shapes, Bvh, TriangleMesh};
@@ -77,6 +77,10 @@ const SYNONYMS: &[(&str, &str)] = &[
     ("fov", "fov_y_deg"),
     ("fovy", "fov_y_deg"),
     ("fov_y", "fov_y_deg"),
+    ("orthogonal", "orthographic"),
+    ("ortho", "orthographic"),
+    ("parallel", "orthographic"),
+    ("pinhole", "perspective"),
     ("position", "eye"),
     ("origin", "eye"),
     ("look_at", "target"),
@@ -487,6 +491,17 @@ fn build_camera(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {
     let (key, lens, k): (&str, Lens, Vec<f32>) = match (file.camera.distortion, file.camera.fisheye)
     {
         (None, None) => return Ok(cam),
+        // A lens model bends rays through one centre; parallel rays have none to bend about.
+        (d, _) if cam.is_orthographic() => {
+            let key = if d.is_some() { "distortion" } else { "fisheye" };
+            return Err(cx.camera_at(
+                key,
+                format!(
+                    "[camera] {key} is for a perspective camera's lens: an orthographic \
+                     camera has no lens to distort (remove `{key}` or the projection)"
+                ),
+            ));
+        }
         (Some(_), Some(_)) => {
             return Err(cx.camera_at(
                 "fisheye",
@@ -531,6 +546,29 @@ fn build_camera(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {
 /// The camera of `[camera]` without its lens distortion.
 fn pinhole(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {
     let c = &file.camera;
+    let ortho = c.projection == Some(ProjectionKind::Orthographic);
+    // The film's extent: a field of view for a pinhole, a width in scene units for parallel rays.
+    let (extent_key, extent) = if ortho {
+        if c.fov_y_deg.is_some() {
+            return Err(cx.camera_at(
+                "fov_y_deg",
+                "[camera] an orthographic camera has no field of view: give its film's width in \
+                 scene units, `width_m`, instead of fov_y_deg"
+                    .into(),
+            ));
+        }
+        ("width_m", c.width_m)
+    } else {
+        if c.width_m.is_some() {
+            return Err(cx.camera_at(
+                "width_m",
+                "[camera] width_m (the film's width in scene units) is for \
+                 projection = \"orthographic\": give fov_y_deg for a perspective camera"
+                    .into(),
+            ));
+        }
+        ("fov_y_deg", c.fov_y_deg)
+    };
     if c.width == 0 || c.height == 0 || c.width > 65536 || c.height > 65536 {
         return Err(cx.whole(format!(
             "[camera] width and height must be between 1 and 65536, got {}×{}",
@@ -546,7 +584,7 @@ fn pinhole(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {
             max >> 20
         )));
     }
-    let look_at = [c.eye.is_some(), c.target.is_some(), c.fov_y_deg.is_some()];
+    let look_at = [c.eye.is_some(), c.target.is_some(), extent.is_some()];
     let calib = [
         c.fx.is_some(),
         c.fy.is_some(),
@@ -558,11 +596,10 @@ fn pinhole(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {
     let any_la = look_at.iter().any(|&b| b) || c.up.is_some();
     let any_cal = calib.iter().any(|&b| b);
     if any_la && any_cal {
-        return Err(cx.whole(
-            "[camera] mixes the look-at form (eye, target, up, fov_y_deg) with the calibrated form \
-             (fx, fy, cx, cy, rotation, translation): give one"
-                .into(),
-        ));
+        return Err(cx.whole(format!(
+            "[camera] mixes the look-at form (eye, target, up, {extent_key}) with the \
+                 calibrated form (fx, fy, cx, cy, rotation, translation): give one"
+        )));
     }
     let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
     if any_cal {
@@ -586,7 +623,13 @@ fn pinhole(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {
         if !finite(&[fx, fy, ccx, ccy]) || !finite(&t) || !finite(rot.as_flattened()) {
             return Err(cx.whole("[camera] has a NaN or infinite value".into()));
         }
-        Camera::calibrated(c.width, c.height, fx, fy, ccx, ccy, r, Vec3::from(t)).ok_or_else(|| {
+        let cam = Camera::calibrated(c.width, c.height, fx, fy, ccx, ccy, r, Vec3::from(t));
+        let cam = if ortho {
+            cam.map(Camera::orthographic)
+        } else {
+            cam
+        };
+        cam.ok_or_else(|| {
             if !(fx > 0.0) {
                 cx.camera_at("fx", format!("[camera] fx must be > 0, got {fx}"))
             } else if !(fy > 0.0) {
@@ -609,7 +652,7 @@ fn pinhole(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {
             }
         })
     } else {
-        let names = ["eye", "target", "fov_y_deg"];
+        let names = ["eye", "target", extent_key];
         let missing: Vec<&str> = names
             .iter()
             .zip(look_at)
@@ -618,7 +661,7 @@ fn pinhole(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {
             .collect();
         if !missing.is_empty() {
             return Err(cx.whole(format!(
-                "[camera] lacks {} (give eye, target, fov_y_deg and optionally up; or fx, fy, cx, cy, rotation, translation)",
+                "[camera] lacks {} (give eye, target, {extent_key} and optionally up; or fx, fy, cx, cy, rotation, translation)",
                 missing.join(", ")
             )));
         }
@@ -627,13 +670,26 @@ fn pinhole(file: &SceneFile, cx: &Ctx) -> Result<Camera, SceneError> {
             c.target.unwrap(),
             c.up.unwrap_or([0.0, 1.0, 0.0]),
         );
-        if !finite(&eye) || !finite(&target) || !finite(&up) || !c.fov_y_deg.unwrap().is_finite() {
+        let extent = extent.unwrap();
+        if !finite(&eye) || !finite(&target) || !finite(&up) || !extent.is_finite() {
             return Err(cx.whole("[camera] has a NaN or infinite value".into()));
         }
-        let fov = c.fov_y_deg.unwrap();
-        Camera::look_at(c.width, c.height, eye.into(), target.into(), up.into(), fov).ok_or_else(|| {
+        let (w, h, e, tg, u) = (c.width, c.height, eye.into(), target.into(), up.into());
+        let cam = if ortho {
+            Camera::orthographic_look_at(w, h, e, tg, u, extent)
+        } else {
+            Camera::look_at(w, h, e, tg, u, extent)
+        };
+        let fov = extent;
+        let fov_ok = fov > 0.0 && fov < 180.0;
+        cam.ok_or_else(|| {
             let view = Vec3::from(target) - Vec3::from(eye);
-            if !(fov > 0.0 && fov < 180.0) {
+            if ortho && !(extent > 0.0) {
+                cx.camera_at(
+                    "width_m",
+                    format!("[camera] width_m (the film's width in scene units) must be > 0, got {extent}"),
+                )
+            } else if !ortho && !fov_ok {
                 cx.camera_at(
                     "fov_y_deg",
                     format!("[camera] fov_y_deg (vertical field of view, degrees) must be in (0, 180), got {fov}"),

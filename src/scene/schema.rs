@@ -22,6 +22,9 @@
 //! # translation = [0, 1, 3]                         # world-to-camera t: x_cam = R x + t
 //! # distortion = [-0.28, 0.09, 0.001, -0.0008, 0]   # OpenCV's k1, k2, p1, p2, k3 (optional)
 //! # fisheye = [0.03, -0.01, 0, 0.001]              # or cv::fisheye's k1..k4
+//! # projection = "orthographic"  # parallel rays from a film plane through `eye` (or the
+//! # width_m = 2.5                # calibrated form's centre); the film's width in scene units
+//! #                              # replaces fov_y_deg; calibrated: fx, fy in px per scene unit
 //!
 //! [[group]]                     # optional: groups named by objects exist anyway
 //! name = "floor"
@@ -161,6 +164,19 @@ pub struct CameraSpec {
     /// Or OpenCV's fisheye model (k1, k2, k3, k4).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fisheye: Option<[f32; 4]>,
+    /// Perspective (the default) or orthographic.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub projection: Option<ProjectionKind>,
+    /// An orthographic look-at camera's film width in scene units (its height from the aspect).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub width_m: Option<f32>,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum ProjectionKind {
+    Perspective,
+    Orthographic,
 }
 
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
