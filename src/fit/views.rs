@@ -11,11 +11,10 @@
 //! the weighted median of Y(photo_k) / Y(model_k) over photo k's cached pixels of the groups at a
 //! uniform level (Y the mean of the channels, weights Y(model)), and the factors are then
 //! divided by their geometric mean, so that the materials' scale is the consensus of all photos
-//! rather than the first's. A median, not Σ photo / Σ model: in the first iterations a glossy
-//! group is still fitted as Lambert, whose misfit is the highlights, a different share of each
-//! photo's light; the ratio of sums took it for exposure (6% off on the light stage) and the
-//! group then climbed to a texture to explain the difference. One photo keeps e = 1 and the
-//! method's single-image case is unchanged to the bit.
+//! rather than the first's. A median, because in the first iterations a glossy group is still
+//! fitted as Lambert, and its misfit (the highlights, a different share of each photo's light)
+//! must not be read as exposure. One photo keeps e = 1 and the method's single-image case is
+//! unchanged to the bit.
 
 use super::cache::GroupCache;
 use crate::math::Rgb;

@@ -18,8 +18,7 @@
 //! object's pixels, only the background, whose outline registration aligns: the band there is
 //! [`MaskOptions::rim_band`] (1) and the edge test does not apply, since a strong edge just
 //! inside a convex object's outline is its own shading (the terminator of a side light), not a
-//! neighbour. On the light stage's ball lit from the side at 64 px, the band and the edge test
-//! kept 875 of 1648 visible pixels, throwing away most of the lit crescent.
+//! neighbour.
 //!
 //! Step 4 is off unless `planar_groups` names groups: a plane over the intensities of a glossy
 //! floor would throw its highlight away as an "outlier", so use it for surfaces known diffuse,

@@ -201,11 +201,10 @@ pub fn refine(scene: &Scene, camera: &Camera, photo: &Photo, max_shift: i32) -> 
     }
 }
 
-/// The film-shift registration (`register::estimate_shift`) as a [`Pose`]: the default until
-/// the 6-DoF refinement stops moving correct cameras (figure6 at 512×384, a photo through the
-/// model's own camera: 0.80 px RMS, where the shift's bias is about 0.1 px). Applied as a shift
-/// of the principal point when it reaches half a pixel (sub-pixel shifts are biased by the
-/// shading near edges: 0.1 px at 512×384, 0.4 px at 128×96 on figure6).
+/// The film-shift registration (`register::estimate_shift`) as a [`Pose`]: the default while
+/// the 6-DoF refinement still moves correct cameras on figure6 at full size. Applied as a shift
+/// of the principal point from half a pixel on, since sub-pixel shifts are biased by the shading
+/// near edges.
 pub fn from_shift(camera: &Camera, index: &IndexBuffers, photo: &Photo, max_shift: i32) -> Pose {
     let r = register::estimate_shift(index, photo, max_shift);
     let applied = r.dx.abs().max(r.dy.abs()) >= 0.5;
