@@ -10,11 +10,11 @@ use image::RgbImage;
 const DISTORTION: &str = "[-0.12, 0.03, 0.0005, -0.0003, 0.0]";
 const VIGNETTING: [f32; 3] = [-0.3, 0.05, 0.0];
 
-/// figure6 at 128×96 with its lens and a grey card (fixed, ρ 0.18) on the back wall.
-fn scene_text() -> String {
+/// figure6 at `w`×`h` with its lens and a grey card (fixed, ρ 0.18) on the back wall.
+fn scene_text(w: u32, h: u32) -> String {
     let text = std::fs::read_to_string(root().join("scenes/figure6/scene.toml")).unwrap();
-    text.replace("width = 512", "width = 128")
-        .replace("height = 384", "height = 96")
+    text.replace("width = 512", &format!("width = {w}"))
+        .replace("height = 384", &format!("height = {h}"))
         .replace(
             "fov_y_deg = 40.0\n",
             &format!("fov_y_deg = 40.0\ndistortion = {DISTORTION}\n"),
@@ -33,6 +33,22 @@ edge_u = [0.8, 0.0, 0.0]
 edge_v = [0.0, 0.8, 0.0]
 material = { type = "diffuse", rho_d = 0.18 }
 "#
+}
+
+/// The model a user has before the fit: figure6's geometry, lights and grey card, every other
+/// material a placeholder (diffuse 0.5). The grey card's first calibration renders the card
+/// with these, 23% off here; the fit renders it again with what it recovers.
+fn placeholder_materials(text: &str) -> String {
+    text.lines()
+        .map(|l| {
+            if l.starts_with("material = ") && !l.contains("0.18") {
+                r#"material = { type = "diffuse", rho_d = 0.5 }"#
+            } else {
+                l
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
 }
 
 /// An S-shaped camera response (as tests/photo_inputs.rs): linear → code in [0, 1].
@@ -59,15 +75,18 @@ fn params(dir: &std::path::Path, out: &str) -> serde_json::Value {
 }
 
 /// The truth is figure6's table; the capture differs from the model by its pose (`pose`: eye
-/// moved 2 cm, view turned 1°, or not), its lens and vignetting, a response, 1% noise and 8
-/// bits, and its exposure is found from the grey card. Every parameter is compared with the
-/// truth within three times the tolerance of the clean photo (the radiance through the
-/// model's camera, exposure known), fitted with the same settings.
-fn capture_is_recovered(pose: bool) {
+/// moved 2 cm, view turned 1°, found by `--refine-pose`; or not), its lens and vignetting, a
+/// response, 1% noise and 8 bits, and its exposure is found from the grey card in a model whose
+/// other materials are placeholders. Every parameter is compared with the truth within twice
+/// the tolerance of the clean photo (the radiance through the true camera, exposure known),
+/// fitted with the same settings; the exposure within 1% of the one that made the brackets.
+fn capture_is_recovered(pose: bool, (width, height): (u32, u32)) {
     let d = tempfile::tempdir().unwrap();
     let keep = std::env::var_os("MATFIT_KEEP").map(std::path::PathBuf::from);
     let dir = keep.as_deref().unwrap_or(d.path());
-    write(dir, "scene.toml", &scene_text());
+    let text = scene_text(width, height);
+    write(dir, "scene.toml", &text);
+    write(dir, "model.toml", &placeholder_materials(&text));
     // The camera that took the photo.
     let (eye, target) = if pose {
         // 1° about the vertical through the eye, and 2 cm to the right.
@@ -153,15 +172,18 @@ fn capture_is_recovered(pose: bool) {
     assert_eq!(code, 0, "{err}");
     let vig = format!("{},{},{}", VIGNETTING[0], VIGNETTING[1], VIGNETTING[2]);
     let recover = |photo: &str, out: &str, extra: &[&str]| {
+        // `--model FILE` first in `extra`: another scene file than model.toml.
+        let (model, extra) = match extra {
+            ["--model", m, rest @ ..] => (*m, rest),
+            _ => ("model.toml", extra),
+        };
         let mut args = vec![
             "recover",
-            "scene.toml",
+            model,
             photo,
             "-o",
             out,
             "--force",
-            "--max-iterations",
-            "10",
             "--final-spp",
             "4",
         ];
@@ -170,19 +192,57 @@ fn capture_is_recovered(pose: bool) {
         assert_eq!(code, 0, "{stdout}\n{err}");
         (Fit::of(&params(dir, out)), stdout)
     };
-    // The clean photo: the radiance through the model's own camera, exposure known.
-    let (clean, _) = recover("radiance.exr", "clean", &["--exposure", "1"]);
-    let (got, stdout) = recover(
-        "merged.exr",
-        "out",
-        &["--vignetting", &vig, "--grey-card", "card=0.18"],
+    // The clean photo: the radiance through the camera that took it, exposure known.
+    let through_taken = placeholder_materials(&text)
+        .replace("eye = [0.0, 1.6, -0.2]", &format!("eye = {eye:?}"))
+        .replace(
+            "target = [0.0, 1.257980, -1.139693]",
+            &format!("target = {target:?}"),
+        );
+    write(dir, "clean.toml", &through_taken);
+    let (clean, _) = recover(
+        "radiance.exr",
+        "clean",
+        &[
+            "--model",
+            "clean.toml",
+            "--exposure",
+            "1",
+            "--camera-is-calibrated",
+        ],
     );
+    let mut args = vec!["--vignetting", &vig, "--grey-card", "card=0.18"];
+    if pose {
+        args.push("--refine-pose");
+    }
+    let (got, stdout) = recover("merged.exr", "out", &args);
+    // The exposure: the brackets' merge over the radiance that made them (vignetted).
+    let merged = matfit::io::image::read_linear(&dir.join("merged.exr")).unwrap();
+    let (mut sm, mut sr) = (0.0f64, 0.0f64);
+    for (i, (m, r)) in merged.data.iter().zip(&img.data).enumerate() {
+        sm += m.element_sum() as f64;
+        sr += (r.element_sum() * v(i % w, i / w)) as f64;
+    }
+    let k_true = sm / sr;
+    let k = params(dir, "out")["inputs"]["exposure"].as_f64().unwrap();
+    eprintln!("exposure {k:.4}, true {k_true:.4}\n{stdout}");
+    assert!(
+        (k / k_true - 1.0).abs() < 0.01,
+        "exposure {k} for {k_true}\n{stdout}"
+    );
+    assert!(stdout.contains("recalibrated from grey card"), "{stdout}");
+    let found = params(dir, "out")["inputs"]["registration"]["rotation_deg"]
+        .as_f64()
+        .unwrap();
+    if pose {
+        assert!(
+            (found - 1.0).abs() < 0.25,
+            "camera turned by {found}°, not 1°"
+        );
+    }
     let truth = Fit::truth();
-    // Each parameter within three times the clean photo's tolerance: its error on the clean
-    // photo (128×96 pixels leave the blocks ±0.02), at least 0.01 for ρ, 4% for α, 2° for θ.
-    // Twice, the issue's figure, is not met: the grey card's calibration renders the card with
-    // the other groups' materials unknown, and comes out 1.7% low on the clean photo itself,
-    // which pushes the floor against ρd + ρs ≤ 1 (ρd 0.075 for 0.1, ρs 0.925 for 0.9).
+    // Each parameter within twice the clean photo's tolerance: its error on the clean photo
+    // (128×96 pixels leave the blocks ±0.06), at least 0.01 for ρ, 4% for α, 2° for θ.
     let mut report = String::new();
     let mut bad = Vec::new();
     for (k, (name, t)) in truth.0.iter().enumerate() {
@@ -194,7 +254,7 @@ fn capture_is_recovered(pose: bool) {
         } else {
             0.01
         };
-        let tol = 3.0 * (c - t).abs().max(floor);
+        let tol = 2.0 * (c - t).abs().max(floor);
         report +=
             &format!("{name}: truth {t:.4}, clean {c:.4}, capture {g:.4} (tolerance {tol:.4})\n");
         if (g - t).abs() > tol {
@@ -280,5 +340,12 @@ impl Fit {
 
 #[test]
 fn a_simulated_capture_through_the_right_pose_is_recovered_from_its_brackets() {
-    capture_is_recovered(false);
+    capture_is_recovered(false, (128, 96));
+}
+
+/// At 128×96 the pose refinement trades the 1° turn for a 7 cm lift (1.7°; the blocks' edges
+/// are a few pixels long), so this one is at 256×192 (about two minutes on two cores).
+#[test]
+fn a_simulated_capture_off_by_a_degree_and_2_cm_is_recovered_with_its_pose_refined() {
+    capture_is_recovered(true, (256, 192));
 }

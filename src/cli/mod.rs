@@ -752,7 +752,13 @@ pub fn run(cmd: Command) -> Result<()> {
                 prepared.push(p);
             }
             checks::on_interrupt_say_resume(resume_command());
-            let opts = fit.options();
+            let mut opts = fit.options();
+            if prepared[0].calibration.is_some() {
+                opts.grey_card = photo_args
+                    .grey_card
+                    .clone()
+                    .map(|(group, rho)| matfit::fit::recover::GreyCard { group, rho });
+            }
             let mut inputs = recover::inputs(
                 &scene,
                 &photos[0],
@@ -801,6 +807,19 @@ pub fn run(cmd: Command) -> Result<()> {
                         v.pixels
                     );
                 }
+            }
+            if let Some(card) = opts
+                .grey_card
+                .as_ref()
+                .filter(|_| rec.exposure_factor != 1.0)
+            {
+                outln!(
+                    "exposure k = {:.6} recalibrated from grey card '{}' with the recovered \
+                     materials around it (before the fit: {:.6}, the others' materials unknown)",
+                    prepared[0].photo.exposure * rec.exposure_factor,
+                    card.group,
+                    prepared[0].photo.exposure
+                );
             }
             outln!(
                 "outputs in {} ({:.1} s): recovered.toml, results.json, report.html",

@@ -109,7 +109,20 @@ pub fn run_recover(
     if let Some(e) = err.into_inner() {
         return Err(e);
     }
-    matfit::report::write_outputs(out, &rec, photo, Some(inputs))?;
+    // The photo in the recovered scene's units, its exposure as the fit left it.
+    if rec.exposure_factor != 1.0 {
+        let mut inputs = inputs.clone();
+        if opts.grey_card.is_some() {
+            inputs.exposure *= rec.exposure_factor;
+            inputs.exposure_rule =
+                "calibrated from the grey card, re-rendered with the recovered materials".into();
+        }
+        let mut scaled = photo.clone();
+        scaled.apply_exposure(rec.exposure_factor);
+        matfit::report::write_outputs(out, &rec, &scaled, Some(&inputs))?;
+    } else {
+        matfit::report::write_outputs(out, &rec, photo, Some(inputs))?;
+    }
     Ok(rec)
 }
 

@@ -8,6 +8,7 @@ use super::hierarchy::{Event, GroupState, HierarchyOptions};
 use super::params::GroupParams;
 use super::recovery::RecoveryLoop;
 use crate::io::image::Image;
+use crate::math::Rgb;
 use crate::photo::{GroupPixelStats, Photo, UsableMask};
 use crate::render::film::progress_bar;
 use crate::scene::Scene;
@@ -87,6 +88,18 @@ pub struct RecoverOptions {
     pub final_spp: u32,
     pub seed: u64,
     pub progress: bool,
+    /// The grey card the first photo's exposure was calibrated from, if any. The calibration
+    /// renders the card before any material is known; the loop renders it again with the
+    /// refitted materials after every global iteration and rescales the photo to match.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grey_card: Option<GreyCard>,
+}
+
+/// A group of known diffuse reflectance in the photo (`--grey-card GROUP=ρ`).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct GreyCard {
+    pub group: String,
+    pub rho: Rgb,
 }
 
 fn yes() -> bool {
@@ -109,6 +122,7 @@ impl Default for RecoverOptions {
             final_spp: 64,
             seed: 0,
             progress: true,
+            grey_card: None,
         }
     }
 }
@@ -158,6 +172,10 @@ pub struct Recovery {
     pub final_render_s: f64,
     /// Per photo (the first included) when several were fitted together; else empty.
     pub views: Vec<ViewFit>,
+    /// The first photo's exposure factor against the recovered scene, relative to the exposure
+    /// already divided out of it: photo = factor × the recovered scene's radiance. 1 for one
+    /// photo unless a grey card recalibrated it (`RecoverOptions::grey_card`).
+    pub exposure_factor: f32,
 }
 
 /// A further photo of the scene, fitted together with the first (`scene::view`, `fit/views.rs`).

@@ -86,6 +86,9 @@ pub struct RecoveryLoop<'a> {
     exposures: Vec<f32>,
     /// Per photo, the residual and pixel count of the last iteration (several photos only).
     residuals: Vec<(f32, usize)>,
+    /// The first photo divided by `exposures[0]` when that is not 1 (§5.1's pseudo-textures
+    /// read it), made when first needed.
+    photo_scaled: std::cell::OnceCell<Vec<Rgb>>,
 }
 
 /// The pixels a textured group is fitted from: its usable pixels, those the mask's edge test
@@ -242,6 +245,7 @@ impl<'a> RecoveryLoop<'a> {
             texture_pixels: std::cell::OnceCell::new(),
             exposures: vec![1.0; 1 + extra.len()],
             residuals: Vec::new(),
+            photo_scaled: std::cell::OnceCell::new(),
             extra,
         };
         r.choose_all(cap);
@@ -413,7 +417,7 @@ impl<'a> RecoveryLoop<'a> {
             .then(|| PseudoTextures {
                 groups: analysing,
                 usable: &self.mask.group,
-                photo: &self.photo.image.data,
+                photo: self.photo_in_cache_units(),
             });
             let view_cache = |current: &Scene,
                               (px, tiles, n_tiles): (&[usize], &[u32], usize),
@@ -460,11 +464,13 @@ impl<'a> RecoveryLoop<'a> {
                 pseudo.as_ref(),
                 hash_seed(&[opts.seed, it as u64, g as u64]),
             );
+            // The photo in the recovered scene's units (x / 1 is x: one photo without a grey
+            // card is unchanged to the bit).
+            let e0 = self.exposures[0];
+            for p in cache.pixels.iter_mut() {
+                p.photo /= e0;
+            }
             if !self.extra.is_empty() {
-                let e0 = self.exposures[0];
-                for p in cache.pixels.iter_mut() {
-                    p.photo /= e0;
-                }
                 for (k, v) in self.extra.iter().enumerate() {
                     let seed = hash_seed(&[opts.seed, it as u64, g as u64, k as u64 + 1]);
                     let (px, tiles, n) = &v.pixel_lists[g];
@@ -534,6 +540,20 @@ impl<'a> RecoveryLoop<'a> {
                     .zip(&self.exposures)
                     .fold(0.0f32, |m, (a, b)| m.max((a / b - 1.0).abs()));
                 self.exposures = e;
+            }
+        }
+        // The grey card rendered with the refitted materials: the first photo's factor is
+        // what it says, and the others keep their ratios to it.
+        if let Some(card) = &opts.grey_card {
+            match grey_card_factor(&self.current, self.photo, &self.mask, card) {
+                Ok(f) => {
+                    let scale = f / self.exposures[0];
+                    tracing::debug!("iteration {it}: grey card factor {f}");
+                    exposure_moved = exposure_moved.max((scale - 1.0).abs());
+                    self.exposures.iter_mut().for_each(|e| *e *= scale);
+                    self.photo_scaled.take();
+                }
+                Err(e) => tracing::warn!("{e}; the exposure stays as calibrated before the fit"),
             }
         }
         // Unseen groups' ρd re-estimated against the refitted seen groups (issue 26).
@@ -633,7 +653,7 @@ impl<'a> RecoveryLoop<'a> {
             log_bytes: 0,
             elapsed: self.elapsed(),
             unseen_history: self.unseen_history.clone(),
-            exposures: if self.extra.is_empty() {
+            exposures: if self.extra.is_empty() && self.exposures[0] == 1.0 {
                 Vec::new()
             } else {
                 self.exposures.clone()
@@ -729,8 +749,31 @@ impl<'a> RecoveryLoop<'a> {
             total_s,
             final_render_s,
             views,
+            exposure_factor: e0,
         }
     }
+
+    /// The first photo divided by its exposure factor, as the caches hold it.
+    fn photo_in_cache_units(&self) -> &[Rgb] {
+        let e0 = self.exposures[0];
+        if e0 == 1.0 {
+            return &self.photo.image.data;
+        }
+        self.photo_scaled
+            .get_or_init(|| self.photo.image.data.iter().map(|&c| c / e0).collect())
+    }
+}
+
+/// The factor photo / rendering over the grey card's usable pixels, the card at its known ρ and
+/// every other group with its current materials (`photo::exposure::from_grey_card`).
+fn grey_card_factor(
+    current: &Scene,
+    photo: &Photo,
+    mask: &UsableMask,
+    card: &super::recover::GreyCard,
+) -> Result<f32, String> {
+    crate::photo::exposure::from_grey_card(current, photo, mask, &card.group, card.rho, 4096)
+        .map(|c| c.factor)
 }
 
 /// Every group's state before the first iteration: lights and fixed groups keep their

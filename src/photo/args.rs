@@ -195,7 +195,7 @@ pub fn prepare(scene: &Scene, path: &Path, args: &PhotoArgs) -> Result<PreparedP
     let calibration = match args.exposure_source() {
         ExposureSource::Given(_) => None,
         ExposureSource::GreyCard { group, rho } => Some(
-            exposure::from_grey_card(scene, &photo, &mask, &group, rho, 64, 4096)
+            exposure::from_grey_card(scene, &photo, &mask, &group, rho, 4096)
                 .map_err(|e| format!("{}: {e}", path.display()))?,
         ),
         ExposureSource::Lights => Some(
