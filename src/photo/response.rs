@@ -249,8 +249,10 @@ impl ResponseTable {
             "# matfit response table: linear value of {} evenly spaced codes, darkest first\n",
             self.codes.len()
         );
+        // One column when every row is grey (the parser wants the same count on every row).
+        let grey = self.values.iter().all(|v| v[0] == v[1] && v[1] == v[2]);
         for v in &self.values {
-            if v[0] == v[1] && v[1] == v[2] {
+            if grey {
                 s.push_str(&format!("{:e}\n", v[0]));
             } else {
                 s.push_str(&format!("{:e} {:e} {:e}\n", v[0], v[1], v[2]));
