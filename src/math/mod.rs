@@ -46,6 +46,21 @@ pub fn exp_neg(x: f32) -> f32 {
     }
 }
 
+/// `f` applied to the lanes of `x` whose bit is set in `mask`, one at a time (0 in the others):
+/// the eight-lane code's way to a transcendental that must be the scalar code's to the bit.
+#[inline(always)]
+pub fn lanewise(x: wide::f32x8, mask: u32, f: impl Fn(f32) -> f32) -> wide::f32x8 {
+    let a = x.to_array();
+    let mut out = [0.0f32; 8];
+    let mut bits = mask;
+    while bits != 0 {
+        let j = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        out[j] = f(a[j]);
+    }
+    wide::f32x8::from(out)
+}
+
 /// Mirror reflection of `w` about the normal `n` (both pointing away from the surface).
 #[inline]
 pub fn reflect(w: Vec3, n: Vec3) -> Vec3 {

@@ -21,13 +21,14 @@
 //! All values here are per unit ρs: the caller multiplies by ρs (the fitter relies on that).
 //!
 //! The fitter evaluates the same lobe from precomputed half vectors, with its derivatives
-//! ([`half_vector`]), and sums it over its cached samples eight at a time ([`lanes`]).
+//! ([`half_vector`]), and sums it over its cached samples eight at a time ([`lanes`]); the
+//! renderer's eight-lane path loop evaluates and samples eight lobes at a time ([`Lobes8`]).
 
 pub mod half_vector;
 pub mod lanes;
 
 pub use half_vector::{ward_at, HalfVector, LobeParams};
-pub use lanes::{lobe_sums, LobeSample};
+pub use lanes::{lobe_sums, LobeSample, Lobes8};
 
 use crate::math::{exp_neg, Vec2, Vec3, PI};
 use crate::scene::WardVariant;
