@@ -120,6 +120,11 @@ pub fn trace_jobs(
                         let p = pt.scene.hit_point(hit);
                         gathered.push(i, pt, p, ng, &frame, rho_d, lane);
                         true
+                    } else if let Some(w) = flat_ward(pt, obj, hit, lane.st.ray.d) {
+                        let (p, j) = (pt.scene.hit_point(hit), gathered.n);
+                        gathered.push(i, pt, p, w.ng, &w.frame, w.rho_d, lane);
+                        gathered.push_ward(j, w.wo, w.rho_d, w.rho_s, w.lobe);
+                        true
                     } else {
                         match pt.vertex(&lane.st, hit, obj) {
                             None => false,
@@ -168,6 +173,53 @@ fn flat_lambert(pt: &PathTracer, obj: &Object, hit: &Hit, d: Vec3) -> Option<(Ve
     let (frame, ng) = facing(face.frame?, face.ng, wo);
     // `wo.dot(frame.n)` is `frame.to_local(wo).z`, the general route's `wo.z`.
     gathers(pt, rho_d, wo.dot(frame.n)).then_some((ng, frame, rho_d))
+}
+
+/// A Ward vertex straight from the BVH's hit, as `flat_lambert` is: the geometric normal and
+/// the shading frame (rotated by the material's θ) turned to the arriving side, ωo in that
+/// frame and the BSDF's parameters, the same as the general route gives to the bit. Only for
+/// flat-shaded triangles under a Ward material (not a textured one's varnish, whose ρd needs
+/// the hit record's UV) seen from the frame's side, in a scene with lights; otherwise None.
+#[inline(always)]
+fn flat_ward(pt: &PathTracer, obj: &Object, hit: &Hit, d: Vec3) -> Option<FlatWard> {
+    let Material::Ward {
+        rho_d,
+        rho_s,
+        alpha_x,
+        alpha_y,
+        theta,
+    } = obj.material
+    else {
+        return None;
+    };
+    let face = &pt.scene.geometry.faces[hit.prim as usize];
+    let wo = -d;
+    // `bsdf_at`'s frame, then `PathTracer::vertex`'s turn and ωo.
+    let (frame, ng) = facing(face.frame?.rotated(theta), face.ng, wo);
+    let wo = frame.to_local(wo);
+    let lobe = WardLobe {
+        alpha_x,
+        alpha_y,
+        variant: pt.scene.render.ward_variant,
+    };
+    gathers_ward(pt, wo.z).then_some(FlatWard {
+        ng,
+        frame,
+        wo,
+        rho_d,
+        rho_s,
+        lobe,
+    })
+}
+
+/// What `flat_ward` gives.
+struct FlatWard {
+    ng: Vec3,
+    frame: Frame,
+    wo: Vec3,
+    rho_d: Rgb,
+    rho_s: Rgb,
+    lobe: WardLobe,
 }
 
 /// Whether a Lambert vertex of reflectance `rho_d`, seen at `wo_z` (the outgoing direction's
