@@ -559,9 +559,11 @@ impl SmoothLanes {
         let cos_g = dot(&ng, &wi);
         let lit = live & light_ok & wi_local[2].cmp_gt(zero) & cos_g.cmp_gt(zero);
         let mut f = rho.map(|c| c * splat(INV_PI));
+        // The Ward lobes' exp(−E), for their value here and their density below.
+        let mut gauss = zero;
         if let Some((rho_s, lobes, _, wo)) = &ward {
-            let m = (lit & wardm).move_mask() as u32;
-            let fw = Bsdf::ward_eval8(&rho, rho_s, lobes, wo, &wi_local, m);
+            gauss = lobes.gaussian(wo, &wi_local);
+            let fw = Bsdf::ward_eval8(&rho, rho_s, lobes, wo, &wi_local, gauss);
             for k in 0..3 {
                 f[k] = wardm.blend(fw[k], f[k]);
             }
@@ -599,8 +601,7 @@ impl SmoothLanes {
         // Lambert's pdf (wo is above the surface) or Ward's, and the power heuristic.
         let mut bsdf_pdf = wi_local[2].max(zero) * splat(INV_PI);
         if let Some((_, lobes, pd, wo)) = &ward {
-            let m = (nee & wardm).move_mask() as u32;
-            let pw = Bsdf::ward_pdf8(*pd, lobes, wo, &wi_local, m);
+            let pw = Bsdf::ward_pdf8(*pd, lobes, wo, &wi_local, gauss);
             bsdf_pdf = wardm.blend(pw, bsdf_pdf);
         }
         let (a, b) = (light_pdf * light_pdf, bsdf_pdf * bsdf_pdf);
@@ -636,9 +637,9 @@ impl SmoothLanes {
                 wi[k] = lobe.blend(w[k], wi[k]);
             }
             ok = wi[2].cmp_gt(zero);
-            let m = (live & wardm & ok).move_mask() as u32;
-            let pdf = Bsdf::ward_pdf8(*pd, lobes, wo, &wi, m);
-            let f = Bsdf::ward_eval8(&rho, rho_s, lobes, wo, &wi, m);
+            let gauss = lobes.gaussian(wo, &wi);
+            let pdf = Bsdf::ward_pdf8(*pd, lobes, wo, &wi, gauss);
+            let f = Bsdf::ward_eval8(&rho, rho_s, lobes, wo, &wi, gauss);
             for k in 0..3 {
                 weight[k] = wardm.blend(f[k] * wi[2] / pdf, weight[k]);
             }

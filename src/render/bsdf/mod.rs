@@ -154,9 +154,9 @@ impl Bsdf {
         }
     }
 
-    /// [`Bsdf::eval`] of eight `Bsdf::Ward`s, one a lane (ρd, ρs, lobe), for the lanes of
-    /// `mask`, where ωo and ωi must be above the surface: the same arithmetic, so each lane's
-    /// value is the scalar one to the bit ([`Lobes8`]).
+    /// [`Bsdf::eval`] of eight `Bsdf::Ward`s, one a lane (ρd, ρs, lobe), where ωo and ωi are
+    /// above the surface, given `e` = `lobes.gaussian(wo, wi)`: the same arithmetic, so each
+    /// lane's value is the scalar one to the bit ([`Lobes8`]).
     #[inline(always)]
     pub(crate) fn ward_eval8(
         rho_d: &[f32x8; 3],
@@ -164,9 +164,9 @@ impl Bsdf {
         lobes: &Lobes8,
         wo: &[f32x8; 3],
         wi: &[f32x8; 3],
-        mask: u32,
+        e: f32x8,
     ) -> [f32x8; 3] {
-        let g = lobes.eval(wo, wi, mask);
+        let g = lobes.eval(wo, wi, e);
         std::array::from_fn(|k| rho_d[k] * f32x8::splat(INV_PI) + rho_s[k] * g)
     }
 
@@ -178,10 +178,10 @@ impl Bsdf {
         lobes: &Lobes8,
         wo: &[f32x8; 3],
         wi: &[f32x8; 3],
-        mask: u32,
+        e: f32x8,
     ) -> f32x8 {
         let lambert = wi[2].max(f32x8::ZERO) * f32x8::splat(INV_PI);
-        pd * lambert + (f32x8::ONE - pd) * lobes.pdf(wo, wi, mask)
+        pd * lambert + (f32x8::ONE - pd) * lobes.pdf(wo, wi, e)
     }
 
     /// The delta lobe's reflectance, if the BSDF has one.

@@ -4,16 +4,16 @@
 //! renderer's eight-lane path loop.
 
 use super::half_vector::{ward_at, HalfVector, LobeParams};
-use crate::math::{exp_neg, lanewise, Rgb, Vec3, PI};
+use crate::math::{exp_neg_poly8, lanewise, Rgb, Vec3, PI};
 use wide::{f32x8, CmpGt};
 
 /// Eight Ward lobes, one a lane: [`super::WardLobe`]'s `eval`, `pdf` and `sample` repeated
-/// operation for operation on eight lanes (Rust never fuses a·b + c), with their exp, ln and
-/// sin/cos computed lane by lane by the scalar functions, for the lanes of `mask` only (the
-/// others' results are unspecified). So each lane's result is the scalar one to the bit (the
-/// eight-lane path loop, `render::batch`, relies on it; a test holds them together). Every
-/// lane of `mask` must have ωo (and for `eval` and `pdf`, ωi) in the upper hemisphere, where
-/// the scalar functions do their arithmetic rather than return 0.
+/// operation for operation on eight lanes (Rust never fuses a·b + c), with the same exp
+/// (`exp_neg_poly8`), and `sample`'s ln and sin/cos computed lane by lane by the scalar
+/// functions, for the lanes of its `mask` only (the others' results are unspecified). So each
+/// lane's result is the scalar one to the bit (the eight-lane path loop, `render::batch`,
+/// relies on it; a test holds them together). ωo (and for `eval` and `pdf`, ωi) must be in the
+/// upper hemisphere, where the scalar functions do their arithmetic rather than return 0.
 #[derive(Clone, Copy, Debug)]
 pub struct Lobes8 {
     pub alpha_x: f32x8,
@@ -40,12 +40,18 @@ impl Lobes8 {
         (a * a + b * b) / (h[2] * h[2])
     }
 
-    /// `WardLobe::eval`.
+    /// exp(−E) for (ωo, ωi), which `eval` and `pdf` take (`WardLobe::eval` and `pdf` compute
+    /// it alike).
     #[inline(always)]
-    pub fn eval(&self, wo: &V8, wi: &V8, mask: u32) -> f32x8 {
+    pub fn gaussian(&self, wo: &V8, wi: &V8) -> f32x8 {
+        exp_neg_poly8(self.exponent(&add8(wi, wo)))
+    }
+
+    /// `WardLobe::eval`, given `e` = `gaussian(wo, wi)`.
+    #[inline(always)]
+    pub fn eval(&self, wo: &V8, wi: &V8, e: f32x8) -> f32x8 {
         let splat = f32x8::splat;
         let h = add8(wi, wo);
-        let e = lanewise(self.exponent(&h), mask, exp_neg);
         let (ax, ay) = (self.alpha_x, self.alpha_y);
         let ward1992 = e / (splat(4.0 * PI) * ax * ay * (wi[2] * wo[2]).sqrt());
         let hz2 = h[2] * h[2];
@@ -53,16 +59,15 @@ impl Lobes8 {
         self.balanced.blend(balanced, ward1992)
     }
 
-    /// `WardLobe::pdf`.
+    /// `WardLobe::pdf`, given `e` = `gaussian(wo, wi)`.
     #[inline(always)]
-    pub fn pdf(&self, wo: &V8, wi: &V8, mask: u32) -> f32x8 {
+    pub fn pdf(&self, wo: &V8, wi: &V8, e: f32x8) -> f32x8 {
         let splat = f32x8::splat;
         let s = add8(wi, wo);
         // glam's `normalize`: times 1 / length.
         let inv = f32x8::ONE / dot8(&s, &s).sqrt();
         let h = s.map(|c| c * inv);
         let cos_d = h[2];
-        let e = lanewise(self.exponent(&h), mask, exp_neg);
         e / (splat(PI)
             * self.alpha_x
             * self.alpha_y
@@ -218,7 +223,8 @@ mod tests {
                     .cmp_gt(f32x8::ZERO),
             };
             let (wo8, wi8) = (v8(&wo), v8(&wi));
-            let (e, p) = (l8.eval(&wo8, &wi8, 0xff), l8.pdf(&wo8, &wi8, 0xff));
+            let g = l8.gaussian(&wo8, &wi8);
+            let (e, p) = (l8.eval(&wo8, &wi8, g), l8.pdf(&wo8, &wi8, g));
             let (ws, ok) = l8.sample(&wo8, x8(&|j| u[j].x), x8(&|j| u[j].y), 0xff);
             let bsdfs: [Bsdf; 8] = std::array::from_fn(|j| Bsdf::Ward {
                 rho_d: rho_d[j],
@@ -226,8 +232,8 @@ mod tests {
                 lobe: lobes[j],
             });
             let pd = x8(&|j| Bsdf::diffuse_prob(rho_d[j], rho_s[j]));
-            let f8 = Bsdf::ward_eval8(&v8(&rho_d), &v8(&rho_s), &l8, &wo8, &wi8, 0xff);
-            let p8 = Bsdf::ward_pdf8(pd, &l8, &wo8, &wi8, 0xff);
+            let f8 = Bsdf::ward_eval8(&v8(&rho_d), &v8(&rho_s), &l8, &wo8, &wi8, g);
+            let p8 = Bsdf::ward_pdf8(pd, &l8, &wo8, &wi8, g);
             for j in 0..8 {
                 let l = &lobes[j];
                 assert_eq!(bits(e)[j], l.eval(wo[j], wi[j]).to_bits(), "{l:?}");
