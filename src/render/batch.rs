@@ -1,21 +1,23 @@
 //! The path tracer of `integrator.rs`, eight paths at a time: the shading arithmetic of the
-//! path loop — next-event estimation and BSDF sampling at Lambert and Ward surfaces — runs on
-//! eight lanes of one SIMD register (AVX), as a wavefront renderer does (Laine, Karras & Aila 2013,
-//! "Megakernels considered harmful: wavefront path tracing on GPUs"; Mitsuba 3's `llvm`
-//! variants vectorise their whole path loop the same way). Ray traversal stays one ray at a
-//! time, but for camera rays: `render_pixels` traces them ahead, eight samples of a pixel as
-//! one packet (`geometry::packet`), which walk the same nodes. Rays of different paths rarely
-//! share nodes, so their packets are slower (bench/README.md, "Design measurements").
+//! path loop — next-event estimation and BSDF sampling at Lambert and Ward surfaces, and the
+//! reflection at ideal mirrors — runs on eight lanes of one SIMD register (AVX), as a
+//! wavefront renderer does (Laine, Karras & Aila 2013, "Megakernels considered harmful:
+//! wavefront path tracing on GPUs"; Mitsuba 3's `llvm` variants vectorise their whole path
+//! loop the same way). Ray traversal stays one ray at a time, but for camera rays:
+//! `render_pixels` traces them ahead, eight samples of a pixel as one packet
+//! (`geometry::packet`), which walk the same nodes. Rays of different paths rarely share
+//! nodes, so their packets are slower (bench/README.md, "Design measurements").
 //!
 //! Each lane runs the scalar integrator's state machine (`PathTracer::arrive`, `vertex`, then
-//! `scatter` or its eight-lane copy here for Lambert and Ward surfaces) and draws its random
-//! numbers from its own pixel's sampler in the same order, and the eight-lane arithmetic
-//! repeats the scalar one operation for operation (Rust never fuses a·b + c; the Ward lobe's
-//! exp, ln and sin/cos are the scalar functions, called lane by lane: `bsdf::Lobes8`). So every
-//! sample — and every pixel, whose samples are summed in sample order — is the scalar
-//! integrator's to the bit; a test holds the two to that. A flat-shaded Lambert triangle goes from the BVH's hit straight
-//! into the eight-lane arrays (`flat_lambert`), without the hit record and `Vertex` of the
-//! general route, which saves instructions.
+//! `scatter` or its eight-lane copy here for Lambert, Ward and mirror surfaces) and draws its
+//! random numbers from its own pixel's sampler in the same order, and the eight-lane
+//! arithmetic repeats the scalar one operation for operation (Rust never fuses a·b + c; the
+//! Ward lobe's exp is one polynomial written for f32 and f32x8, its ln and sin/cos are the
+//! scalar functions called lane by lane: `bsdf::Lobes8`). So every sample — and every pixel,
+//! whose samples are summed in sample order — is the scalar integrator's to the bit; a test
+//! holds the two to that. A flat-shaded Lambert or Ward triangle goes from the BVH's hit
+//! straight into the eight-lane arrays (`flat_lambert`, `flat_ward`), without the hit record
+//! and `Vertex` of the general route, which saves instructions.
 //!
 //! Lanes that finish a path take the next job at once, so the eight lanes stay busy until the
 //! jobs run out. Two callers: `render_pixels` (a film's pixels, job = one (pixel, sample)) and
@@ -28,7 +30,7 @@
 //! its path goes on, and its seven random numbers come with one branch (`Sampler::next_n`).
 //! All the lanes' rays are traced before any of them arrives (lane by lane is slower).
 
-use super::bsdf::{Bsdf, Lobes8, WardLobe};
+use super::bsdf::{mirror, Bsdf, Lobes8, WardLobe};
 use super::integrator::{facing, PathState, PathTracer};
 use super::lights::Lights;
 use crate::geometry::packet::LANES;
@@ -109,6 +111,7 @@ pub fn trace_jobs(
         known = 0;
         gathered.n = 0;
         gathered.ward = 0;
+        gathered.mirror = 0;
         let mut mask = live;
         while mask != 0 {
             let i = mask.trailing_zeros() as usize;
@@ -137,6 +140,16 @@ pub fn trace_jobs(
                                     let j = gathered.n;
                                     gathered.push(i, pt, v.p, v.ng, &v.frame, rho_d, lane);
                                     gathered.push_ward(j, v.wo, rho_d, rho_s, lobe);
+                                    true
+                                }
+                                Bsdf::DiffuseMirror { rho_d, rho_s }
+                                    if gathers_mirror(pt, rho_d, rho_s, v.wo.z) =>
+                                {
+                                    // `Bsdf::sample`'s weight for the mirror (`pd` is 0).
+                                    let pd = Bsdf::diffuse_prob(rho_d, rho_s);
+                                    let (j, weight) = (gathered.n, rho_s / (1.0 - pd));
+                                    gathered.push(i, pt, v.p, v.ng, &v.frame, weight, lane);
+                                    gathered.push_mirror(j, mirror::reflect_local(v.wo));
                                     true
                                 }
                                 _ => pt.scatter(&mut lane.st, &v, &mut lane.sampler),
@@ -238,6 +251,19 @@ fn gathers_ward(pt: &PathTracer, wo_z: f32) -> bool {
     wo_z > 0.0 && !pt.lights.is_empty() && pt.lights.area_only()
 }
 
+/// Whether an ideal-mirror vertex (ρd zero, so no light sampling, and the mirror always
+/// chosen: `diffuse_prob` 0) seen at `wo_z` goes to the eight lanes
+/// (`SmoothLanes::push_mirror`): seen from above, in a scene with lights (the lanes read a
+/// light's row), all of them area lights.
+#[inline(always)]
+fn gathers_mirror(pt: &PathTracer, rho_d: Rgb, rho_s: Rgb, wo_z: f32) -> bool {
+    !(rho_d.max_element() > 0.0)
+        && Bsdf::diffuse_prob(rho_d, rho_s) == 0.0
+        && wo_z > 0.0
+        && !pt.lights.is_empty()
+        && pt.lights.area_only()
+}
+
 /// The next camera packet's paths: eight samples of a pixel, their rays traced together.
 struct CameraPacket {
     n: usize,
@@ -336,9 +362,9 @@ pub fn render_pixels(
     }
 }
 
-/// Eight lanes of Lambert and Ward vertices: what `PathTracer::scatter` reads for each (a Ward
-/// vertex's lobe in `ward_rows`), and the seven random numbers it would draw (light: 3, BSDF:
-/// 3, roulette: 1). A lane's values are one row
+/// Eight lanes of Lambert, Ward and ideal-mirror vertices: what `PathTracer::scatter` reads for
+/// each (a Ward vertex's lobe, a mirror's direction in `ward_rows`), and the seven random
+/// numbers it would draw (light: 3, BSDF: 3, roulette: 1). A lane's values are one row
 /// (`row::*` gives the layout), written with a few wide copies and turned into eight-lane
 /// registers by 8×8 transposes in `scatter`, because scattering them straight into
 /// structure-of-arrays form takes a store per float.
@@ -353,6 +379,9 @@ struct SmoothLanes {
     /// Bit j: lane j (of the `n`) is a Ward vertex, whose lobe is in `ward_rows[j]` (its ρd
     /// in `rows[j]`). Only read when some bit is set.
     ward: u32,
+    /// Bit j: lane j is an ideal mirror's vertex: no light sampling, the reflected direction
+    /// in `ward_rows[j]`'s ωo slot, the weight in `rows[j]`'s reflectance.
+    mirror: u32,
     ward_rows: [WardRow; LANES],
 }
 
@@ -370,7 +399,7 @@ mod ward_row {
     pub const BALANCED: usize = 5;
     /// `Bsdf::diffuse_prob`.
     pub const PD: usize = 6;
-    /// ωo in the shading frame.
+    /// ωo in the shading frame (a mirror's: the reflected direction).
     pub const WO: usize = 7;
 }
 
@@ -493,6 +522,14 @@ impl SmoothLanes {
         ]);
     }
 
+    /// Makes lane `j`, just pushed with the mirror's sampling weight as its reflectance, an
+    /// ideal mirror reflecting to `wi` (in the shading frame).
+    fn push_mirror(&mut self, j: usize, wi: Vec3) {
+        self.mirror |= 1 << j;
+        let r = &mut self.ward_rows[j].0;
+        r[ward_row::WO..ward_row::WO + 3].copy_from_slice(&wi.to_array());
+    }
+
     /// Makes lane `j`, just pushed with reflectance `rho_d`, the Ward BSDF (ρd, ρs, `lobe`)
     /// seen from `wo` (in the shading frame, above the surface).
     fn push_ward(&mut self, j: usize, wo: Vec3, rho_d: Rgb, rho_s: Rgb, lobe: WardLobe) {
@@ -528,10 +565,12 @@ impl SmoothLanes {
         let rho = vec(&x, row::RHO);
         let mut beta = vec(&x, row::BETA);
         let mut l = vec(&x, row::L);
-        // The Ward vertices' lobes: ρs, the lobe, `Bsdf::diffuse_prob`, ωo (local).
-        let wardm = lanes_of(self.ward);
-        let ward = (self.ward != 0).then(|| {
-            let y: [f32x8; 16] = transpose(std::array::from_fn(|j| &self.ward_rows[j].0));
+        // The Ward vertices' lobes: ρs, the lobe, `Bsdf::diffuse_prob`, ωo (local); the
+        // mirrors' directions.
+        let (wardm, mirrorm) = (lanes_of(self.ward), lanes_of(self.mirror));
+        let y: Option<[f32x8; 16]> = ((self.ward | self.mirror) != 0)
+            .then(|| transpose(std::array::from_fn(|j| &self.ward_rows[j].0)));
+        let ward = y.filter(|_| self.ward != 0).map(|y| {
             let lobes = Lobes8 {
                 alpha_x: y[ward_row::ALPHA_X],
                 alpha_y: y[ward_row::ALPHA_Y],
@@ -557,7 +596,7 @@ impl SmoothLanes {
         let light_pdf = light[Lights::PDF_AREA] * dist2 / cos_l;
         let wi_local = [dot(&wi, &fr[0]), dot(&wi, &fr[1]), dot(&wi, &fr[2])];
         let cos_g = dot(&ng, &wi);
-        let lit = live & light_ok & wi_local[2].cmp_gt(zero) & cos_g.cmp_gt(zero);
+        let lit = live & !mirrorm & light_ok & wi_local[2].cmp_gt(zero) & cos_g.cmp_gt(zero);
         let mut f = rho.map(|c| c * splat(INV_PI));
         // The Ward lobes' exp(−E), for their value here and their density below.
         let mut gauss = zero;
@@ -646,6 +685,14 @@ impl SmoothLanes {
             bsdf_pdf = wardm.blend(pdf, bsdf_pdf);
             ok &= pdf.cmp_gt(zero) | !wardm;
         }
+        if let Some(y) = y.filter(|_| self.mirror != 0) {
+            // `Bsdf::sample` (the mirror): always a direction, its weight already in `rho`.
+            let reflected = vec(&y, ward_row::WO);
+            for k in 0..3 {
+                wi[k] = mirrorm.blend(reflected[k], wi[k]);
+            }
+            ok |= mirrorm;
+        }
         let wi_world: [f32x8; 3] =
             std::array::from_fn(|k| fr[0][k] * wi[0] + fr[1][k] * wi[1] + fr[2][k] * wi[2]);
         let mut go = live & ok & !dot(&ng, &wi_world).cmp_le(zero);
@@ -678,7 +725,7 @@ impl SmoothLanes {
             let lane = &mut lanes[self.lane[j]];
             lane.st.l = Vec3::new(l[0][j], l[1][j], l[2][j]);
             lane.st.beta = Vec3::new(beta[0][j], beta[1][j], beta[2][j]);
-            lane.st.prev_pdf = Some(bsdf_pdf[j]);
+            lane.st.prev_pdf = (self.mirror >> j & 1 == 0).then_some(bsdf_pdf[j]);
             lane.st.ray = Ray::new(
                 Vec3::new(next_o[0][j], next_o[1][j], next_o[2][j]),
                 Vec3::new(next_d[0][j], next_d[1][j], next_d[2][j]),
