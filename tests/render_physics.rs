@@ -289,8 +289,8 @@ fn quarter(name: &str, variant: &str) -> (String, std::path::PathBuf) {
 
 #[test]
 fn eight_path_batches_give_the_one_path_integrators_pixels_to_the_bit() {
-    // `film::render` traces eight paths at a time (`render::batch`), with Lambert vertices on
-    // SIMD lanes; `film::render_pixel` traces one path at a time. Every material kind (Lambert,
+    // `film::render` traces eight paths at a time (`render::batch`), with Lambert, Ward and
+    // ideal-mirror vertices on SIMD lanes; `film::render_pixel` traces one path at a time. Every material kind (Lambert,
     // mirror, Lambert + mirror, isotropic and anisotropic Ward, a texture) and both Ward
     // normalisations, on the bundled scenes at a quarter of their resolution: the same pixels.
     let dir = tempfile::tempdir().unwrap();

@@ -1,20 +1,23 @@
 //! The path tracer of `integrator.rs`, eight paths at a time: the shading arithmetic of the
-//! path loop — next-event estimation and cosine sampling at diffuse surfaces — runs on eight
-//! lanes of one SIMD register (AVX), as a wavefront renderer does (Laine, Karras & Aila 2013,
-//! "Megakernels considered harmful: wavefront path tracing on GPUs"; Mitsuba 3's `llvm`
-//! variants vectorise their whole path loop the same way). Ray traversal stays one ray at a
-//! time, but for camera rays: `render_pixels` traces them ahead, eight samples of a pixel as
-//! one packet (`geometry::packet`), which walk the same nodes. Rays of different paths rarely
-//! share nodes, so their packets are slower (bench/README.md, "Design measurements").
+//! path loop — next-event estimation and BSDF sampling at Lambert and Ward surfaces, and the
+//! reflection at ideal mirrors — runs on eight lanes of one SIMD register (AVX), as a
+//! wavefront renderer does (Laine, Karras & Aila 2013, "Megakernels considered harmful:
+//! wavefront path tracing on GPUs"; Mitsuba 3's `llvm` variants vectorise their whole path
+//! loop the same way). Ray traversal stays one ray at a time, but for camera rays:
+//! `render_pixels` traces them ahead, eight samples of a pixel as one packet
+//! (`geometry::packet`), which walk the same nodes. Rays of different paths rarely share
+//! nodes, so their packets are slower (bench/README.md, "Design measurements").
 //!
 //! Each lane runs the scalar integrator's state machine (`PathTracer::arrive`, `vertex`, then
-//! `scatter` or its eight-lane copy here for Lambert surfaces) and draws its random numbers
-//! from its own pixel's sampler in the same order, and the eight-lane arithmetic repeats the
-//! scalar one operation for operation (Rust never fuses a·b + c). So every sample — and every
-//! pixel, whose samples are summed in sample order — is the scalar integrator's to the bit; a
-//! test holds the two to that. A flat-shaded Lambert triangle goes from the BVH's hit straight
-//! into the eight-lane arrays (`flat_lambert`), without the hit record and `Vertex` of the
-//! general route, which saves instructions.
+//! `scatter` or its eight-lane copy here for Lambert, Ward and mirror surfaces) and draws its
+//! random numbers from its own pixel's sampler in the same order, and the eight-lane
+//! arithmetic repeats the scalar one operation for operation (Rust never fuses a·b + c; the
+//! Ward lobe's exp is one polynomial written for f32 and f32x8, its ln and sin/cos are the
+//! scalar functions called lane by lane: `bsdf::Lobes8`). So every sample — and every pixel,
+//! whose samples are summed in sample order — is the scalar integrator's to the bit; a test
+//! holds the two to that. A flat-shaded Lambert or Ward triangle goes from the BVH's hit
+//! straight into the eight-lane arrays (`flat_lambert`, `flat_ward`), without the hit record
+//! and `Vertex` of the general route, which saves instructions.
 //!
 //! Lanes that finish a path take the next job at once, so the eight lanes stay busy until the
 //! jobs run out. Two callers: `render_pixels` (a film's pixels, job = one (pixel, sample)) and
@@ -27,13 +30,13 @@
 //! its path goes on, and its seven random numbers come with one branch (`Sampler::next_n`).
 //! All the lanes' rays are traced before any of them arrives (lane by lane is slower).
 
-use super::bsdf::Bsdf;
+use super::bsdf::{mirror, Bsdf, Lobes8, WardLobe};
 use super::integrator::{facing, PathState, PathTracer};
 use super::lights::Lights;
 use crate::geometry::packet::LANES;
 use crate::geometry::{Hit, Ray};
 use crate::math::{warp, Frame, Rgb, Sampler, Vec2, Vec3, INV_PI, PI};
-use crate::scene::{Camera, Material, Object};
+use crate::scene::{Camera, Material, Object, WardVariant};
 use wide::{f32x8, CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
 /// A path to trace: its state before its next segment (`st.ray`), that segment's hit if the
@@ -77,8 +80,8 @@ pub fn trace_jobs(
     let mut known = 0u32;
     let mut count = 0usize;
     let mut exhausted = false;
-    // Lanes past `diffuse.n` hold stale values; every use of them is masked.
-    let mut diffuse = DiffuseLanes::default();
+    // Lanes past `gathered.n` hold stale values; every use of them is masked.
+    let mut gathered = SmoothLanes::default();
     loop {
         let mut free = !live & ((1 << LANES) - 1);
         while free != 0 && !exhausted {
@@ -96,8 +99,8 @@ pub fn trace_jobs(
         if live == 0 {
             break;
         }
-        // Each lane's ray is traced and arrives; Lambert vertices gather into `diffuse`, the
-        // rest scatter alone.
+        // Each lane's ray is traced and arrives; Lambert and Ward vertices gather into
+        // `gathered`, the rest scatter alone.
         let mut mask = live & !known;
         while mask != 0 {
             let lane = &mut lanes[mask.trailing_zeros() as usize];
@@ -106,7 +109,9 @@ pub fn trace_jobs(
                 .intersect_hit_into(&lane.st.ray, f32::INFINITY, &mut lane.hit);
         }
         known = 0;
-        diffuse.n = 0;
+        gathered.n = 0;
+        gathered.ward = 0;
+        gathered.mirror = 0;
         let mut mask = live;
         while mask != 0 {
             let i = mask.trailing_zeros() as usize;
@@ -116,14 +121,35 @@ pub fn trace_jobs(
                 (Some(obj), Some(hit)) => {
                     if let Some((ng, frame, rho_d)) = flat_lambert(pt, obj, hit, lane.st.ray.d) {
                         let p = pt.scene.hit_point(hit);
-                        diffuse.push(i, pt, p, ng, &frame, rho_d, lane);
+                        gathered.push(i, pt, p, ng, &frame, rho_d, lane);
+                        true
+                    } else if let Some(w) = flat_ward(pt, obj, hit, lane.st.ray.d) {
+                        let (p, j) = (pt.scene.hit_point(hit), gathered.n);
+                        gathered.push(i, pt, p, w.ng, &w.frame, w.rho_d, lane);
+                        gathered.push_ward(j, w.wo, w.rho_d, w.rho_s, w.lobe);
                         true
                     } else {
                         match pt.vertex(&lane.st, hit, obj) {
                             None => false,
                             Some(v) => match v.bsdf {
                                 Bsdf::Diffuse { rho_d } if gathers(pt, rho_d, v.wo.z) => {
-                                    diffuse.push(i, pt, v.p, v.ng, &v.frame, rho_d, lane);
+                                    gathered.push(i, pt, v.p, v.ng, &v.frame, rho_d, lane);
+                                    true
+                                }
+                                Bsdf::Ward { rho_d, rho_s, lobe } if gathers_ward(pt, v.wo.z) => {
+                                    let j = gathered.n;
+                                    gathered.push(i, pt, v.p, v.ng, &v.frame, rho_d, lane);
+                                    gathered.push_ward(j, v.wo, rho_d, rho_s, lobe);
+                                    true
+                                }
+                                Bsdf::DiffuseMirror { rho_d, rho_s }
+                                    if gathers_mirror(pt, rho_d, rho_s, v.wo.z) =>
+                                {
+                                    // `Bsdf::sample`'s weight for the mirror (`pd` is 0).
+                                    let pd = Bsdf::diffuse_prob(rho_d, rho_s);
+                                    let (j, weight) = (gathered.n, rho_s / (1.0 - pd));
+                                    gathered.push(i, pt, v.p, v.ng, &v.frame, weight, lane);
+                                    gathered.push_mirror(j, mirror::reflect_local(v.wo));
                                     true
                                 }
                                 _ => pt.scatter(&mut lane.st, &v, &mut lane.sampler),
@@ -138,7 +164,7 @@ pub fn trace_jobs(
                 done(item[i], lane.st.l);
             }
         }
-        diffuse.scatter(pt, &mut lanes, |i, l| {
+        gathered.scatter(pt, &mut lanes, |i, l| {
             live &= !(1 << i);
             done(item[i], l);
         });
@@ -162,13 +188,80 @@ fn flat_lambert(pt: &PathTracer, obj: &Object, hit: &Hit, d: Vec3) -> Option<(Ve
     gathers(pt, rho_d, wo.dot(frame.n)).then_some((ng, frame, rho_d))
 }
 
+/// A Ward vertex straight from the BVH's hit, as `flat_lambert` is: the geometric normal and
+/// the shading frame (rotated by the material's θ) turned to the arriving side, ωo in that
+/// frame and the BSDF's parameters, the same as the general route gives to the bit. Only for
+/// flat-shaded triangles under a Ward material (not a textured one's varnish, whose ρd needs
+/// the hit record's UV) seen from the frame's side, in a scene with lights; otherwise None.
+#[inline(always)]
+fn flat_ward(pt: &PathTracer, obj: &Object, hit: &Hit, d: Vec3) -> Option<FlatWard> {
+    let Material::Ward {
+        rho_d,
+        rho_s,
+        alpha_x,
+        alpha_y,
+        theta,
+    } = obj.material
+    else {
+        return None;
+    };
+    let face = &pt.scene.geometry.faces[hit.prim as usize];
+    let wo = -d;
+    // `bsdf_at`'s frame, then `PathTracer::vertex`'s turn and ωo.
+    let (frame, ng) = facing(face.frame?.rotated(theta), face.ng, wo);
+    let wo = frame.to_local(wo);
+    let lobe = WardLobe {
+        alpha_x,
+        alpha_y,
+        variant: pt.scene.render.ward_variant,
+    };
+    gathers_ward(pt, wo.z).then_some(FlatWard {
+        ng,
+        frame,
+        wo,
+        rho_d,
+        rho_s,
+        lobe,
+    })
+}
+
+/// What `flat_ward` gives.
+struct FlatWard {
+    ng: Vec3,
+    frame: Frame,
+    wo: Vec3,
+    rho_d: Rgb,
+    rho_s: Rgb,
+    lobe: WardLobe,
+}
+
 /// Whether a Lambert vertex of reflectance `rho_d`, seen at `wo_z` (the outgoing direction's
-/// cosine in the shading frame), goes to the eight-lane `DiffuseLanes`: some reflectance, seen
+/// cosine in the shading frame), goes to the eight-lane `SmoothLanes`: some reflectance, seen
 /// from above, in a scene with lights, all of them area lights (the lanes sample triangles).
 /// Otherwise `PathTracer::scatter` handles it alone.
 #[inline(always)]
 fn gathers(pt: &PathTracer, rho_d: Rgb, wo_z: f32) -> bool {
     rho_d.max_element() > 0.0 && wo_z > 0.0 && !pt.lights.is_empty() && pt.lights.area_only()
+}
+
+/// Whether a Ward vertex seen at `wo_z` goes to the eight lanes (`SmoothLanes::push_ward`):
+/// seen from above, in a scene with lights, all of them area lights.
+#[inline(always)]
+fn gathers_ward(pt: &PathTracer, wo_z: f32) -> bool {
+    wo_z > 0.0 && !pt.lights.is_empty() && pt.lights.area_only()
+}
+
+/// Whether an ideal-mirror vertex (ρd zero, so no light sampling, and the mirror always
+/// chosen: `diffuse_prob` 0) seen at `wo_z` goes to the eight lanes
+/// (`SmoothLanes::push_mirror`): seen from above, in a scene with lights (the lanes read a
+/// light's row), all of them area lights.
+#[inline(always)]
+fn gathers_mirror(pt: &PathTracer, rho_d: Rgb, rho_s: Rgb, wo_z: f32) -> bool {
+    !(rho_d.max_element() > 0.0)
+        && Bsdf::diffuse_prob(rho_d, rho_s) == 0.0
+        && wo_z > 0.0
+        && !pt.lights.is_empty()
+        && pt.lights.area_only()
 }
 
 /// The next camera packet's paths: eight samples of a pixel, their rays traced together.
@@ -269,22 +362,48 @@ pub fn render_pixels(
     }
 }
 
-/// Eight lanes of Lambert vertices: what `PathTracer::scatter` reads for each, and the seven
-/// random numbers it would draw (light: 3, BSDF: 3, roulette: 1). A lane's values are one row
+/// Eight lanes of Lambert, Ward and ideal-mirror vertices: what `PathTracer::scatter` reads for
+/// each (a Ward vertex's lobe, a mirror's direction in `ward_rows`), and the seven random
+/// numbers it would draw (light: 3, BSDF: 3, roulette: 1). A lane's values are one row
 /// (`row::*` gives the layout), written with a few wide copies and turned into eight-lane
 /// registers by 8×8 transposes in `scatter`, because scattering them straight into
 /// structure-of-arrays form takes a store per float.
 #[derive(Default)]
-struct DiffuseLanes {
+struct SmoothLanes {
     n: usize,
     lane: [usize; LANES],
     rows: [Row; LANES],
     /// The chosen light triangle (`Lights::row`). Lanes past `n` keep an earlier one, or 0:
     /// `scatter` reads their rows too, which exist as `n` > 0 means the scene has lights.
     light: [usize; LANES],
+    /// Bit j: lane j (of the `n`) is a Ward vertex, whose lobe is in `ward_rows[j]` (its ρd
+    /// in `rows[j]`). Only read when some bit is set.
+    ward: u32,
+    /// Bit j: lane j is an ideal mirror's vertex: no light sampling, the reflected direction
+    /// in `ward_rows[j]`'s ωo slot, the weight in `rows[j]`'s reflectance.
+    mirror: u32,
+    ward_rows: [WardRow; LANES],
 }
 
-/// One lane of `DiffuseLanes`: four groups of eight floats.
+/// What a Ward vertex adds to its lane's `Row` (`ward_row::*` gives the layout).
+#[derive(Clone, Copy, Default)]
+#[repr(align(32))]
+struct WardRow([f32; 16]);
+
+/// Where each value sits in a `WardRow`.
+mod ward_row {
+    pub const RHO_S: usize = 0;
+    pub const ALPHA_X: usize = 3;
+    pub const ALPHA_Y: usize = 4;
+    /// 1 for `WardVariant::Balanced`, 0 for `Ward1992`.
+    pub const BALANCED: usize = 5;
+    /// `Bsdf::diffuse_prob`.
+    pub const PD: usize = 6;
+    /// ωo in the shading frame (a mirror's: the reflected direction).
+    pub const WO: usize = 7;
+}
+
+/// One lane of `SmoothLanes`: four groups of eight floats.
 #[derive(Clone, Copy, Default)]
 #[repr(align(32))]
 struct Row([f32; 32]);
@@ -306,6 +425,8 @@ mod row {
     /// (`f32::from(u8::from(..))` of the comparison compiled to a branch, mispredicted a
     /// quarter of the time; the comparison's `u32` made a float compiles to `setae`.)
     pub const ROULETTE: usize = 29;
+    /// The BSDF's lobe choice (Ward vertices only).
+    pub const U_CHOICE: usize = 30;
 }
 
 /// Rows of eight lanes as eight-lane registers: element k of the result is value k of every
@@ -334,6 +455,19 @@ fn dot(a: &[f32x8; 3], b: &[f32x8; 3]) -> f32x8 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+/// The lanes whose bit is set in `bits`, as a mask.
+#[inline(always)]
+fn lanes_of(bits: u32) -> f32x8 {
+    let one_if = |j: usize| if bits >> j & 1 != 0 { 1.0 } else { 0.0 };
+    f32x8::from(std::array::from_fn::<f32, LANES, _>(one_if)).cmp_gt(f32x8::ZERO)
+}
+
+/// glam's `max_element`: max(x, max(y, z)) with max(a, b) = a > b ? a : b.
+fn max_element(a: &[f32x8; 3]) -> f32x8 {
+    let max = |a: f32x8, b: f32x8| a.cmp_gt(b).blend(a, b);
+    max(a[0], max(a[1], a[2]))
+}
+
 /// max(|x|, |y|, |z|), as glam's `abs().max_element()` for finite values.
 fn abs_max(a: &[f32x8; 3]) -> f32x8 {
     a[0].abs().max(a[1].abs().max(a[2].abs()))
@@ -346,7 +480,7 @@ fn offset_origin(p: &[f32x8; 3], ng: &[f32x8; 3], dir: &[f32x8; 3]) -> [f32x8; 3
     std::array::from_fn(|k| up.blend(p[k] + ng[k] * eps, p[k] - ng[k] * eps))
 }
 
-impl DiffuseLanes {
+impl SmoothLanes {
     /// Adds lane `i` at vertex `v` (a Lambert surface of reflectance `rho`, seen from above,
     /// in a scene with lights), drawing its random numbers.
     #[allow(clippy::too_many_arguments)]
@@ -365,7 +499,7 @@ impl DiffuseLanes {
         self.lane[j] = i;
         // `Lights::sample`: the triangle, then the point on it; `Bsdf::sample` (Diffuse): the
         // lobe choice (unused), then the direction; roulette.
-        let [uc, l0, l1, _, b0, b1, u_rr] = lane.sampler.next_n::<7>();
+        let [uc, l0, l1, u_choice, b0, b1, u_rr] = lane.sampler.next_n::<7>();
         let roulette = u32::from(lane.st.segments >= pt.rr_depth);
         self.light[j] = pt.lights.pick_index(uc);
         let r = &mut self.rows[j];
@@ -377,14 +511,36 @@ impl DiffuseLanes {
         put(r, row::RHO, rho);
         put(r, row::BETA, lane.st.beta);
         put(r, row::L, lane.st.l);
-        r.0[row::U_LIGHT..row::ROULETTE + 1].copy_from_slice(&[
+        r.0[row::U_LIGHT..row::U_CHOICE + 1].copy_from_slice(&[
             l0,
             l1,
             b0,
             b1,
             u_rr,
             roulette as f32,
+            u_choice,
         ]);
+    }
+
+    /// Makes lane `j`, just pushed with the mirror's sampling weight as its reflectance, an
+    /// ideal mirror reflecting to `wi` (in the shading frame).
+    fn push_mirror(&mut self, j: usize, wi: Vec3) {
+        self.mirror |= 1 << j;
+        let r = &mut self.ward_rows[j].0;
+        r[ward_row::WO..ward_row::WO + 3].copy_from_slice(&wi.to_array());
+    }
+
+    /// Makes lane `j`, just pushed with reflectance `rho_d`, the Ward BSDF (ρd, ρs, `lobe`)
+    /// seen from `wo` (in the shading frame, above the surface).
+    fn push_ward(&mut self, j: usize, wo: Vec3, rho_d: Rgb, rho_s: Rgb, lobe: WardLobe) {
+        self.ward |= 1 << j;
+        let r = &mut self.ward_rows[j].0;
+        r[ward_row::RHO_S..ward_row::RHO_S + 3].copy_from_slice(&rho_s.to_array());
+        r[ward_row::ALPHA_X] = lobe.alpha_x;
+        r[ward_row::ALPHA_Y] = lobe.alpha_y;
+        r[ward_row::BALANCED] = f32::from(u8::from(lobe.variant == WardVariant::Balanced));
+        r[ward_row::PD] = Bsdf::diffuse_prob(rho_d, rho_s);
+        r[ward_row::WO..ward_row::WO + 3].copy_from_slice(&wo.to_array());
     }
 
     /// `PathTracer::scatter` for the gathered lanes: each lane's path continues with its next
@@ -400,14 +556,7 @@ impl DiffuseLanes {
         }
         let splat = f32x8::splat;
         let (zero, one) = (f32x8::ZERO, f32x8::ONE);
-        let live = f32x8::from(std::array::from_fn::<f32, LANES, _>(|j| {
-            if j < self.n {
-                1.0
-            } else {
-                0.0
-            }
-        }))
-        .cmp_gt(zero);
+        let live = lanes_of((1 << self.n) - 1);
         let x: [f32x8; 32] = transpose(std::array::from_fn(|j| &self.rows[j].0));
         let light: [f32x8; 16] = transpose(std::array::from_fn(|j| pt.lights.row(self.light[j])));
         let p = vec(&x, row::P);
@@ -416,6 +565,20 @@ impl DiffuseLanes {
         let rho = vec(&x, row::RHO);
         let mut beta = vec(&x, row::BETA);
         let mut l = vec(&x, row::L);
+        // The Ward vertices' lobes: ρs, the lobe, `Bsdf::diffuse_prob`, ωo (local); the
+        // mirrors' directions.
+        let (wardm, mirrorm) = (lanes_of(self.ward), lanes_of(self.mirror));
+        let y: Option<[f32x8; 16]> = ((self.ward | self.mirror) != 0)
+            .then(|| transpose(std::array::from_fn(|j| &self.ward_rows[j].0)));
+        let ward = y.filter(|_| self.ward != 0).map(|y| {
+            let lobes = Lobes8 {
+                alpha_x: y[ward_row::ALPHA_X],
+                alpha_y: y[ward_row::ALPHA_Y],
+                balanced: y[ward_row::BALANCED].cmp_gt(zero),
+            };
+            let wo = vec(&y, ward_row::WO);
+            (vec(&y, ward_row::RHO_S), lobes, y[ward_row::PD], wo)
+        });
 
         // Next-event estimation (`Lights::sample`, then `scatter`'s checks).
         let su = x[row::U_LIGHT].sqrt();
@@ -433,10 +596,18 @@ impl DiffuseLanes {
         let light_pdf = light[Lights::PDF_AREA] * dist2 / cos_l;
         let wi_local = [dot(&wi, &fr[0]), dot(&wi, &fr[1]), dot(&wi, &fr[2])];
         let cos_g = dot(&ng, &wi);
-        let f = rho.map(|c| c * splat(INV_PI));
-        let f_max = f[0].max(f[1].max(f[2]));
-        let mut nee =
-            live & light_ok & wi_local[2].cmp_gt(zero) & cos_g.cmp_gt(zero) & f_max.cmp_gt(zero);
+        let lit = live & !mirrorm & light_ok & wi_local[2].cmp_gt(zero) & cos_g.cmp_gt(zero);
+        let mut f = rho.map(|c| c * splat(INV_PI));
+        // The Ward lobes' exp(−E), for their value here and their density below.
+        let mut gauss = zero;
+        if let Some((rho_s, lobes, _, wo)) = &ward {
+            gauss = lobes.gaussian(wo, &wi_local);
+            let fw = Bsdf::ward_eval8(&rho, rho_s, lobes, wo, &wi_local, gauss);
+            for k in 0..3 {
+                f[k] = wardm.blend(fw[k], f[k]);
+            }
+        }
+        let mut nee = lit & max_element(&f).cmp_gt(zero);
         // `Lights::visible`: the shadow ray from the offset origin to the light point.
         let origin = offset_origin(&p, &ng, &wi);
         let to_light: [f32x8; 3] = std::array::from_fn(|k| q[k] - origin[k]);
@@ -466,8 +637,12 @@ impl DiffuseLanes {
             }
         }
         let nee = nee & f32x8::from(visible).cmp_gt(zero);
-        // Lambert's pdf (wo is above the surface) and the power heuristic.
-        let bsdf_pdf = wi_local[2].max(zero) * splat(INV_PI);
+        // Lambert's pdf (wo is above the surface) or Ward's, and the power heuristic.
+        let mut bsdf_pdf = wi_local[2].max(zero) * splat(INV_PI);
+        if let Some((_, lobes, pd, wo)) = &ward {
+            let pw = Bsdf::ward_pdf8(*pd, lobes, wo, &wi_local, gauss);
+            bsdf_pdf = wardm.blend(pw, bsdf_pdf);
+        }
         let (a, b) = (light_pdf * light_pdf, bsdf_pdf * bsdf_pdf);
         let w = (a + b).cmp_eq(zero).blend(zero, a / (a + b));
         let scale = wi_local[2] * w / light_pdf;
@@ -487,12 +662,42 @@ impl DiffuseLanes {
         let dx = centre.blend(zero, r * x_major.blend(cos, sin));
         let dy = centre.blend(zero, r * x_major.blend(sin, cos));
         let z = (one - dx * dx - dy * dy).max(zero).sqrt();
-        let bsdf_pdf = z.max(zero) * splat(INV_PI);
+        let mut wi = [dx, dy, z];
+        let mut bsdf_pdf = z.max(zero) * splat(INV_PI);
+        let mut weight = rho;
+        let mut ok = z.cmp_gt(zero);
+        if let Some((rho_s, lobes, pd, wo)) = &ward {
+            // `Bsdf::sample` (Ward): the lobe's direction where the choice is not the diffuse
+            // part, then the whole BSDF's density and f cos θi / pdf.
+            let lobe = wardm & !x[row::U_CHOICE].cmp_lt(*pd);
+            let (u0, u1) = (x[row::U_BSDF], x[row::U_BSDF + 1]);
+            let (w, _) = lobes.sample(wo, u0, u1, (live & lobe).move_mask() as u32);
+            for k in 0..3 {
+                wi[k] = lobe.blend(w[k], wi[k]);
+            }
+            ok = wi[2].cmp_gt(zero);
+            let gauss = lobes.gaussian(wo, &wi);
+            let pdf = Bsdf::ward_pdf8(*pd, lobes, wo, &wi, gauss);
+            let f = Bsdf::ward_eval8(&rho, rho_s, lobes, wo, &wi, gauss);
+            for k in 0..3 {
+                weight[k] = wardm.blend(f[k] * wi[2] / pdf, weight[k]);
+            }
+            bsdf_pdf = wardm.blend(pdf, bsdf_pdf);
+            ok &= pdf.cmp_gt(zero) | !wardm;
+        }
+        if let Some(y) = y.filter(|_| self.mirror != 0) {
+            // `Bsdf::sample` (the mirror): always a direction, its weight already in `rho`.
+            let reflected = vec(&y, ward_row::WO);
+            for k in 0..3 {
+                wi[k] = mirrorm.blend(reflected[k], wi[k]);
+            }
+            ok |= mirrorm;
+        }
         let wi_world: [f32x8; 3] =
-            std::array::from_fn(|k| fr[0][k] * dx + fr[1][k] * dy + fr[2][k] * z);
-        let mut go = live & z.cmp_gt(zero) & !dot(&ng, &wi_world).cmp_le(zero);
+            std::array::from_fn(|k| fr[0][k] * wi[0] + fr[1][k] * wi[1] + fr[2][k] * wi[2]);
+        let mut go = live & ok & !dot(&ng, &wi_world).cmp_le(zero);
         for k in 0..3 {
-            beta[k] *= rho[k];
+            beta[k] *= weight[k];
         }
         let beta_max = beta[0].max(beta[1].max(beta[2]));
         let finite = beta
@@ -520,7 +725,7 @@ impl DiffuseLanes {
             let lane = &mut lanes[self.lane[j]];
             lane.st.l = Vec3::new(l[0][j], l[1][j], l[2][j]);
             lane.st.beta = Vec3::new(beta[0][j], beta[1][j], beta[2][j]);
-            lane.st.prev_pdf = Some(bsdf_pdf[j]);
+            lane.st.prev_pdf = (self.mirror >> j & 1 == 0).then_some(bsdf_pdf[j]);
             lane.st.ray = Ray::new(
                 Vec3::new(next_o[0][j], next_o[1][j], next_o[2][j]),
                 Vec3::new(next_d[0][j], next_d[1][j], next_d[2][j]),

@@ -8,9 +8,10 @@ pub mod lambert;
 pub mod mirror;
 pub mod ward;
 
-pub use ward::WardLobe;
+pub use ward::{Lobes8, WardLobe};
 
-use crate::math::{luminance_mean, Rgb, Sampler, Vec3};
+use crate::math::{luminance_mean, Rgb, Sampler, Vec3, INV_PI};
+use wide::f32x8;
 
 #[derive(Clone, Copy, Debug)]
 pub enum Bsdf {
@@ -55,7 +56,7 @@ impl Bsdf {
 
     /// Probability of sampling the diffuse component rather than the specular one.
     #[inline]
-    fn diffuse_prob(rho_d: Rgb, rho_s: Rgb) -> f32 {
+    pub(crate) fn diffuse_prob(rho_d: Rgb, rho_s: Rgb) -> f32 {
         let (d, s) = (luminance_mean(rho_d), luminance_mean(rho_s));
         if d + s <= 0.0 {
             0.5
@@ -151,6 +152,36 @@ impl Bsdf {
             }
             Bsdf::Black => None,
         }
+    }
+
+    /// [`Bsdf::eval`] of eight `Bsdf::Ward`s, one a lane (ρd, ρs, lobe), where ωo and ωi are
+    /// above the surface, given `e` = `lobes.gaussian(wo, wi)`: the same arithmetic, so each
+    /// lane's value is the scalar one to the bit ([`Lobes8`]).
+    #[inline(always)]
+    pub(crate) fn ward_eval8(
+        rho_d: &[f32x8; 3],
+        rho_s: &[f32x8; 3],
+        lobes: &Lobes8,
+        wo: &[f32x8; 3],
+        wi: &[f32x8; 3],
+        e: f32x8,
+    ) -> [f32x8; 3] {
+        let g = lobes.eval(wo, wi, e);
+        std::array::from_fn(|k| rho_d[k] * f32x8::splat(INV_PI) + rho_s[k] * g)
+    }
+
+    /// [`Bsdf::pdf`] of eight `Bsdf::Ward`s whose diffuse probabilities (`diffuse_prob`) are
+    /// `pd`, likewise.
+    #[inline(always)]
+    pub(crate) fn ward_pdf8(
+        pd: f32x8,
+        lobes: &Lobes8,
+        wo: &[f32x8; 3],
+        wi: &[f32x8; 3],
+        e: f32x8,
+    ) -> f32x8 {
+        let lambert = wi[2].max(f32x8::ZERO) * f32x8::splat(INV_PI);
+        pd * lambert + (f32x8::ONE - pd) * lobes.pdf(wo, wi, e)
     }
 
     /// The delta lobe's reflectance, if the BSDF has one.

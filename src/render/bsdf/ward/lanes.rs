@@ -1,9 +1,108 @@
-//! Sums of the Ward lobe over many weighted direction pairs, eight at a time: what the fitter's
-//! objective needs for each trial lobe (Σ c·g and Σ c·∂g), the inner loop of a recovery.
+//! The Ward lobe eight at a time: sums over many weighted direction pairs, what the fitter's
+//! objective needs for each trial lobe (Σ c·g and Σ c·∂g), the inner loop of a recovery; and
+//! eight lobes evaluated, their density and their sampling on eight lanes ([`Lobes8`]), for the
+//! renderer's eight-lane path loop.
 
 use super::half_vector::{ward_at, HalfVector, LobeParams};
-use crate::math::{Rgb, Vec3};
-use wide::f32x8;
+use crate::math::{exp_neg_poly8, lanewise, Rgb, Vec3, PI};
+use wide::{f32x8, CmpGt};
+
+/// Eight Ward lobes, one a lane: [`super::WardLobe`]'s `eval`, `pdf` and `sample` repeated
+/// operation for operation on eight lanes (Rust never fuses a·b + c), with the same exp
+/// (`exp_neg_poly8`), and `sample`'s ln and sin/cos computed lane by lane by the scalar
+/// functions, for the lanes of its `mask` only (the others' results are unspecified). So each
+/// lane's result is the scalar one to the bit (the eight-lane path loop, `render::batch`,
+/// relies on it; a test holds them together). ωo (and for `eval` and `pdf`, ωi) must be in the
+/// upper hemisphere, where the scalar functions do their arithmetic rather than return 0.
+#[derive(Clone, Copy, Debug)]
+pub struct Lobes8 {
+    pub alpha_x: f32x8,
+    pub alpha_y: f32x8,
+    /// All ones where the lobe is `WardVariant::Balanced`, zero where it is `Ward1992`.
+    pub balanced: f32x8,
+}
+
+type V8 = [f32x8; 3];
+
+fn dot8(a: &V8, b: &V8) -> f32x8 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn add8(a: &V8, b: &V8) -> V8 {
+    std::array::from_fn(|k| a[k] + b[k])
+}
+
+impl Lobes8 {
+    /// `WardLobe::exponent`.
+    #[inline(always)]
+    fn exponent(&self, h: &V8) -> f32x8 {
+        let (a, b) = (h[0] / self.alpha_x, h[1] / self.alpha_y);
+        (a * a + b * b) / (h[2] * h[2])
+    }
+
+    /// exp(−E) for (ωo, ωi), which `eval` and `pdf` take (`WardLobe::eval` and `pdf` compute
+    /// it alike).
+    #[inline(always)]
+    pub fn gaussian(&self, wo: &V8, wi: &V8) -> f32x8 {
+        exp_neg_poly8(self.exponent(&add8(wi, wo)))
+    }
+
+    /// `WardLobe::eval`, given `e` = `gaussian(wo, wi)`.
+    #[inline(always)]
+    pub fn eval(&self, wo: &V8, wi: &V8, e: f32x8) -> f32x8 {
+        let splat = f32x8::splat;
+        let h = add8(wi, wo);
+        let (ax, ay) = (self.alpha_x, self.alpha_y);
+        let ward1992 = e / (splat(4.0 * PI) * ax * ay * (wi[2] * wo[2]).sqrt());
+        let hz2 = h[2] * h[2];
+        let balanced = e * dot8(&h, &h) / (splat(PI) * ax * ay * hz2 * hz2);
+        self.balanced.blend(balanced, ward1992)
+    }
+
+    /// `WardLobe::pdf`, given `e` = `gaussian(wo, wi)`.
+    #[inline(always)]
+    pub fn pdf(&self, wo: &V8, wi: &V8, e: f32x8) -> f32x8 {
+        let splat = f32x8::splat;
+        let s = add8(wi, wo);
+        // glam's `normalize`: times 1 / length.
+        let inv = f32x8::ONE / dot8(&s, &s).sqrt();
+        let h = s.map(|c| c * inv);
+        let cos_d = h[2];
+        e / (splat(PI)
+            * self.alpha_x
+            * self.alpha_y
+            * cos_d
+            * cos_d
+            * cos_d
+            * splat(4.0)
+            * dot8(wo, &h).abs())
+    }
+
+    /// `WardLobe::sample` from (u0, u1): ωi, and where it is above the surface (elsewhere
+    /// the scalar function returns None).
+    #[inline(always)]
+    pub fn sample(&self, wo: &V8, u0: f32x8, u1: f32x8, mask: u32) -> (V8, f32x8) {
+        let splat = f32x8::splat;
+        let one = f32x8::ONE;
+        let m = (one - u0).max(splat(f32::MIN_POSITIVE));
+        let r = (-lanewise(m, mask, f32::ln)).sqrt();
+        let (a, mut s, mut c) = ((splat(2.0 * PI) * u1).to_array(), [0.0; 8], [0.0; 8]);
+        let mut bits = mask;
+        while bits != 0 {
+            let j = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            (s[j], c[j]) = a[j].sin_cos();
+        }
+        let (s, c) = (f32x8::from(s), f32x8::from(c));
+        let v = [self.alpha_x * r * c, self.alpha_y * r * s, one];
+        let inv = one / dot8(&v, &v).sqrt();
+        let h = v.map(|x| x * inv);
+        let t = splat(2.0) * dot8(wo, &h);
+        let wi: V8 = std::array::from_fn(|k| t * h[k] - wo[k]);
+        let above = wi[2].cmp_gt(f32x8::ZERO) & wo[2].cmp_gt(f32x8::ZERO);
+        (wi, above)
+    }
+}
 
 /// A direction pair reduced to its half vector, with the weight c it is summed with (for the
 /// cache: incident radiance · cos θi · MIS weight / (pdf · N)).
@@ -78,7 +177,85 @@ pub fn lobe_sums(samples: &[LobeSample], p: &LobeParams, derivatives: bool) -> (
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::Vec2;
+    use crate::render::bsdf::{Bsdf, WardLobe};
     use crate::scene::WardVariant;
+
+    #[test]
+    fn eight_lobes_are_the_scalar_lobe_to_the_bit() {
+        // Random lobes (both normalisations, narrow to wide, isotropic and not) and random
+        // directions above the surface, grazing ones included: eval, pdf and sample of
+        // `Lobes8` against `WardLobe`, and `Bsdf::ward_eval8` / `ward_pdf8` against `Bsdf`.
+        let mut rng = crate::math::sampler::TestRng(7);
+        let up = |rng: &mut crate::math::sampler::TestRng| loop {
+            let v = Vec3::new(rng.f32() - 0.5, rng.f32() - 0.5, rng.f32().powi(3));
+            if v.z > 0.0 && v.length_squared() > 1e-6 {
+                return v.normalize();
+            }
+        };
+        let bits = |v: f32x8| v.to_array().map(f32::to_bits);
+        let (mut lobe_samples, mut above) = (0, 0);
+        for _ in 0..2000 {
+            let lobes: [WardLobe; 8] = std::array::from_fn(|_| {
+                let ax = 0.01 + rng.f32() * 0.6;
+                let iso = rng.f32() < 0.3;
+                WardLobe {
+                    alpha_x: ax,
+                    alpha_y: if iso { ax } else { 0.01 + rng.f32() * 0.6 },
+                    variant: if rng.f32() < 0.5 {
+                        WardVariant::Ward1992
+                    } else {
+                        WardVariant::Balanced
+                    },
+                }
+            });
+            let rho_d: [Rgb; 8] = std::array::from_fn(|_| rng.vec3());
+            let rho_s: [Rgb; 8] = std::array::from_fn(|_| rng.vec3());
+            let wo: [Vec3; 8] = std::array::from_fn(|_| up(&mut rng));
+            let wi: [Vec3; 8] = std::array::from_fn(|_| up(&mut rng));
+            let u: [Vec2; 8] = std::array::from_fn(|_| Vec2::new(rng.f32(), rng.f32()));
+            let x8 = |f: &dyn Fn(usize) -> f32| f32x8::from(std::array::from_fn(f));
+            let v8 = |v: &[Vec3; 8]| [0, 1, 2].map(|k| x8(&|j| v[j][k]));
+            let l8 = Lobes8 {
+                alpha_x: x8(&|j| lobes[j].alpha_x),
+                alpha_y: x8(&|j| lobes[j].alpha_y),
+                balanced: x8(&|j| f32::from(u8::from(lobes[j].variant == WardVariant::Balanced)))
+                    .cmp_gt(f32x8::ZERO),
+            };
+            let (wo8, wi8) = (v8(&wo), v8(&wi));
+            let g = l8.gaussian(&wo8, &wi8);
+            let (e, p) = (l8.eval(&wo8, &wi8, g), l8.pdf(&wo8, &wi8, g));
+            let (ws, ok) = l8.sample(&wo8, x8(&|j| u[j].x), x8(&|j| u[j].y), 0xff);
+            let bsdfs: [Bsdf; 8] = std::array::from_fn(|j| Bsdf::Ward {
+                rho_d: rho_d[j],
+                rho_s: rho_s[j],
+                lobe: lobes[j],
+            });
+            let pd = x8(&|j| Bsdf::diffuse_prob(rho_d[j], rho_s[j]));
+            let f8 = Bsdf::ward_eval8(&v8(&rho_d), &v8(&rho_s), &l8, &wo8, &wi8, g);
+            let p8 = Bsdf::ward_pdf8(pd, &l8, &wo8, &wi8, g);
+            for j in 0..8 {
+                let l = &lobes[j];
+                assert_eq!(bits(e)[j], l.eval(wo[j], wi[j]).to_bits(), "{l:?}");
+                assert_eq!(bits(p)[j], l.pdf(wo[j], wi[j]).to_bits(), "{l:?}");
+                let f = bsdfs[j].eval(wo[j], wi[j]);
+                for k in 0..3 {
+                    assert_eq!(bits(f8[k])[j], f[k].to_bits());
+                }
+                assert_eq!(bits(p8)[j], bsdfs[j].pdf(wo[j], wi[j]).to_bits());
+                let one = l.sample(wo[j], u[j]);
+                assert_eq!(one.is_some(), ok.to_array()[j] != 0.0, "{l:?}");
+                if let Some(w) = one {
+                    for k in 0..3 {
+                        assert_eq!(bits(ws[k])[j], w[k].to_bits());
+                    }
+                    above += 1;
+                }
+                lobe_samples += 1;
+            }
+        }
+        assert!(above > lobe_samples / 2, "{above} of {lobe_samples}");
+    }
 
     #[test]
     fn eight_lane_lobe_sums_match_the_one_sample_lobe() {

@@ -21,15 +21,16 @@
 //! All values here are per unit ρs: the caller multiplies by ρs (the fitter relies on that).
 //!
 //! The fitter evaluates the same lobe from precomputed half vectors, with its derivatives
-//! ([`half_vector`]), and sums it over its cached samples eight at a time ([`lanes`]).
+//! ([`half_vector`]), and sums it over its cached samples eight at a time ([`lanes`]); the
+//! renderer's eight-lane path loop evaluates and samples eight lobes at a time ([`Lobes8`]).
 
 pub mod half_vector;
 pub mod lanes;
 
 pub use half_vector::{ward_at, HalfVector, LobeParams};
-pub use lanes::{lobe_sums, LobeSample};
+pub use lanes::{lobe_sums, LobeSample, Lobes8};
 
-use crate::math::{exp_neg, Vec2, Vec3, PI};
+use crate::math::{exp_neg_poly, Vec2, Vec3, PI};
 use crate::scene::WardVariant;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -54,7 +55,7 @@ impl WardLobe {
             return 0.0;
         }
         let h = wi + wo;
-        let e = exp_neg(self.exponent(h));
+        let e = exp_neg_poly(self.exponent(h));
         match self.variant {
             WardVariant::Ward1992 => {
                 e / (4.0 * PI * self.alpha_x * self.alpha_y * (wi.z * wo.z).sqrt())
@@ -72,9 +73,10 @@ impl WardLobe {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return 0.0;
         }
+        // E from the unnormalised half vector, as `eval` takes it (the same number).
+        let e = exp_neg_poly(self.exponent(wi + wo));
         let h = (wi + wo).normalize();
         let cos_d = h.z;
-        let e = exp_neg(self.exponent(h));
         e / (PI * self.alpha_x * self.alpha_y * cos_d * cos_d * cos_d * 4.0 * wo.dot(h).abs())
     }
 
