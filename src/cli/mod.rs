@@ -404,10 +404,11 @@ pub struct PhotoCli {
     /// a correct camera by 0.8 px.
     #[arg(long, conflicts_with = "register")]
     pub refine_pose: bool,
-    /// Largest misregistration searched by the pose refinement's first, film-shift step, in
-    /// pixels.
-    #[arg(long, value_name = "PIXELS", default_value_t = 4)]
-    pub max_shift: i32,
+    /// Largest misregistration searched, in pixels: by the film shift [default: 4], or by the
+    /// pose refinement's first, film-shift step [default: 2% of the image diagonal, at least 4:
+    /// a camera turned by 1° moves a 512×384 image by about 10 px].
+    #[arg(long, value_name = "PIXELS")]
+    pub max_shift: Option<i32>,
     /// Ignore the pixels this image marks (a person, an object the scene does not model): a
     /// PNG of the photo's size, any bit depth; with alpha, pixels of non-zero alpha are ignored,
     /// without, pixels of any non-zero channel [default: none].

@@ -36,8 +36,9 @@ pub struct PhotoArgs {
     /// Refine all six degrees of freedom of the pose (`photo::pose::refine`) rather than a
     /// shift of the film (`photo::pose::from_shift`).
     pub refine_pose: bool,
-    /// Largest misregistration searched, in pixels.
-    pub max_shift: i32,
+    /// Largest misregistration searched, in pixels (None: [`super::pose::DEFAULT_SHIFT`] for a
+    /// film shift, [`super::pose::start_search`] for the pose refinement).
+    pub max_shift: Option<i32>,
     /// An image of the photo's size whose marked pixels are ignored (`photo::ignore`).
     pub ignore_mask: Option<PathBuf>,
     /// The lens's vignetting, divided out of the photo first (`photo::vignetting`).
@@ -56,7 +57,7 @@ impl Default for PhotoArgs {
             planar_outliers: false,
             register: true,
             refine_pose: false,
-            max_shift: 4,
+            max_shift: None,
             ignore_mask: None,
             vignetting: None,
         }
@@ -154,9 +155,13 @@ pub fn prepare(scene: &Scene, path: &Path, args: &PhotoArgs) -> Result<PreparedP
     let mut registration = None;
     if args.register {
         let r = if args.refine_pose {
-            pose::refine(scene, &camera, &photo, args.max_shift)
+            let m = args
+                .max_shift
+                .unwrap_or_else(|| pose::start_search(&camera));
+            pose::refine(scene, &camera, &photo, m)
         } else {
-            pose::from_shift(&camera, &index, &photo, args.max_shift)
+            let m = args.max_shift.unwrap_or(pose::DEFAULT_SHIFT);
+            pose::from_shift(&camera, &index, &photo, m)
         };
         if r.applied {
             camera = r.camera.clone();
