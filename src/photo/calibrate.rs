@@ -83,18 +83,18 @@ pub fn recover_response(b: &Brackets, bins: usize) -> Result<Recovered, String> 
     let n_px = b.width() * b.height();
     let stride = (n_px * 3).div_ceil(MAX_SAMPLES).max(1);
     let lt: Vec<f64> = b.times.iter().map(|&t| (t as f64).ln()).collect();
-    // Per channel, then the three pooled (index 3).
-    let mut seen = vec![vec![false; bins]; 4];
-    let mut ata = [[[0.0f64; K]; K]; 4];
-    let mut atb = [[0.0f64; K]; 4];
-    let mut rows: [Vec<([f64; K], f64)>; 4] = Default::default();
+    // Per channel; the three pooled are their sums.
+    let mut seen = vec![vec![false; bins]; 3];
+    let mut ata = [[[0.0f64; K]; K]; 3];
+    let mut atb = [[0.0f64; K]; 3];
+    let mut rows: [Vec<([f64; K], f64)>; 3] = Default::default();
     for s in (0..n_px * 3).step_by(stride) {
         let ch = s % 3;
         // Codes quantised to the bins (16-bit brackets are binned like the table).
         let z: Vec<f64> = b
             .images
             .iter()
-            .map(|img| (img.data[s / 3][s % 3].clamp(0.0, 1.0) as f64 * top).round() / top)
+            .map(|img| (img.data[s / 3][ch].clamp(0.0, 1.0) as f64 * top).round() / top)
             .collect();
         let w2: Vec<f64> = z.iter().map(|&z| (hat(z as f32) as f64).powi(2)).collect();
         let sw2: f64 = w2.iter().sum();
@@ -102,10 +102,7 @@ pub fn recover_response(b: &Brackets, bins: usize) -> Result<Recovered, String> 
             continue; // one exposure alone says nothing about the curve
         }
         for (&zz, &w) in z.iter().zip(&w2) {
-            let bin = (zz * top).round() as usize;
-            for c in [ch, 3] {
-                seen[c][bin] |= w > 0.0;
-            }
+            seen[ch][(zz * top).round() as usize] |= w > 0.0;
         }
         // ln E_s = Σ α_k (g(z_k) − ln t_k), α = w² / Σ w²: its φ and ln t parts.
         let p: Vec<[f64; K]> = z
@@ -123,19 +120,17 @@ pub fn recover_response(b: &Brackets, bins: usize) -> Result<Recovered, String> 
             let w = w2[j].sqrt();
             let a: [f64; K] = std::array::from_fn(|k| w * (p[j][k] - mean_p[k]));
             let r = w * (lt[j] - mean_lt);
-            for c in [ch, 3] {
-                for k in 0..K {
-                    for l in 0..K {
-                        ata[c][k][l] += a[k] * a[l];
-                    }
-                    atb[c][k] += a[k] * r;
+            for k in 0..K {
+                for l in 0..K {
+                    ata[ch][k][l] += a[k] * a[l];
                 }
-                rows[c].push((a, r));
+                atb[ch][k] += a[k] * r;
             }
+            rows[ch].push((a, r));
         }
     }
     let n_seen = |c: usize| seen[c].iter().filter(|&&x| x).count();
-    let n_seen_all = n_seen(3);
+    let n_seen_all = (0..bins).filter(|&m| seen.iter().any(|s| s[m])).count();
     if n_seen_all < 16 {
         return Err(format!(
             "the brackets show only {n_seen_all} well-exposed code values in pixels seen well \
@@ -143,7 +138,10 @@ pub fn recover_response(b: &Brackets, bins: usize) -> Result<Recovered, String> 
              or table:FILE)"
         ));
     }
-    let pooled = solve(ata[3], atb[3]).ok_or_else(|| {
+    let ata_all: [[f64; K]; K] =
+        std::array::from_fn(|k| std::array::from_fn(|l| (0..3).map(|c| ata[c][k][l]).sum()));
+    let atb_all: [f64; K] = std::array::from_fn(|k| (0..3).map(|c| atb[c][k]).sum());
+    let pooled = solve(ata_all, atb_all).ok_or_else(|| {
         "the brackets do not determine the response; give it (--response srgb, gamma:G or \
          table:FILE)"
             .to_string()
@@ -179,7 +177,8 @@ pub fn recover_response(b: &Brackets, bins: usize) -> Result<Recovered, String> 
             })
         })
         .collect();
-    let rms = (sq / rows[3].len().max(1) as f64).sqrt();
+    let n_rows: usize = rows.iter().map(Vec::len).sum();
+    let rms = (sq / n_rows.max(1) as f64).sqrt();
     if rms > MAX_RMS
         || values
             .iter()

@@ -42,8 +42,8 @@ pub struct ExposureCalibration {
     pub source: String,
 }
 
-/// Paths rendered for a grey card in all: a small card's sum is otherwise the noisy part (at
-/// 64 samples on 120 pixels of a card lit by an area light, ±1.5% from seed to seed).
+/// Paths rendered for a grey card in all: with a fixed count per pixel, a small card's sum
+/// would be the noisy part of the exposure.
 const CARD_PATHS: usize = 1 << 18;
 
 /// Exposure from a grey card (see the module documentation). At most `max_pixels` of the card's
