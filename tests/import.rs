@@ -262,6 +262,34 @@ fn figure6_round_trips_through_mitsuba() {
     round_trip("scenes/figure6/scene.toml");
 }
 
+/// A microfacet material goes out as Mitsuba's GGX `roughconductor` (in a `blendbsdf` with a
+/// diffuse part) and comes back the same material, with no warning.
+#[test]
+fn microfacet_materials_round_trip_through_mitsuba() {
+    let text = std::fs::read_to_string(root().join("scenes/figure6/scene.toml")).unwrap();
+    let text = text
+        .replace(
+            "material = { type = \"diffuse\", rho_d = [0.0, 0.76, 0.26] }",
+            "material = { type = \"microfacet\", rho_s = [0.2, 0.7, 0.3], alpha = 0.2 }",
+        )
+        .replace(
+            "material = { type = \"diffuse\", rho_d = [0.77, 0.0, 0.0] }",
+            "material = { type = \"microfacet\", rho_d = [0.5, 0.1, 0.1], rho_s = 0.3, alpha = 0.08 }",
+        );
+    let dir = tempfile::tempdir().unwrap();
+    let src = write(dir.path(), "scene.toml", &text);
+    let back = round_trip(src.to_str().unwrap());
+    for (name, alpha) in [("small_block", 0.2), ("big_block", 0.08)] {
+        let g = back.group_index(name).unwrap();
+        let m = &back.objects[back.groups[g].objects[0]].material;
+        assert!(
+            matches!(m, Material::Microfacet { alpha_x, alpha_y, .. }
+                if *alpha_x == alpha && *alpha_y == alpha),
+            "{name}: {m:?}"
+        );
+    }
+}
+
 #[test]
 fn cornell_round_trips_through_mitsuba() {
     round_trip("scenes/cornell/scene.toml");

@@ -11,6 +11,7 @@ mod fuzz_replay;
 mod geometry;
 mod import;
 mod low_resolution;
+mod microfacet;
 mod mirrors;
 mod orthographic;
 mod photo;

@@ -150,7 +150,7 @@ pub fn print_table(
             ),
             ("rho_s", fmt_rgb(t.rho_s), fmt_rgb(p.rho_s)),
         ];
-        if st.params_level().is_ward() {
+        if st.params_level().has_lobe() {
             rows.push((
                 "alpha_x",
                 format!("{:.4}", t.alpha_x),

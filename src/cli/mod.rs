@@ -493,6 +493,10 @@ pub struct FitArgs {
     /// Never climb to level 7 (textures): uniform materials only, as before textures existed.
     #[arg(long)]
     no_textures: bool,
+    /// Never try level 8, the GGX microfacet lobe: the Ward lobes alone, as before it existed
+    /// (to measure what it gains).
+    #[arg(long)]
+    no_microfacet: bool,
     /// Fit mirrors only against a render of what they reflect, never against the photo's
     /// image of a group still being analysed (§5.1 of the notes' pseudo-textures, on by
     /// default; log.jsonl's `hypotheses` events show what they chose).
@@ -541,6 +545,7 @@ impl FitArgs {
                     texture_detail: textures_off.unwrap_or(self.texture_detail),
                     ..d.hierarchy.thresholds.clone()
                 },
+                microfacet: !self.no_microfacet,
                 ..d.hierarchy.clone()
             },
             cache: matfit::fit::cache::CacheOptions {

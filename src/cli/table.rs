@@ -55,6 +55,18 @@ pub fn material(m: &Material) -> String {
             rgb(*rho_s),
             alpha(*alpha_x, *alpha_y, *theta)
         ),
+        Material::Microfacet {
+            rho_d,
+            rho_s,
+            alpha_x,
+            alpha_y,
+            theta,
+        } => format!(
+            "microfacet (GGX) ρd {} ρs {} {}",
+            rgb(*rho_d),
+            rgb(*rho_s),
+            alpha(*alpha_x, *alpha_y, *theta)
+        ),
         Material::Textured {
             texture,
             scale,
@@ -95,6 +107,13 @@ fn columns(m: &Material) -> (String, String, String) {
         Material::Mirror { rho_s } => (dash(), rgb(*rho_s), dash()),
         Material::DiffuseMirror { rho_d, rho_s } => (rgb(*rho_d), rgb(*rho_s), dash()),
         Material::Ward {
+            rho_d,
+            rho_s,
+            alpha_x,
+            alpha_y,
+            theta,
+        }
+        | Material::Microfacet {
             rho_d,
             rho_s,
             alpha_x,
@@ -207,7 +226,7 @@ pub fn recovered(rec: &Recovery) -> String {
 fn uncertainty(st: &matfit::fit::hierarchy::GroupState, sd: &matfit::fit::GroupParams) -> String {
     let rho = sd.rho_d.max_element().max(sd.rho_s.max_element());
     let mut out = format!("ρ {rho:.3}");
-    if st.level.is_ward() {
+    if st.level.has_lobe() {
         let rel = (sd.alpha_x / st.params.alpha_x).max(sd.alpha_y / st.params.alpha_y);
         out += &format!(", α {:.1}%", 100.0 * rel);
     }

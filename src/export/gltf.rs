@@ -430,6 +430,18 @@ pub fn material_spec(m: &Material, variant: WardVariant, warnings: &mut Vec<Stri
             warnings.push(ward_warning(variant, *rho_s, *alpha_x, *alpha_y, r, aniso));
             layered(*rho_d, *rho_s, r, aniso, warnings)
         }
+        Material::Microfacet {
+            rho_d,
+            rho_s,
+            alpha_x,
+            alpha_y,
+            theta,
+        } => {
+            // glTF's lobe is GGX itself: only its Fresnel differs (a perfect conductor's F = 1).
+            let (r, aniso) = ward_roughness(*alpha_x, *alpha_y, *theta, warnings);
+            warnings.push(fresnel_warning("microfacet", *rho_s));
+            layered(*rho_d, *rho_s, r, aniso, warnings)
+        }
         Material::Textured { scale, varnish, .. } => match varnish {
             None => Spec {
                 texture_factor: Some(*scale),

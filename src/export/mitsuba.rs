@@ -116,6 +116,12 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
                 alpha_y,
                 theta,
                 ..
+            }
+            | Material::Microfacet {
+                alpha_x,
+                alpha_y,
+                theta,
+                ..
             } if alpha_x != alpha_y => object_ply_with(scene, oi, Some(*theta)),
             _ => object_ply(scene, oi),
         };
@@ -511,21 +517,7 @@ fn bsdf_xml(
             alpha_y,
             ..
         } => {
-            let lobe = |c: Rgb| {
-                let alphas = if alpha_x == alpha_y {
-                    format!("<float name=\"alpha\" value=\"{alpha_x}\"/>")
-                } else {
-                    format!(
-                        "<float name=\"alpha_u\" value=\"{alpha_x}\"/>\n    \
-                         <float name=\"alpha_v\" value=\"{alpha_y}\"/>"
-                    )
-                };
-                format!(
-                    "<bsdf type=\"roughconductor\">\n    <string name=\"material\" value=\"none\"/>\n    \
-                     <string name=\"distribution\" value=\"beckmann\"/>\n    {alphas}\n    {}\n</bsdf>\n",
-                    rgb("specular_reflectance", c)
-                )
-            };
+            let lobe = |c: Rgb| rough_conductor("beckmann", *alpha_x, *alpha_y, c);
             let (k, seen) = match ward_scale() {
                 Some(k) => (
                     k,
@@ -540,6 +532,17 @@ fn bsdf_xml(
                  other views (bench/CROSSCHECK.md measures the difference)"
             ));
             blend(*rho_d, *rho_s * k, lobe, name, "ward", warnings)
+        }
+        Material::Microfacet {
+            rho_d,
+            rho_s,
+            alpha_x,
+            alpha_y,
+            ..
+        } => {
+            // Exact: matfit's lobe is this plugin's value (`render::bsdf::ggx`).
+            let lobe = |c: Rgb| rough_conductor("ggx", *alpha_x, *alpha_y, c);
+            blend(*rho_d, *rho_s, lobe, name, "microfacet", warnings)
         }
         Material::Textured { varnish, .. } => {
             let mean = m.rho_d();
@@ -557,6 +560,24 @@ fn bsdf_xml(
         }
         Material::Black => diffuse(Rgb::ZERO),
     }
+}
+
+/// A perfectly conducting `roughconductor` of specular reflectance `c` (roughness: `alpha`
+/// where isotropic, else `alpha_u` and `alpha_v`).
+fn rough_conductor(distribution: &str, alpha_x: f32, alpha_y: f32, c: Rgb) -> String {
+    let alphas = if alpha_x == alpha_y {
+        format!("<float name=\"alpha\" value=\"{alpha_x}\"/>")
+    } else {
+        format!(
+            "<float name=\"alpha_u\" value=\"{alpha_x}\"/>\n    \
+             <float name=\"alpha_v\" value=\"{alpha_y}\"/>"
+        )
+    };
+    format!(
+        "<bsdf type=\"roughconductor\">\n    <string name=\"material\" value=\"none\"/>\n    \
+         <string name=\"distribution\" value=\"{distribution}\"/>\n    {alphas}\n    {}\n</bsdf>\n",
+        rgb("specular_reflectance", c)
+    )
 }
 
 /// `Lambert(ρd) + lobe(ρs)` as a Mitsuba `blendbsdf`: (1 − w)·diffuse(ρd/(1 − w)) + w·lobe(ρs/w)
@@ -800,6 +821,32 @@ mod tests {
         let b = Rgb::from_slice(&values(&x, "specular_reflectance")[0]);
         assert!(((1.0 - w) * a - Rgb::splat(0.1)).abs().max_element() < 1e-6);
         assert!((w * b - 0.5 * Rgb::new(0.9, 0.8, 0.7)).abs().max_element() < 1e-6);
+    }
+
+    /// The microfacet lobe is Mitsuba's GGX roughconductor itself: no scale, no warning.
+    #[test]
+    fn microfacet_is_the_diffuse_blend_with_the_same_ggx_lobe() {
+        let mut warnings = Vec::new();
+        let x = bsdf_xml(
+            &Material::Microfacet {
+                rho_d: Rgb::splat(0.1),
+                rho_s: Rgb::new(0.6, 0.5, 0.4),
+                alpha_x: 0.2,
+                alpha_y: 0.2,
+                theta: 0.0,
+            },
+            "block",
+            || panic!("no Ward scale for a microfacet lobe"),
+            &mut warnings,
+        );
+        assert!(warnings.is_empty(), "{warnings:?}");
+        assert!(x.contains("roughconductor") && x.contains("\"ggx\""), "{x}");
+        assert_eq!(values(&x, "alpha")[0][0], 0.2);
+        let w = values(&x, "weight")[0][0];
+        let a = Rgb::from_slice(&values(&x, "reflectance")[0]);
+        let b = Rgb::from_slice(&values(&x, "specular_reflectance")[0]);
+        assert!(((1.0 - w) * a - Rgb::splat(0.1)).abs().max_element() < 1e-6);
+        assert!((w * b - Rgb::new(0.6, 0.5, 0.4)).abs().max_element() < 1e-6);
     }
 
     /// Mitsuba's αu runs along dp/du: the anisotropic PLY's UVs must make dp/du matfit's tangent

@@ -55,6 +55,14 @@ pub struct HierarchyOptions {
     pub margin: f32,
     /// ...and by more than this many noise floors.
     pub noise_factor: f32,
+    /// Whether level 8, the microfacet lobe, is tried (off: the hierarchy of the notes and
+    /// the Ward lobes alone, for comparison).
+    #[serde(default = "yes")]
+    pub microfacet: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 impl Default for HierarchyOptions {
@@ -63,6 +71,7 @@ impl Default for HierarchyOptions {
             thresholds: Thresholds::default(),
             margin: 0.15,
             noise_factor: 3.0,
+            microfacet: true,
         }
     }
 }
@@ -274,7 +283,7 @@ impl GroupState {
         let textured = level == Level::Textured;
         let varnished = textured && self.texture.as_ref().is_some_and(|t| t.base.is_ward());
         CacheNeeds {
-            lobe_samples: may_climb || level.is_ward() || varnished,
+            lobe_samples: may_climb || level.has_lobe() || varnished,
             mirror: may_climb || level.is_mirror(),
             mirror_fitted: level.is_mirror(),
             texels: may_climb || textured,
@@ -530,7 +539,7 @@ impl GroupState {
             // Demotion check: does a simpler level (available in this cache) do as well?
             let needs = self.cache_needs_for(self.level, false);
             for lower in Level::FITTED.iter().copied().filter(|&l| l < self.level) {
-                if (lower.is_ward() && !needs.lobe_samples) || (lower.is_mirror() && !needs.mirror)
+                if (lower.has_lobe() && !needs.lobe_samples) || (lower.is_mirror() && !needs.mirror)
                 {
                     continue;
                 }
@@ -595,6 +604,10 @@ impl GroupState {
         let mut level = self.level;
         let mut texture = None;
         while let Some(next) = level.next() {
+            if next == Level::Microfacet && !opts.microfacet {
+                level = next;
+                continue;
+            }
             if next == Level::Textured {
                 // Gross: by the threshold beyond the noise floor (a small group's ε can reach the
                 // threshold on its cache's noise alone).

@@ -3,7 +3,9 @@
 
 use serde::{Deserialize, Serialize};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+/// Levels compare in the order the hierarchy climbs them ([`Level::FITTED`]), which for
+/// level 8 is not its number.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Level {
     /// 1: Lambert, ρd.
@@ -21,18 +23,49 @@ pub enum Level {
     /// 7: a per-texel diffuse map (radiosity texture, §5.2), with the uniform Ward lobe of level
     /// 5 or 6 on top where one earned its place (`fit/texture.rs`).
     Textured = 7,
+    /// 8 (beyond the notes): Lambert + isotropic GGX microfacet lobe, ρd, ρs, α
+    /// (`render::bsdf::ggx`): the wide-tailed highlight of most real glossy surfaces, which no
+    /// Ward lobe makes. Tried after the Ward levels and before the texture, the last resort.
+    Microfacet = 8,
+}
+
+impl PartialOrd for Level {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Level {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.rank().cmp(&other.rank())
+    }
 }
 
 impl Level {
-    pub const FITTED: [Level; 7] = [
+    pub const FITTED: [Level; 8] = [
         Level::Diffuse,
         Level::PerfectSpecular,
         Level::Specular,
         Level::DiffuseSpecular,
         Level::Isotropic,
         Level::Anisotropic,
+        Level::Microfacet,
         Level::Textured,
     ];
+
+    /// Its place in the climb ([`Level::FITTED`]).
+    fn rank(self) -> usize {
+        match self {
+            Level::Diffuse => 0,
+            Level::PerfectSpecular => 1,
+            Level::Specular => 2,
+            Level::DiffuseSpecular => 3,
+            Level::Isotropic => 4,
+            Level::Anisotropic => 5,
+            Level::Microfacet => 6,
+            Level::Textured => 7,
+        }
+    }
 
     pub fn number(self) -> u8 {
         self as u8
@@ -47,6 +80,7 @@ impl Level {
             Level::Isotropic => "isotropic",
             Level::Anisotropic => "anisotropic",
             Level::Textured => "textured",
+            Level::Microfacet => "microfacet",
         }
     }
 
@@ -67,6 +101,12 @@ impl Level {
     pub fn is_ward(self) -> bool {
         matches!(self, Level::Isotropic | Level::Anisotropic)
     }
+
+    /// Whether the level's specular part is a glossy lobe (Ward or microfacet) whose shape the
+    /// cache's direction pairs determine.
+    pub fn has_lobe(self) -> bool {
+        self.is_ward() || self == Level::Microfacet
+    }
 }
 
 /// Error thresholds per level: a group whose error falls below its level's threshold is
@@ -84,6 +124,9 @@ pub struct Thresholds {
     /// threshold: that is the texture threshold of Algorithm 1.
     #[serde(default = "textured_threshold")]
     pub textured: f32,
+    /// As the glossy Ward levels'.
+    #[serde(default = "microfacet_threshold")]
+    pub microfacet: f32,
     /// The texture threshold of Algorithm 1, on what the error metric cannot see: a group whose
     /// best uniform model leaves fine, coherent detail of at least this RMS fraction of its
     /// radiance (`texture::coherent_detail`) tries level 7 even when its ε is below its
@@ -113,6 +156,10 @@ fn textured_threshold() -> f32 {
     0.02
 }
 
+fn microfacet_threshold() -> f32 {
+    0.01
+}
+
 impl Default for Thresholds {
     /// 2% for the diffuse and mirror levels, 1% for the glossy ones: the notes' example switches
     /// from isotropic to anisotropic at 1%.
@@ -125,6 +172,7 @@ impl Default for Thresholds {
             isotropic: 0.01,
             anisotropic: 0.01,
             textured: textured_threshold(),
+            microfacet: microfacet_threshold(),
             texture_detail: texture_detail(),
             texture_error: texture_error(),
         }
@@ -141,6 +189,7 @@ impl Thresholds {
             Level::Isotropic => self.isotropic,
             Level::Anisotropic => self.anisotropic,
             Level::Textured => self.textured,
+            Level::Microfacet => self.microfacet,
         }
     }
 }

@@ -1,10 +1,11 @@
 //! The objective of the fit, evaluated from a group's cache: the specular term per pixel for a
-//! trial lobe (with its analytic derivatives, from `render::bsdf::ward`), the per-channel
+//! trial lobe (with its analytic derivatives, from `render::bsdf::ward` and `ggx`), the per-channel
 //! least-squares moments, and the error metric ([`super::error`]) on the cache's tiles.
 
 use super::cache::GroupCache;
 use super::error::{tiled_error, ErrorStats, PixelTerms};
 use crate::math::Rgb;
+use crate::render::bsdf::ggx::ggx_sums;
 use crate::render::bsdf::ward::{lobe_sums, LobeParams};
 use crate::scene::WardVariant;
 use rayon::prelude::*;
@@ -22,10 +23,12 @@ pub enum Spec {
         alpha_y: f32,
         theta: f32,
     },
+    /// Isotropic GGX lobe.
+    Microfacet { alpha: f32 },
 }
 
 /// Per-pixel specular term S (per unit ρs), its halves, and the halves of
-/// ∂S/∂(ln αx, ln αy, θ).
+/// ∂S/∂(ln αx, ln αy, θ) (for the microfacet lobe: ∂S/∂ln α first, then zeros).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct PixelSpec {
     pub s: Rgb,
@@ -73,6 +76,21 @@ pub fn pixel_specs(
                 })
                 .collect()
         }
+        Spec::Microfacet { alpha } => cache
+            .pixels
+            .par_iter()
+            .map(|p| {
+                let mut out = PixelSpec::default();
+                for (half, range) in [(0, p.start..p.mid), (1, p.mid..p.end)] {
+                    let samples = &cache.samples[range.start as usize..range.end as usize];
+                    (out.s_half[half], out.ds_half[half][0]) =
+                        ggx_sums(samples, alpha, derivatives);
+                }
+                out.s = out.s_half[0] + out.s_half[1];
+                out.s_half = [out.s_half[0] * 2.0, out.s_half[1] * 2.0];
+                out
+            })
+            .collect(),
     }
 }
 

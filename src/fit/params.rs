@@ -10,7 +10,7 @@ use crate::math::Rgb;
 use crate::scene::Material;
 use serde::{Deserialize, Serialize};
 
-/// Lower and upper bounds of the Ward roughness.
+/// Lower and upper bounds of the lobes' roughness (Ward and microfacet).
 pub const ALPHA_MIN: f32 = 0.005;
 pub const ALPHA_MAX: f32 = 1.0;
 
@@ -76,7 +76,8 @@ fn same(v: f32) -> f32 {
     v
 }
 
-const WARD_LEVELS: &[Level] = &[Level::Isotropic, Level::Anisotropic];
+/// The levels with a glossy lobe: their ρd, ρs and α are free.
+const LOBE_LEVELS: &[Level] = &[Level::Isotropic, Level::Anisotropic, Level::Microfacet];
 
 pub const REGISTRY: [ParamInfo; 5] = [
     ParamInfo {
@@ -90,6 +91,7 @@ pub const REGISTRY: [ParamInfo; 5] = [
             Level::DiffuseSpecular,
             Level::Isotropic,
             Level::Anisotropic,
+            Level::Microfacet,
         ],
         watched: true,
         get: |p| p.rho_d.as_ref(),
@@ -107,6 +109,7 @@ pub const REGISTRY: [ParamInfo; 5] = [
             Level::DiffuseSpecular,
             Level::Isotropic,
             Level::Anisotropic,
+            Level::Microfacet,
         ],
         watched: true,
         get: |p| p.rho_s.as_ref(),
@@ -119,7 +122,7 @@ pub const REGISTRY: [ParamInfo; 5] = [
         max: ALPHA_MAX,
         fallback: 0.1,
         scale: Scale::Log,
-        levels: WARD_LEVELS,
+        levels: LOBE_LEVELS,
         watched: true,
         get: |p| std::slice::from_ref(&p.alpha_x),
         get_mut: |p| std::slice::from_mut(&mut p.alpha_x),
@@ -277,6 +280,12 @@ impl GroupParams {
                 alpha_y,
                 theta,
                 ..
+            }
+            | Material::Microfacet {
+                alpha_x,
+                alpha_y,
+                theta,
+                ..
             } => Some((*alpha_x, *alpha_y, *theta)),
             Material::Textured {
                 varnish: Some(v), ..
@@ -338,6 +347,13 @@ impl GroupParams {
                 alpha_x: self.alpha_x,
                 alpha_y: self.alpha_y,
                 theta: self.theta,
+            },
+            Level::Microfacet => Material::Microfacet {
+                rho_d: self.rho_d,
+                rho_s: self.rho_s,
+                alpha_x: self.alpha_x,
+                alpha_y: self.alpha_x,
+                theta: 0.0,
             },
         }
     }

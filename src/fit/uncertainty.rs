@@ -27,7 +27,7 @@ pub const WEAK_LOBE: f32 = 0.5;
 /// a 1σ above [`WEAK_LOBE`] of its value, which happens when its pixels show little specular
 /// reflection of a light or a bright surface. None for other levels or a determined lobe.
 pub fn weak_lobe(level: Level, params: &GroupParams, sigma: &GroupParams) -> Option<String> {
-    if !level.is_ward() {
+    if !level.has_lobe() {
         return None;
     }
     let rho = sigma.rho_s.max_element() / params.rho_s.max_element().max(1e-6);
@@ -58,7 +58,7 @@ pub fn sigma(
     fits: u32,
 ) -> Option<GroupParams> {
     let (alpha_y, theta) = match level {
-        Level::Isotropic => (params.alpha_x, 0.0),
+        Level::Isotropic | Level::Microfacet => (params.alpha_x, 0.0),
         _ => (params.alpha_y, params.theta),
     };
     let spec = match level {
@@ -69,6 +69,9 @@ pub fn sigma(
             alpha_y,
             theta,
         },
+        Level::Microfacet => Spec::Microfacet {
+            alpha: params.alpha_x,
+        },
         Level::Textured => return None,
     };
     let has_d = !matches!(level, Level::PerfectSpecular | Level::Specular);
@@ -76,6 +79,7 @@ pub fn sigma(
     // The lobe's free shape parameters: ln α (both axes at once) or ln αx, ln αy, θ.
     let shape: &[[f32; 3]] = match level {
         Level::Isotropic => &[[1.0, 1.0, 0.0]],
+        Level::Microfacet => &[[1.0, 0.0, 0.0]],
         Level::Anisotropic => &[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
         _ => &[],
     };
@@ -176,7 +180,7 @@ pub fn sigma(
         }
     }
     match level {
-        Level::Isotropic => {
+        Level::Isotropic | Level::Microfacet => {
             out.alpha_x = params.alpha_x * sd(col_shape);
             out.alpha_y = out.alpha_x;
         }

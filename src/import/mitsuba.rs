@@ -47,7 +47,8 @@
 //!   warning). Exact: `diffuse` (reflectance rgb / constant or sampled spectrum / bitmap texture →
 //!   textured) → diffuse; `conductor` with material `none` → mirror ρs = specular_reflectance;
 //!   `blendbsdf` of those → diffuse_mirror ρd = (1−w)·ρd₁ + w·ρd₂, ρs likewise (the exporter's
-//!   blend inverted). Initial guesses, not truth (a warning each), with ρs from Fresnel
+//!   blend inverted); `roughconductor` with material `none` and `distribution = "ggx"`, alone or
+//!   blended with a `diffuse` → microfacet, likewise. Initial guesses, not truth (a warning each), with ρs from Fresnel
 //!   reflectance at normal incidence F0: conductors with eta/k (or a named metal, from a small
 //!   table) → mirror ρs = F0·specular_reflectance; `roughconductor` → Ward ρd 0, ρs as the
 //!   conductor, α = alpha (αx, αy = alpha_u, alpha_v; Beckmann's and Ward's α are the same slope
@@ -153,6 +154,16 @@ struct Lobes {
     s: DVec3,
     alpha: Option<(f64, f64)>,
     texture: Option<String>,
+    /// The rough part is exactly matfit's microfacet lobe: a GGX `roughconductor` with
+    /// `material = "none"`.
+    ggx: bool,
+}
+
+impl Lobes {
+    /// Lambert alone: no specular part, no texture.
+    fn plain_diffuse(&self) -> bool {
+        self.alpha.is_none() && self.texture.is_none() && self.s == DVec3::ZERO
+    }
 }
 
 impl<'a> Ctx<'a> {
@@ -1216,7 +1227,14 @@ impl<'a> Ctx<'a> {
                 let spec = self.rgb(b, "specular_reflectance", 1.0)?;
                 let f0 = self.conductor_f0(b)?;
                 let rough = ty == "roughconductor";
-                if f0.is_some() || rough {
+                let distribution = if rough {
+                    self.string(b, "distribution")?
+                        .unwrap_or_else(|| "beckmann".into())
+                } else {
+                    String::new()
+                };
+                let ggx = rough && f0.is_none() && distribution == "ggx";
+                if f0.is_some() || (rough && !ggx) {
                     guess(
                         self,
                         if rough {
@@ -1234,6 +1252,7 @@ impl<'a> Ctx<'a> {
                     } else {
                         None
                     },
+                    ggx,
                     ..Default::default()
                 }
             }
@@ -1296,10 +1315,13 @@ impl<'a> Ctx<'a> {
                     return Err(self.err(b, "a blendbsdf needs two nested BSDFs"));
                 };
                 let (la, lc) = (self.lobes(a)?, self.lobes(c)?);
-                if la.texture.is_some()
-                    || lc.texture.is_some()
-                    || la.alpha.is_some()
-                    || lc.alpha.is_some()
+                // The exporter's form of a microfacet material: exact.
+                let ggx = (la.ggx && lc.plain_diffuse()) || (lc.ggx && la.plain_diffuse());
+                if !ggx
+                    && (la.texture.is_some()
+                        || lc.texture.is_some()
+                        || la.alpha.is_some()
+                        || lc.alpha.is_some())
                 {
                     guess(
                         self,
@@ -1311,6 +1333,7 @@ impl<'a> Ctx<'a> {
                     s: la.s * (1.0 - w) + lc.s * w,
                     alpha: la.alpha.or(lc.alpha),
                     texture: None,
+                    ggx,
                 }
             }
             other => {
@@ -1405,6 +1428,16 @@ impl<'a> Ctx<'a> {
                 alpha: if has_s { alpha.or(Some(0.05)) } else { None },
                 alpha_x: if has_s { alpha_x } else { None },
                 alpha_y: if has_s { alpha_y } else { None },
+                theta_deg: None,
+            };
+        }
+        if l.alpha.is_some() && has_s && l.ggx && l.texture.is_none() {
+            return MaterialSpec::Microfacet {
+                rho_d: c(d),
+                rho_s: c(s),
+                alpha,
+                alpha_x,
+                alpha_y,
                 theta_deg: None,
             };
         }

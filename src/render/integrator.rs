@@ -5,7 +5,7 @@
 //!
 //! Surfaces are two-sided: the shading frame is flipped towards the viewer.
 
-use super::bsdf::{Bsdf, WardLobe};
+use super::bsdf::{Bsdf, GgxLobe, WardLobe};
 use super::lights::Lights;
 use crate::geometry::{offset_origin, Hit, Ray};
 use crate::math::{power_heuristic, Frame, Rgb, Sampler, Vec3};
@@ -44,6 +44,23 @@ pub fn bsdf_at(material: &Material, hit: &SurfaceHit, variant: WardVariant) -> (
                     alpha_x: *alpha_x,
                     alpha_y: *alpha_y,
                     variant,
+                },
+            },
+            hit.frame.rotated(*theta),
+        ),
+        Material::Microfacet {
+            rho_d,
+            rho_s,
+            alpha_x,
+            alpha_y,
+            theta,
+        } => (
+            Bsdf::Microfacet {
+                rho_d: *rho_d,
+                rho_s: *rho_s,
+                lobe: GgxLobe {
+                    alpha_x: *alpha_x,
+                    alpha_y: *alpha_y,
                 },
             },
             hit.frame.rotated(*theta),

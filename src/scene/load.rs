@@ -909,6 +909,31 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
                 theta,
             }
         }
+        MaterialSpec::Microfacet {
+            rho_d,
+            rho_s,
+            alpha,
+            alpha_x,
+            alpha_y,
+            theta_deg,
+        } => {
+            let (ax, ay, theta) = lobe(
+                *alpha,
+                *alpha_x,
+                *alpha_y,
+                *theta_deg,
+                "a microfacet material",
+            )?;
+            let (rho_d, rho_s) = (color(rho_d, "rho_d")?, color(rho_s, "rho_s")?);
+            energy(rho_d, rho_s, "`rho_d` + `rho_s`")?;
+            Material::Microfacet {
+                rho_d,
+                rho_s,
+                alpha_x: ax,
+                alpha_y: ay,
+                theta,
+            }
+        }
         MaterialSpec::Textured {
             texture,
             scale,

@@ -51,6 +51,15 @@ pub enum Material {
         alpha_y: f32,
         theta: f32,
     },
+    /// Lambert + a GGX microfacet lobe of a perfect conductor (`render::bsdf::ggx`, Mitsuba's
+    /// `roughconductor` with `material = "none"`); isotropic when αx = αy.
+    Microfacet {
+        rho_d: Rgb,
+        rho_s: Rgb,
+        alpha_x: f32,
+        alpha_y: f32,
+        theta: f32,
+    },
     /// Lambert with ρd(u, v) = scale × texture(u, v), and optionally a uniform Ward lobe on
     /// top (a varnish: glossy posters, lacquered wood).
     Textured {
@@ -69,7 +78,8 @@ impl Material {
         match self {
             Material::Diffuse { rho_d }
             | Material::DiffuseMirror { rho_d, .. }
-            | Material::Ward { rho_d, .. } => *rho_d,
+            | Material::Ward { rho_d, .. }
+            | Material::Microfacet { rho_d, .. } => *rho_d,
             Material::Textured { texture, scale, .. } => {
                 let n = texture.texels.len().max(1) as f32;
                 texture.texels.iter().copied().sum::<Rgb>() / n * *scale
@@ -82,7 +92,8 @@ impl Material {
         match self {
             Material::Mirror { rho_s }
             | Material::DiffuseMirror { rho_s, .. }
-            | Material::Ward { rho_s, .. } => *rho_s,
+            | Material::Ward { rho_s, .. }
+            | Material::Microfacet { rho_s, .. } => *rho_s,
             Material::Textured {
                 varnish: Some(v), ..
             } => v.rho_s,

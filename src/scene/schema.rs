@@ -39,6 +39,8 @@
 //! edge_v = [0, 0, -2]
 //! tangent = [1, 0, 0]           # optional reference axis of the anisotropy angle
 //! material = { type = "ward", rho_d = 0.1, rho_s = 0.9, alpha_x = 0.07, alpha_y = 0.11, theta_deg = 0 }
+//! # or a GGX lobe with the same keys (Mitsuba's roughconductor, material "none"):
+//! # material = { type = "microfacet", rho_d = 0.1, rho_s = 0.8, alpha = 0.2 }
 //! # emission = [10, 10, 10]     # makes the object an area light (front side, along edge_u × edge_v)
 //!
 //! [[object]]
@@ -351,6 +353,21 @@ pub enum MaterialSpec {
         rho_s: Color,
     },
     Ward {
+        #[serde(default = "zero_color")]
+        rho_d: Color,
+        rho_s: Color,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        alpha: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        alpha_x: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        alpha_y: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        theta_deg: Option<f32>,
+    },
+    /// Lambert + a GGX microfacet lobe (Mitsuba's `roughconductor`, `material = "none"`):
+    /// the keys of a ward material.
+    Microfacet {
         #[serde(default = "zero_color")]
         rho_d: Color,
         rho_s: Color,

@@ -36,6 +36,23 @@ pub fn material_spec(m: &Material) -> MaterialSpec {
                 theta_deg,
             }
         }
+        Material::Microfacet {
+            rho_d,
+            rho_s,
+            alpha_x,
+            alpha_y,
+            theta,
+        } => {
+            let [alpha, alpha_x, alpha_y, theta_deg] = lobe_keys(*alpha_x, *alpha_y, *theta);
+            MaterialSpec::Microfacet {
+                rho_d: c(*rho_d),
+                rho_s: c(*rho_s),
+                alpha,
+                alpha_x,
+                alpha_y,
+                theta_deg,
+            }
+        }
         Material::Textured {
             texture,
             scale,

@@ -2,12 +2,14 @@
 //! returns f(ωo, ωi) *without* the cosine factor; the integrator multiplies by cos θi.
 //! Surfaces are two-sided: the integrator flips the frame so that ωo is in the upper hemisphere.
 //!
-//! A BSDF is a plain enum (no trait objects): the four shapes of reflection of the hierarchy.
+//! A BSDF is a plain enum (no trait objects): the shapes of reflection of the hierarchy.
 
+pub mod ggx;
 pub mod lambert;
 pub mod mirror;
 pub mod ward;
 
+pub use ggx::GgxLobe;
 pub use ward::{Lobes8, WardLobe};
 
 use crate::math::{luminance_mean, Rgb, Sampler, Vec3, INV_PI};
@@ -24,6 +26,12 @@ pub enum Bsdf {
         rho_d: Rgb,
         rho_s: Rgb,
         lobe: WardLobe,
+    },
+    /// ρd / π plus ρs × a GGX microfacet lobe of a perfect conductor (`ggx.rs`).
+    Microfacet {
+        rho_d: Rgb,
+        rho_s: Rgb,
+        lobe: GgxLobe,
     },
     /// Reflects nothing.
     Black,
@@ -49,7 +57,7 @@ impl Bsdf {
             Bsdf::Diffuse { rho_d } | Bsdf::DiffuseMirror { rho_d, .. } => {
                 rho_d.max_element() > 0.0
             }
-            Bsdf::Ward { .. } => true,
+            Bsdf::Ward { .. } | Bsdf::Microfacet { .. } => true,
             Bsdf::Black => false,
         }
     }
@@ -75,6 +83,9 @@ impl Bsdf {
             Bsdf::Ward { rho_d, rho_s, lobe } => {
                 lambert::eval(*rho_d, wo, wi) + *rho_s * lobe.eval(wo, wi)
             }
+            Bsdf::Microfacet { rho_d, rho_s, lobe } => {
+                lambert::eval(*rho_d, wo, wi) + *rho_s * lobe.eval(wo, wi)
+            }
             Bsdf::Black => Rgb::ZERO,
         }
     }
@@ -88,6 +99,10 @@ impl Bsdf {
                 Self::diffuse_prob(*rho_d, *rho_s) * lambert::pdf(wo, wi)
             }
             Bsdf::Ward { rho_d, rho_s, lobe } => {
+                let pd = Self::diffuse_prob(*rho_d, *rho_s);
+                pd * lambert::pdf(wo, wi) + (1.0 - pd) * lobe.pdf(wo, wi)
+            }
+            Bsdf::Microfacet { rho_d, rho_s, lobe } => {
                 let pd = Self::diffuse_prob(*rho_d, *rho_s);
                 pd * lambert::pdf(wo, wi) + (1.0 - pd) * lobe.pdf(wo, wi)
             }
@@ -133,25 +148,43 @@ impl Bsdf {
                 }
             }
             Bsdf::Ward { rho_d, rho_s, lobe } => {
-                let pd = Self::diffuse_prob(*rho_d, *rho_s);
-                let wi = if uc < pd {
-                    lambert::sample(u)
-                } else {
-                    lobe.sample(wo, u)?
-                };
-                if wi.z <= 0.0 {
-                    return None;
-                }
-                let pdf = self.pdf(wo, wi);
-                (pdf > 0.0).then(|| BsdfSample {
-                    wi,
-                    weight: self.eval(wo, wi) * wi.z / pdf,
-                    pdf,
-                    delta: false,
-                })
+                self.smooth_sample(wo, *rho_d, *rho_s, uc, u, |u| lobe.sample(wo, u))
+            }
+            Bsdf::Microfacet { rho_d, rho_s, lobe } => {
+                self.smooth_sample(wo, *rho_d, *rho_s, uc, u, |u| lobe.sample(wo, u))
             }
             Bsdf::Black => None,
         }
+    }
+
+    /// A sample of a Lambert + lobe mixture: Lambert with probability `diffuse_prob`, else
+    /// the lobe's `sample_lobe`; the weight and density are the whole mixture's (one-sample MIS
+    /// between the parts).
+    #[inline]
+    fn smooth_sample(
+        &self,
+        wo: Vec3,
+        rho_d: Rgb,
+        rho_s: Rgb,
+        uc: f32,
+        u: crate::math::Vec2,
+        sample_lobe: impl FnOnce(crate::math::Vec2) -> Option<Vec3>,
+    ) -> Option<BsdfSample> {
+        let wi = if uc < Self::diffuse_prob(rho_d, rho_s) {
+            lambert::sample(u)
+        } else {
+            sample_lobe(u)?
+        };
+        if wi.z <= 0.0 {
+            return None;
+        }
+        let pdf = self.pdf(wo, wi);
+        (pdf > 0.0).then(|| BsdfSample {
+            wi,
+            weight: self.eval(wo, wi) * wi.z / pdf,
+            pdf,
+            delta: false,
+        })
     }
 
     /// [`Bsdf::eval`] of eight `Bsdf::Ward`s, one a lane (ρd, ρs, lobe), where ωo and ωi are
@@ -296,6 +329,14 @@ mod tests {
                 variant,
             },
         };
+        let ggx = |rd: f32, rs: f32, ax: f32, ay: f32| Bsdf::Microfacet {
+            rho_d: Rgb::splat(rd),
+            rho_s: Rgb::splat(rs),
+            lobe: GgxLobe {
+                alpha_x: ax,
+                alpha_y: ay,
+            },
+        };
         let tilted = Frame::from_normal(Vec3::new(0.1, -0.2, 1.0).normalize());
         let std_frame = Frame::from_normal(Vec3::Z);
         let cases: Vec<(&str, Bsdf, Frame, Vec3)> = vec![
@@ -345,6 +386,13 @@ mod tests {
                 ward(0.5, 0.5, 0.5, 0.4, WardVariant::Balanced),
                 std_frame,
                 wo(10.0, 0.0),
+            ),
+            ("ggx iso", ggx(0.0, 1.0, 0.2, 0.2), std_frame, wo(40.0, 0.0)),
+            (
+                "ggx aniso θ=25° tilted, grazing",
+                ggx(0.3, 0.6, 0.06, 0.25),
+                tilted.rotated(25f32.to_radians()),
+                wo(70.0, 150.0),
             ),
         ];
         let n = cases.len();
