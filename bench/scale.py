@@ -135,7 +135,7 @@ def table(results, full):
         slopes.append(f"| {axis} | " + " | ".join(f"{v:.2f}" for v in s) + " |")
     if full:
         rows.append(row("all", f"1920×1080, {full['groups']} groups, {full['tris']:,}", full))
-    return "\n".join(rows) + "\n\n" + "\n".join(slopes)
+    return "\n".join(rows) + ("\n\n" + "\n".join(slopes) if results else "")
 
 
 def main():
