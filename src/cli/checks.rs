@@ -146,13 +146,12 @@ pub fn exposure_report(sc: &Scene, photo: &Path, args: &PhotoArgs, p: &PreparedP
     else {
         return;
     };
-    for (g, grp) in sc.groups.iter().enumerate() {
+    let usable = p.mask.pixels_by_group(sc.groups.len());
+    for (grp, px) in sc.groups.iter().zip(&usable) {
         if grp.objects.iter().any(|&o| sc.objects[o].is_emitter()) {
             continue;
         }
-        let mut l: Vec<f32> = p
-            .mask
-            .pixels_of(g)
+        let mut l: Vec<f32> = px
             .iter()
             .map(|&i| p.photo.image.data[i].max_element())
             .collect();

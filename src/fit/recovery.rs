@@ -12,7 +12,7 @@
 
 use super::cache::{build, choose_pixels, CacheOptions, UnseenProbe};
 use super::checkpoint::{Checkpoint, CHECKPOINT_VERSION};
-use super::error::{block_tile, block_tiles, tiled_error, PixelTerms};
+use super::error::{block_tile, tiled_error, PixelTerms};
 use super::hierarchy::{Event, GroupState, Motion, Status};
 use super::level::Level;
 use super::params::{largest_move, GroupParams};
@@ -185,12 +185,13 @@ impl<'a> RecoveryLoop<'a> {
         states: Vec<GroupState>,
         next: u32,
     ) -> RecoveryLoop<'a> {
+        let by_group = mask.pixels_by_group(scene.groups.len());
         let atlases: Vec<Option<Arc<Atlas>>> = (0..scene.groups.len())
             .map(|g| {
                 if !states[g].is_fitted() {
                     return None;
                 }
-                let texel = super::texture::footprint(scene, &mask.pixels_of(g))?;
+                let texel = super::texture::footprint(scene, &by_group[g])?;
                 let objects = &scene.groups[g].objects;
                 Some(Arc::new(Atlas::build(
                     &scene.geometry,
@@ -300,24 +301,28 @@ impl<'a> RecoveryLoop<'a> {
             ..self.opts.cache.clone()
         };
         let w = self.scene.camera.width as usize;
-        self.pixel_lists = (0..self.scene.groups.len())
-            .map(|g| self.choose(g, &cache_opts, w))
+        let n = self.scene.groups.len();
+        let usable = self.mask.pixels_by_group(n);
+        self.pixel_lists = (0..n)
+            .map(|g| self.choose(g, &cache_opts, w, &usable[g]))
             .collect();
         for k in 0..self.extra.len() {
-            let lists = (0..self.scene.groups.len())
-                .map(|g| self.choose_in_view(k, g, &cache_opts))
+            let usable = self.extra[k].mask.pixels_by_group(n);
+            let lists = (0..n)
+                .map(|g| self.choose_in_view(k, g, &cache_opts, &usable[g]))
                 .collect();
             self.extra[k].pixel_lists = lists;
         }
     }
 
     /// The cached pixels of group `g` in further photo `k`: a subsample of its usable pixels
-    /// within the budget, all of them at level 7.
+    /// there (`usable`) within the budget, all of them at level 7.
     fn choose_in_view(
         &self,
         k: usize,
         g: usize,
         cache_opts: &CacheOptions,
+        usable: &[usize],
     ) -> (Vec<usize>, Vec<u32>, usize) {
         let v = &self.extra[k];
         let opts = CacheOptions {
@@ -328,16 +333,17 @@ impl<'a> RecoveryLoop<'a> {
             },
             ..cache_opts.clone()
         };
-        choose_pixels(&v.mask.pixels_of(g), v.scene.camera.width as usize, &opts)
+        choose_pixels(usable, v.scene.camera.width as usize, &opts)
     }
 
     /// The cached pixels of group `g`: at level 7 all of [`texture_pixels`] (every texel needs
-    /// its pixels), else a subsample of the usable ones within the budget.
+    /// its pixels), else a subsample of its usable ones (`usable`) within the budget.
     fn choose(
         &self,
         g: usize,
         cache_opts: &CacheOptions,
         w: usize,
+        usable: &[usize],
     ) -> (Vec<usize>, Vec<u32>, usize) {
         let all = CacheOptions {
             max_pixels: usize::MAX,
@@ -346,7 +352,7 @@ impl<'a> RecoveryLoop<'a> {
         if self.states[g].level == Level::Textured {
             choose_pixels(&self.texture_pixels()[g], w, &all)
         } else {
-            choose_pixels(&self.mask.pixels_of(g), w, cache_opts)
+            choose_pixels(usable, w, cache_opts)
         }
     }
 
@@ -385,9 +391,13 @@ impl<'a> RecoveryLoop<'a> {
                     max_pixels: self.cap,
                     ..opts.cache.clone()
                 };
-                self.pixel_lists[g] = self.choose(g, &cache_opts, self.scene.camera.width as usize);
+                // Textured: `choose` takes the texture's pixels, not these.
+                self.pixel_lists[g] =
+                    self.choose(g, &cache_opts, self.scene.camera.width as usize, &[]);
                 for k in 0..self.extra.len() {
-                    self.extra[k].pixel_lists[g] = self.choose_in_view(k, g, &cache_opts);
+                    // Level 7 keeps every usable pixel of the view.
+                    let usable = self.extra[k].mask.pixels_of(g);
+                    self.extra[k].pixel_lists[g] = self.choose_in_view(k, g, &cache_opts, &usable);
                 }
             }
             let cache_opts = if textured {
@@ -697,8 +707,11 @@ impl<'a> RecoveryLoop<'a> {
         } else {
             (synthetic.clone(), a.clone(), b.clone())
         };
-        let final_error = (0..self.states.len())
-            .map(|g| image_error(&self.mask, g, &syn_e, &a_e, &b_e, &self.photo.image))
+        let final_error = self
+            .mask
+            .pixels_by_group(self.states.len())
+            .iter()
+            .map(|px| image_error(self.mask.width, px, &syn_e, &a_e, &b_e, &self.photo.image))
             .collect();
         let views = if self.extra.is_empty() {
             Vec::new()
@@ -891,29 +904,74 @@ pub fn texture_stem(g: usize, name: &str) -> String {
     }
 }
 
-/// ε of group `g` between a rendered image and the photo over its usable pixels, on
-/// `error::BLOCK`-pixel tiles, and the noise floor from the two half renders `a`, `b`.
+/// ε of one group between a rendered image and the photo over its usable pixels `pixels`
+/// (row-major indices in an image `width` wide), on `error::BLOCK`-pixel tiles, and the noise
+/// floor from the two half renders `a`, `b`. Only the group's own tiles are summed, in the
+/// order of their index in the image: the same sums as over all of the image's tiles (the
+/// others are zero) without a pass over the image per group.
 pub fn image_error(
-    mask: &UsableMask,
-    g: usize,
+    width: usize,
+    pixels: &[usize],
     syn: &Image,
     a: &Image,
     b: &Image,
     photo: &Image,
 ) -> Option<(f32, f32)> {
-    let w = mask.width;
-    let pixels = mask
-        .group
-        .iter()
-        .enumerate()
-        .filter(|&(_, &grp)| grp == g as i32)
-        .map(|(i, _)| {
-            let terms = PixelTerms {
-                syn: syn.data[i],
-                photo: photo.data[i],
-                halves: [a.data[i], b.data[i]],
-            };
-            (block_tile(i, w), terms)
-        });
-    tiled_error(block_tiles(w, mask.height), pixels).map(|e| (e.error, e.noise_floor))
+    let tile: Vec<usize> = pixels.iter().map(|&i| block_tile(i, width)).collect();
+    let mut tiles = tile.clone();
+    tiles.sort_unstable();
+    tiles.dedup();
+    let terms = pixels.iter().zip(&tile).map(|(&i, t)| {
+        let terms = PixelTerms {
+            syn: syn.data[i],
+            photo: photo.data[i],
+            halves: [a.data[i], b.data[i]],
+        };
+        (tiles.binary_search(t).unwrap_or(0), terms)
+    });
+    tiled_error(tiles.len(), terms).map(|e| (e.error, e.noise_floor))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::error::block_tiles;
+
+    /// `image_error` over a group's own tiles is, to the bit, the sum over all of the image's
+    /// tiles it replaces (one pass over the image per group).
+    #[test]
+    fn image_error_on_the_groups_tiles_is_that_on_all_tiles() {
+        let (w, h) = (23, 13);
+        let img = |k: u32| {
+            let mut im = Image::new(w, h);
+            for (i, c) in im.data.iter_mut().enumerate() {
+                let v = (mix(i as u32 * 7 + k) % 1000) as f32 / 997.0;
+                *c = Rgb::new(v, 0.5 * v + 0.1, 1.0 - 0.3 * v);
+            }
+            im
+        };
+        let (syn, a, b, photo) = (img(1), img(2), img(3), img(4));
+        // Two groups interleaved in irregular runs, so their tiles are not visited in order.
+        let group: Vec<i32> = (0..w * h).map(|i| (mix(i as u32) % 3) as i32 - 1).collect();
+        for g in 0..2 {
+            let px: Vec<usize> = (0..w * h).filter(|&i| group[i] == g).collect();
+            let all = px.iter().map(|&i| {
+                let t = PixelTerms {
+                    syn: syn.data[i],
+                    photo: photo.data[i],
+                    halves: [a.data[i], b.data[i]],
+                };
+                (block_tile(i, w), t)
+            });
+            let reference = tiled_error(block_tiles(w, h), all).map(|e| (e.error, e.noise_floor));
+            assert!(reference.is_some());
+            assert_eq!(image_error(w, &px, &syn, &a, &b, &photo), reference);
+        }
+        assert_eq!(image_error(w, &[], &syn, &a, &b, &photo), None);
+    }
+
+    fn mix(x: u32) -> u32 {
+        let x = x.wrapping_mul(0x9E37_79B9) ^ (x >> 15);
+        x.wrapping_mul(0x85EB_CA6B) ^ (x >> 13)
+    }
 }

@@ -162,6 +162,18 @@ impl UsableMask {
             .map(|(i, _)| i)
             .collect()
     }
+
+    /// [`Self::pixels_of`] of every group below `groups` at once: one pass over the image
+    /// instead of one per group (a room's dozens of groups at 1–2 Mpx, bench/SCALE.md).
+    pub fn pixels_by_group(&self, groups: usize) -> Vec<Vec<usize>> {
+        let mut out = vec![Vec::new(); groups];
+        for (i, &g) in self.group.iter().enumerate() {
+            if let Some(v) = usize::try_from(g).ok().and_then(|g| out.get_mut(g)) {
+                v.push(i);
+            }
+        }
+        out
+    }
 }
 
 /// Whether a step between object ids `a` and `b` is a boundary: any change of id, or with
@@ -470,6 +482,25 @@ mod tests {
     use super::*;
     use crate::io::image::Image;
     use crate::math::Rgb;
+
+    #[test]
+    fn pixels_by_group_is_pixels_of_every_group() {
+        let group = vec![2, -1, 0, 2, 7, 0, -1, 2];
+        let m = UsableMask {
+            width: 4,
+            height: 2,
+            reason: vec![Reject::None; group.len()],
+            edges: vec![false; group.len()],
+            group,
+            stats: Vec::new(),
+        };
+        // Group 7 is beyond the 3 asked for: left out, not a panic.
+        let all = m.pixels_by_group(3);
+        assert_eq!(all, [vec![2, 5], vec![], vec![0, 3, 7]]);
+        for (g, px) in all.iter().enumerate() {
+            assert_eq!(*px, m.pixels_of(g));
+        }
+    }
 
     /// Two objects split at x = 20 in the model, at x = 23 in the photo (3 px misregistration);
     /// the band (2) alone would keep a wrong strip; the edge detector removes it.

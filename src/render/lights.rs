@@ -31,8 +31,11 @@ pub struct Lights {
     discs: Vec<Disc>,
     /// Cumulative selection probability, last entry 1.
     cdf: Vec<f32>,
-    /// Per scene triangle: probability of choosing it divided by its area (0 if not a light).
-    pdf_area: Vec<f32>,
+    /// Per emissive object, sorted: (its first scene triangle, the end of its range, the index
+    /// in `tris` of its first triangle). `pdf` finds a hit triangle's entry here rather than in
+    /// a table over every scene triangle, which cost T floats per `PathTracer`, and one is made
+    /// per cache build (bench/SCALE.md).
+    spans: Vec<(u32, u32, u32)>,
     /// `tris` as rows of sixteen floats (`Lights::row`).
     rows: Vec<[f32; 16]>,
 }
@@ -70,12 +73,13 @@ impl Lights {
         let mut tris = Vec::new();
         let mut weights = Vec::new();
         let mut areas = Vec::new();
-        let mut ids = Vec::new();
+        let mut spans = Vec::new();
         for obj in scene.objects.iter().filter(|o| o.is_emitter()) {
-            for t in obj.tri_range.clone() {
+            let r = &obj.tri_range;
+            spans.push((r.start, r.end, tris.len() as u32));
+            for t in r.clone() {
                 let [a, b, c] = g.tris[t as usize].v.map(|i| g.positions[i as usize]);
                 let area = 0.5 * (b - a).cross(c - a).length();
-                ids.push(t);
                 tris.push(LightTri {
                     v: [a, b, c],
                     n: g.faces[t as usize].ng,
@@ -95,13 +99,12 @@ impl Lights {
         let total: f32 = weights.iter().sum();
         let mut cdf = Vec::with_capacity(weights.len());
         let mut acc = 0.0;
-        let mut pdf_area = vec![0.0; g.tris.len()];
         for (i, w) in weights.iter().enumerate() {
             acc += w / total;
             cdf.push(acc);
             tris[i].pdf_area = (w / total) / areas[i];
-            pdf_area[ids[i] as usize] = tris[i].pdf_area;
         }
+        spans.sort_unstable();
         if let Some(last) = cdf.last_mut() {
             *last = 1.0;
         }
@@ -124,7 +127,7 @@ impl Lights {
             environment: scene.environment.clone(),
             discs,
             cdf,
-            pdf_area,
+            spans,
             rows,
         }
     }
@@ -266,7 +269,19 @@ impl Lights {
         if cos_l <= 0.0 {
             return 0.0;
         }
-        self.pdf_area[prim as usize] * dist * dist / cos_l
+        self.pdf_area(prim) * dist * dist / cos_l
+    }
+
+    /// Probability of choosing scene triangle `prim` divided by its area; 0 if not a light.
+    #[inline]
+    fn pdf_area(&self, prim: u32) -> f32 {
+        let k = self.spans.partition_point(|s| s.0 <= prim);
+        match k.checked_sub(1).map(|k| self.spans[k]) {
+            Some((start, end, first)) if prim < end => {
+                self.tris[(first + prim - start) as usize].pdf_area
+            }
+            _ => 0.0,
+        }
     }
 
     /// Whether the segment from `origin` (a surface point already offset off its surface) to the
@@ -353,5 +368,42 @@ impl Disc {
             radiance: irradiance / (std::f32::consts::PI * sin * sin),
             pdf: 1.0 / (2.0 * std::f32::consts::PI * (1.0 - cos)),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `pdf_area` by emitter spans is the table over every scene triangle it replaces: each
+    /// emissive triangle's `LightTri::pdf_area`, 0 on the others.
+    #[test]
+    fn pdf_area_is_the_emitters_and_zero_elsewhere() {
+        let text = "[camera]\nwidth = 8\nheight = 8\nfov_y_deg = 40\n\
+            eye = [0, 1, 3]\ntarget = [0, 1, 0]\n\
+            [[object]]\nname = \"a\"\ngroup = \"a\"\nshape = \"quad\"\n\
+            corner = [-1, 2, -1]\nedge_u = [1, 0, 0]\nedge_v = [0, 0, 2]\nemission = 5\n\
+            [[object]]\nname = \"ball\"\ngroup = \"ball\"\nshape = \"sphere\"\n\
+            center = [0, 0.5, 0]\nradius = 0.5\nsegments = 8\n\
+            [[object]]\nname = \"b\"\ngroup = \"b\"\nshape = \"quad\"\n\
+            corner = [0, 2, -1]\nedge_u = [2, 0, 0]\nedge_v = [0, 0, 2]\nemission = 1\n";
+        let scene = crate::scene::load::parse_scene(text, std::path::Path::new("s.toml")).unwrap();
+        let lights = Lights::new(&scene);
+        let mut emissive = 0;
+        for (o, obj) in scene.objects.iter().enumerate() {
+            for t in obj.tri_range.clone() {
+                let p = lights.pdf_area(t);
+                if obj.is_emitter() {
+                    let k = emissive;
+                    emissive += 1;
+                    assert_eq!(p, lights.tris[k].pdf_area, "object {o} triangle {t}");
+                    assert!(p > 0.0);
+                } else {
+                    assert_eq!(p, 0.0, "object {o} triangle {t}");
+                }
+            }
+        }
+        assert_eq!(emissive, lights.tris.len());
+        assert_eq!(lights.pdf_area(u32::MAX), 0.0);
     }
 }
