@@ -14,6 +14,8 @@ Cases
   figure6-ggx     figure6-diffuse with both blocks matfit's microfacet material (GGX, level 8):
                   the small one a rough metal (rho_s (0.2, 0.7, 0.3), alpha 0.2), the big one
                   diffuse (0.5, 0.1, 0.1) + GGX rho_s 0.3, alpha 0.08 (an exact blendbsdf).
+  figure6-plastic figure6-diffuse with both blocks matfit's plastic (level 9): Mitsuba's
+                  roughplastic, GGX, IOR 1.49 (red, alpha 0.1; and green, alpha 0.3).
   glossy          scenes/glossy: a mirror, an isotropic Ward sphere, a diffuse+mirror box.
   sunroom         scenes/sunroom (no area light: a directional sun and a spot lamp) with its
                   Ward ball made diffuse, so that the check measures the punctual lights alone.
@@ -168,6 +170,13 @@ GGX_BLOCKS = [
      'material = { type = "microfacet", rho_d = [0.5, 0.1, 0.1], rho_s = 0.3, alpha = 0.08 }'),
 ]
 
+PLASTIC_BLOCKS = [
+    ('material = { type = "diffuse", rho_d = [0.0, 0.76, 0.26] }',
+     'material = { type = "plastic", rho_d = [0.05, 0.6, 0.2], rho_s = 0.0387, alpha = 0.3 }'),
+    ('material = { type = "diffuse", rho_d = [0.77, 0.0, 0.0] }',
+     'material = { type = "plastic", rho_d = [0.7, 0.05, 0.05], rho_s = 0.0387, alpha = 0.1 }'),
+]
+
 FLOOR = re.compile(r'^material = \{ type = "ward".*$', re.M)
 
 
@@ -297,7 +306,7 @@ def main():
                     help="figure6 resolution (same vertical fov; the scene's own is 512x384)")
     ap.add_argument("--cases",
                     default="cornell,figure6-diffuse,figure6-mirror,figure6-ward,figure6-ggx,"
-                    "glossy,sunroom,sunroom-ortho,skyroom")
+                    "figure6-plastic,glossy,sunroom,sunroom-ortho,skyroom")
     ap.add_argument("--mapped-cases", default="figure6-ward,glossy",
                     help="cases whose Ward groups measure the export's mapping error")
     ap.add_argument("--out", help="keep images here (default: a temporary folder)")
@@ -311,7 +320,8 @@ def main():
     if args.variant.startswith("llvm") and not os.environ.get("DRJIT_LIBLLVM_PATH"):
         print("warning: DRJIT_LIBLLVM_PATH unset; source bench/mitsuba_env.sh", file=sys.stderr)
     res = {"figure6-diffuse": args.fig6_res, "figure6-mirror": args.mirror_res,
-           "figure6-ward": args.fig6_res, "figure6-ggx": args.fig6_res}
+           "figure6-ward": args.fig6_res, "figure6-ggx": args.fig6_res,
+           "figure6-plastic": args.fig6_res}
     mapped_cases = set(args.mapped_cases.split(","))
     work = args.out or tempfile.mkdtemp(prefix="matfit-crosscheck-")
     os.makedirs(work, exist_ok=True)
@@ -343,12 +353,14 @@ def main():
                 floor = {"figure6-diffuse": '{ type = "diffuse", rho_d = 0.5 }',
                          "figure6-mirror": '{ type = "mirror", rho_s = 0.8 }',
                          "figure6-ggx": '{ type = "diffuse", rho_d = 0.5 }',
+                         "figure6-plastic": '{ type = "diffuse", rho_d = 0.5 }',
                          "figure6-ward": None}[case]
                 fw, fh = (int(x) for x in res[case].split("x"))
                 scene = figure6_variant(d, floor, fw, fh)
-                if case == "figure6-ggx":
+                if case in ("figure6-ggx", "figure6-plastic"):
                     text = open(scene).read()
-                    for old, new in GGX_BLOCKS:
+                    blocks = GGX_BLOCKS if case == "figure6-ggx" else PLASTIC_BLOCKS
+                    for old, new in blocks:
                         assert text.count(old) == 1, "figure6's block materials changed"
                         text = text.replace(old, new)
                     open(scene, "w").write(text)

@@ -67,6 +67,17 @@ pub fn material(m: &Material) -> String {
             rgb(*rho_s),
             alpha(*alpha_x, *alpha_y, *theta)
         ),
+        Material::Plastic {
+            rho_d,
+            rho_s,
+            alpha,
+            ..
+        } => format!(
+            "plastic (GGX coat) ρd {} ρs {} α {}",
+            rgb(*rho_d),
+            rgb(*rho_s),
+            num(*alpha, 4)
+        ),
         Material::Textured {
             texture,
             scale,
@@ -120,6 +131,12 @@ fn columns(m: &Material) -> (String, String, String) {
             alpha_y,
             theta,
         } => (rgb(*rho_d), rgb(*rho_s), alpha(*alpha_x, *alpha_y, *theta)),
+        Material::Plastic {
+            rho_d,
+            rho_s,
+            alpha: a,
+            ..
+        } => (rgb(*rho_d), rgb(*rho_s), alpha(*a, *a, 0.0)),
         Material::Textured { scale, varnish, .. } => match varnish {
             Some(v) => (
                 format!("texture × {}", rgb(*scale)),

@@ -442,6 +442,16 @@ pub fn material_spec(m: &Material, variant: WardVariant, warnings: &mut Vec<Stri
             warnings.push(fresnel_warning("microfacet", *rho_s));
             layered(*rho_d, *rho_s, r, aniso, warnings)
         }
+        Material::Plastic {
+            rho_d,
+            rho_s,
+            alpha,
+            ..
+        } => {
+            // glTF's dielectric lobe is a GGX coat with Schlick's Fresnel from F0 = ρs.
+            let (r, aniso) = ward_roughness(*alpha, *alpha, 0.0, warnings);
+            layered(*rho_d, *rho_s, r, aniso, warnings)
+        }
         Material::Textured { scale, varnish, .. } => match varnish {
             None => Spec {
                 texture_factor: Some(*scale),

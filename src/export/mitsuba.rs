@@ -544,6 +544,22 @@ fn bsdf_xml(
             let lobe = |c: Rgb| rough_conductor("ggx", *alpha_x, *alpha_y, c);
             blend(*rho_d, *rho_s, lobe, name, "microfacet", warnings)
         }
+        Material::Plastic {
+            rho_d,
+            rho_s,
+            alpha,
+            eta,
+        } => {
+            // Exact: `render::bsdf::plastic` is this plugin; ρs is its F0 × specular_reflectance.
+            let f0 = crate::render::bsdf::plastic::fresnel_dielectric(1.0, *eta);
+            format!(
+                "<bsdf type=\"roughplastic\">\n    <string name=\"distribution\" value=\"ggx\"/>\n    \
+                 <float name=\"alpha\" value=\"{alpha}\"/>\n    <float name=\"int_ior\" value=\"{eta}\"/>\n    \
+                 <float name=\"ext_ior\" value=\"1\"/>\n    {}\n    {}\n</bsdf>\n",
+                rgb("diffuse_reflectance", *rho_d),
+                rgb("specular_reflectance", *rho_s / f0)
+            )
+        }
         Material::Textured { varnish, .. } => {
             let mean = m.rho_d();
             warnings.push(format!(
@@ -847,6 +863,32 @@ mod tests {
         let b = Rgb::from_slice(&values(&x, "specular_reflectance")[0]);
         assert!(((1.0 - w) * a - Rgb::splat(0.1)).abs().max_element() < 1e-6);
         assert!((w * b - Rgb::new(0.6, 0.5, 0.4)).abs().max_element() < 1e-6);
+    }
+
+    /// The plastic is Mitsuba's GGX roughplastic itself: specular_reflectance = ρs / F0.
+    #[test]
+    fn plastic_is_roughplastic_with_the_coats_f0_divided_out() {
+        let mut warnings = Vec::new();
+        let x = bsdf_xml(
+            &Material::Plastic {
+                rho_d: Rgb::new(0.7, 0.05, 0.05),
+                rho_s: Rgb::splat(0.02),
+                alpha: 0.1,
+                eta: 1.5,
+            },
+            "block",
+            || panic!("no Ward scale for a plastic"),
+            &mut warnings,
+        );
+        assert!(warnings.is_empty(), "{warnings:?}");
+        assert!(x.contains("roughplastic") && x.contains("\"ggx\""), "{x}");
+        assert_eq!(values(&x, "alpha")[0][0], 0.1);
+        assert_eq!(values(&x, "int_ior")[0][0], 1.5);
+        assert_eq!(values(&x, "diffuse_reflectance")[0], vec![0.7, 0.05, 0.05]);
+        assert!(
+            (values(&x, "specular_reflectance")[0][0] - 0.5).abs() < 1e-5,
+            "{x}"
+        );
     }
 
     /// Mitsuba's αu runs along dp/du: the anisotropic PLY's UVs must make dp/du matfit's tangent

@@ -66,7 +66,8 @@ fn linearise<const N: usize>(
         let j1 = chain(&s.ds_half[1]);
         for c in 0..3 {
             let (rdc, rsc) = (rd[c] as f64, rs[c] as f64);
-            let (d0, d1) = (p.d_half[0][c] as f64, p.d_half[1][c] as f64);
+            let d_half = s.diffuse(p).1;
+            let (d0, d1) = (d_half[0][c] as f64, d_half[1][c] as f64);
             let (s0, s1) = (s.s_half[0][c] as f64, s.s_half[1][c] as f64);
             let ph = p.photo[c] as f64;
             for a in 0..N {
@@ -117,7 +118,7 @@ fn finish(
             params.alpha_y = alpha_y;
             params.theta = theta;
         }
-        Spec::Microfacet { alpha } => {
+        Spec::Microfacet { alpha } | Spec::Plastic { alpha, .. } => {
             (params.alpha_x, params.alpha_y, params.theta) = (alpha, alpha, 0.0);
         }
         Spec::None | Spec::Mirror => {}
@@ -140,6 +141,11 @@ pub(crate) fn spec_of(level: Level, p: &GroupParams) -> Spec {
         }
     } else if level == Level::Microfacet {
         Spec::Microfacet { alpha: p.alpha_x }
+    } else if level == Level::Plastic {
+        Spec::Plastic {
+            alpha: p.alpha_x,
+            eta: crate::render::bsdf::plastic::DEFAULT_ETA,
+        }
     } else if level.is_mirror() {
         Spec::Mirror
     } else {
@@ -306,6 +312,52 @@ pub fn fit_level(
             );
             let spec = lobe(x[0].exp() as f32);
             finish(cache, level, spec, Free::Both, *start, variant, evals + n)
+        }
+        Level::Plastic => {
+            // The coat's α moves its diffuse term too (through the transmittance), which the
+            // Ward-style Jacobian does not carry: a scan, then golden-section search in ln α
+            // between the best point's neighbours (the cost is smooth and unimodal there).
+            let eta = crate::render::bsdf::plastic::DEFAULT_ETA;
+            let cost = |ln_a: f64| {
+                let a = (ln_a.exp() as f32).clamp(alpha.min, alpha.max);
+                let specs = pixel_specs(cache, Spec::Plastic { alpha: a, eta }, variant, false);
+                project_rho(cache, &specs, Free::Both).2
+            };
+            let grid: Vec<f64> = [0.01f64, 0.02, 0.04, 0.07, 0.12, 0.2, 0.35, 0.6, 1.0]
+                .iter()
+                .map(|a| a.ln())
+                .collect();
+            let costs: Vec<f64> = grid.iter().map(|&x| cost(x)).collect();
+            let k = (0..grid.len())
+                .min_by(|&i, &j| costs[i].total_cmp(&costs[j]))
+                .unwrap_or(0);
+            let (mut lo, mut hi) = (grid[k.saturating_sub(1)], grid[(k + 1).min(grid.len() - 1)]);
+            let r = 0.5 * (5f64.sqrt() - 1.0);
+            let (mut x1, mut x2) = (hi - r * (hi - lo), lo + r * (hi - lo));
+            let (mut f1, mut f2) = (cost(x1), cost(x2));
+            let mut evals = grid.len() as u32 + 2;
+            while hi - lo > 0.01 {
+                if f1 < f2 {
+                    (hi, x2, f2) = (x2, x1, f1);
+                    x1 = hi - r * (hi - lo);
+                    f1 = cost(x1);
+                } else {
+                    (lo, x1, f1) = (x1, x2, f2);
+                    x2 = lo + r * (hi - lo);
+                    f2 = cost(x2);
+                }
+                evals += 1;
+            }
+            let a = ((0.5 * (lo + hi)).exp() as f32).clamp(alpha.min, alpha.max);
+            finish(
+                cache,
+                level,
+                Spec::Plastic { alpha: a, eta },
+                Free::Both,
+                *start,
+                variant,
+                evals,
+            )
         }
         Level::Anisotropic => {
             // Several starts around the isotropic answer (the lobe is symmetric under

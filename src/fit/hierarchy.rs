@@ -55,8 +55,8 @@ pub struct HierarchyOptions {
     pub margin: f32,
     /// ...and by more than this many noise floors.
     pub noise_factor: f32,
-    /// Whether level 8, the microfacet lobe, is tried (off: the hierarchy of the notes and
-    /// the Ward lobes alone, for comparison).
+    /// Whether levels 8 and 9, the GGX lobes (microfacet and plastic), are tried (off: the
+    /// hierarchy of the notes and the Ward lobes alone, for comparison).
     #[serde(default = "yes")]
     pub microfacet: bool,
 }
@@ -604,7 +604,7 @@ impl GroupState {
         let mut level = self.level;
         let mut texture = None;
         while let Some(next) = level.next() {
-            if next == Level::Microfacet && !opts.microfacet {
+            if matches!(next, Level::Microfacet | Level::Plastic) && !opts.microfacet {
                 level = next;
                 continue;
             }

@@ -27,6 +27,10 @@ pub enum Level {
     /// (`render::bsdf::ggx`): the wide-tailed highlight of most real glossy surfaces, which no
     /// Ward lobe makes. Tried after the Ward levels and before the texture, the last resort.
     Microfacet = 8,
+    /// 9 (beyond the notes): a diffuse base under a rough dielectric coat, ρd, ρs (at normal
+    /// incidence), α (`render::bsdf::plastic`): plastics, paint, lacquer, whose reflection rises
+    /// towards grazing and whose diffuse light falls off faster than the cosine.
+    Plastic = 9,
 }
 
 impl PartialOrd for Level {
@@ -42,7 +46,7 @@ impl Ord for Level {
 }
 
 impl Level {
-    pub const FITTED: [Level; 8] = [
+    pub const FITTED: [Level; 9] = [
         Level::Diffuse,
         Level::PerfectSpecular,
         Level::Specular,
@@ -50,6 +54,7 @@ impl Level {
         Level::Isotropic,
         Level::Anisotropic,
         Level::Microfacet,
+        Level::Plastic,
         Level::Textured,
     ];
 
@@ -63,7 +68,8 @@ impl Level {
             Level::Isotropic => 4,
             Level::Anisotropic => 5,
             Level::Microfacet => 6,
-            Level::Textured => 7,
+            Level::Plastic => 7,
+            Level::Textured => 8,
         }
     }
 
@@ -81,6 +87,7 @@ impl Level {
             Level::Anisotropic => "anisotropic",
             Level::Textured => "textured",
             Level::Microfacet => "microfacet",
+            Level::Plastic => "plastic",
         }
     }
 
@@ -105,7 +112,7 @@ impl Level {
     /// Whether the level's specular part is a glossy lobe (Ward or microfacet) whose shape the
     /// cache's direction pairs determine.
     pub fn has_lobe(self) -> bool {
-        self.is_ward() || self == Level::Microfacet
+        self.is_ward() || matches!(self, Level::Microfacet | Level::Plastic)
     }
 }
 
@@ -124,7 +131,7 @@ pub struct Thresholds {
     /// threshold: that is the texture threshold of Algorithm 1.
     #[serde(default = "textured_threshold")]
     pub textured: f32,
-    /// As the glossy Ward levels'.
+    /// As the glossy Ward levels' (levels 8 and 9).
     #[serde(default = "microfacet_threshold")]
     pub microfacet: f32,
     /// The texture threshold of Algorithm 1, on what the error metric cannot see: a group whose
@@ -189,7 +196,7 @@ impl Thresholds {
             Level::Isotropic => self.isotropic,
             Level::Anisotropic => self.anisotropic,
             Level::Textured => self.textured,
-            Level::Microfacet => self.microfacet,
+            Level::Microfacet | Level::Plastic => self.microfacet,
         }
     }
 }

@@ -2,10 +2,11 @@
 //! trial lobe (with its analytic derivatives, from `render::bsdf::ward` and `ggx`), the per-channel
 //! least-squares moments, and the error metric ([`super::error`]) on the cache's tiles.
 
-use super::cache::GroupCache;
+use super::cache::{CachePixel, GroupCache};
 use super::error::{tiled_error, ErrorStats, PixelTerms};
 use crate::math::Rgb;
 use crate::render::bsdf::ggx::ggx_sums;
+use crate::render::bsdf::plastic::plastic_sums;
 use crate::render::bsdf::ward::{lobe_sums, LobeParams};
 use crate::scene::WardVariant;
 use rayon::prelude::*;
@@ -25,6 +26,9 @@ pub enum Spec {
     },
     /// Isotropic GGX lobe.
     Microfacet { alpha: f32 },
+    /// A diffuse base under a GGX dielectric coat (`render::bsdf::plastic`): the diffuse term
+    /// is the coat's, not the cache's Lambert D.
+    Plastic { alpha: f32, eta: f32 },
 }
 
 /// Per-pixel specular term S (per unit ρs), its halves, and the halves of
@@ -34,6 +38,16 @@ pub struct PixelSpec {
     pub s: Rgb,
     pub s_half: [Rgb; 2],
     pub ds_half: [[Rgb; 3]; 2],
+    /// The diffuse term and its halves where the model's is not Lambert's (the coat's).
+    pub d: Option<(Rgb, [Rgb; 2])>,
+}
+
+impl PixelSpec {
+    /// The diffuse term per unit ρd of pixel `p` under this model, and its halves.
+    #[inline]
+    pub fn diffuse(&self, p: &CachePixel) -> (Rgb, [Rgb; 2]) {
+        self.d.unwrap_or((p.d, p.d_half))
+    }
 }
 
 /// The specular term of every cached pixel (derivatives only if asked and the term is a lobe).
@@ -51,7 +65,7 @@ pub fn pixel_specs(
             .map(|p| PixelSpec {
                 s: p.mirror,
                 s_half: p.mirror_half,
-                ds_half: [[Rgb::ZERO; 3]; 2],
+                ..Default::default()
             })
             .collect(),
         Spec::Lobe {
@@ -91,6 +105,26 @@ pub fn pixel_specs(
                 out
             })
             .collect(),
+        Spec::Plastic { alpha, eta } => {
+            let coat = crate::render::bsdf::Coat::get(alpha, eta);
+            cache
+                .pixels
+                .par_iter()
+                .map(|p| {
+                    let (mut s, mut d) = ([Rgb::ZERO; 2], [Rgb::ZERO; 2]);
+                    for (half, range) in [(0, p.start..p.mid), (1, p.mid..p.end)] {
+                        let samples = &cache.samples[range.start as usize..range.end as usize];
+                        (s[half], d[half]) = plastic_sums(samples, coat);
+                    }
+                    PixelSpec {
+                        s: s[0] + s[1],
+                        s_half: [s[0] * 2.0, s[1] * 2.0],
+                        ds_half: [[Rgb::ZERO; 3]; 2],
+                        d: Some((d[0] + d[1], [d[0] * 2.0, d[1] * 2.0])),
+                    }
+                })
+                .collect()
+        }
     }
 }
 
@@ -98,9 +132,10 @@ pub fn pixel_specs(
 pub fn moments(cache: &GroupCache, specs: &[PixelSpec]) -> [super::solve::Moments; 3] {
     let mut m = [super::solve::Moments::default(); 3];
     for (p, s) in cache.pixels.iter().zip(specs) {
+        let (_, d_half) = s.diffuse(p);
         for c in 0..3 {
             m[c].add(
-                [p.d_half[0][c], p.d_half[1][c]],
+                [d_half[0][c], d_half[1][c]],
                 [s.s_half[0][c], s.s_half[1][c]],
                 p.photo[c],
             );
@@ -112,12 +147,13 @@ pub fn moments(cache: &GroupCache, specs: &[PixelSpec]) -> [super::solve::Moment
 /// ε and the noise floor of the model ρd, ρs with the given specular terms.
 pub fn error(cache: &GroupCache, specs: &[PixelSpec], rho_d: Rgb, rho_s: Rgb) -> ErrorStats {
     let pixels = cache.pixels.iter().zip(specs).map(|(p, s)| {
+        let (d, d_half) = s.diffuse(p);
         let terms = PixelTerms {
-            syn: rho_d * p.d + rho_s * s.s,
+            syn: rho_d * d + rho_s * s.s,
             photo: p.photo,
             halves: [
-                rho_d * p.d_half[0] + rho_s * s.s_half[0],
-                rho_d * p.d_half[1] + rho_s * s.s_half[1],
+                rho_d * d_half[0] + rho_s * s.s_half[0],
+                rho_d * d_half[1] + rho_s * s.s_half[1],
             ],
         };
         (p.tile as usize, terms)

@@ -77,7 +77,12 @@ fn same(v: f32) -> f32 {
 }
 
 /// The levels with a glossy lobe: their ρd, ρs and α are free.
-const LOBE_LEVELS: &[Level] = &[Level::Isotropic, Level::Anisotropic, Level::Microfacet];
+const LOBE_LEVELS: &[Level] = &[
+    Level::Isotropic,
+    Level::Anisotropic,
+    Level::Microfacet,
+    Level::Plastic,
+];
 
 pub const REGISTRY: [ParamInfo; 5] = [
     ParamInfo {
@@ -92,6 +97,7 @@ pub const REGISTRY: [ParamInfo; 5] = [
             Level::Isotropic,
             Level::Anisotropic,
             Level::Microfacet,
+            Level::Plastic,
         ],
         watched: true,
         get: |p| p.rho_d.as_ref(),
@@ -110,6 +116,7 @@ pub const REGISTRY: [ParamInfo; 5] = [
             Level::Isotropic,
             Level::Anisotropic,
             Level::Microfacet,
+            Level::Plastic,
         ],
         watched: true,
         get: |p| p.rho_s.as_ref(),
@@ -290,6 +297,7 @@ impl GroupParams {
             Material::Textured {
                 varnish: Some(v), ..
             } => Some((v.alpha_x, v.alpha_y, v.theta)),
+            Material::Plastic { alpha, .. } => Some((*alpha, *alpha, 0.0)),
             _ => None,
         };
         if let Some((ax, ay, theta)) = lobe {
@@ -354,6 +362,12 @@ impl GroupParams {
                 alpha_x: self.alpha_x,
                 alpha_y: self.alpha_x,
                 theta: 0.0,
+            },
+            Level::Plastic => Material::Plastic {
+                rho_d: self.rho_d,
+                rho_s: self.rho_s,
+                alpha: self.alpha_x,
+                eta: crate::render::bsdf::plastic::DEFAULT_ETA,
             },
         }
     }

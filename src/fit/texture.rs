@@ -216,7 +216,7 @@ pub fn uniform_model(
         .pixels
         .iter()
         .zip(&specs)
-        .map(|(p, s)| rho_d * p.d + rho_s * s.s)
+        .map(|(p, s)| rho_d * s.diffuse(p).0 + rho_s * s.s)
         .collect()
 }
 

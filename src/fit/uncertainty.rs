@@ -58,7 +58,7 @@ pub fn sigma(
     fits: u32,
 ) -> Option<GroupParams> {
     let (alpha_y, theta) = match level {
-        Level::Isotropic | Level::Microfacet => (params.alpha_x, 0.0),
+        Level::Isotropic | Level::Microfacet | Level::Plastic => (params.alpha_x, 0.0),
         _ => (params.alpha_y, params.theta),
     };
     let spec = match level {
@@ -72,6 +72,7 @@ pub fn sigma(
         Level::Microfacet => Spec::Microfacet {
             alpha: params.alpha_x,
         },
+        Level::Plastic => super::fitter::spec_of(level, params),
         Level::Textured => return None,
     };
     let has_d = !matches!(level, Level::PerfectSpecular | Level::Specular);
@@ -95,12 +96,13 @@ pub fn sigma(
     for (p, s) in cache.pixels.iter().zip(&specs) {
         let t = &mut tiles[p.tile as usize];
         t.0 += p.photo;
-        t.1 += p.d;
+        let (d, d_half) = s.diffuse(p);
+        t.1 += d;
         t.2 += s.s;
         for k in 0..3 {
             t.3[k] += (s.ds_half[0][k] + s.ds_half[1][k]) * 0.5;
         }
-        t.4 += (rd * (p.d_half[0] - p.d_half[1]) + rs * (s.s_half[0] - s.s_half[1])) * 0.5;
+        t.4 += (rd * (d_half[0] - d_half[1]) + rs * (s.s_half[0] - s.s_half[1])) * 0.5;
     }
     tiles.retain(|t| t.0.max_element() > 0.0);
     // Columns: ρd per channel, ρs per channel, then the shape parameters.

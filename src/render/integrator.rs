@@ -65,6 +65,19 @@ pub fn bsdf_at(material: &Material, hit: &SurfaceHit, variant: WardVariant) -> (
             },
             hit.frame.rotated(*theta),
         ),
+        Material::Plastic {
+            rho_d,
+            rho_s,
+            alpha,
+            eta,
+        } => (
+            Bsdf::Plastic {
+                rho_d: *rho_d,
+                rho_s: *rho_s,
+                coat: super::bsdf::Coat::get(*alpha, *eta),
+            },
+            hit.frame,
+        ),
         Material::Textured {
             texture,
             scale,

@@ -138,6 +138,7 @@ fn level_of(m: &Material) -> Level {
         } if alpha_x == alpha_y && *theta == 0.0 => Level::Isotropic,
         Material::Ward { .. } => Level::Anisotropic,
         Material::Microfacet { .. } => Level::Microfacet,
+        Material::Plastic { .. } => Level::Plastic,
         Material::Textured { .. } => Level::Textured,
         Material::Diffuse { .. } | Material::Black => Level::Diffuse,
     }

@@ -934,6 +934,26 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
                 theta,
             }
         }
+        MaterialSpec::Plastic {
+            rho_d,
+            rho_s,
+            alpha,
+            eta,
+        } => {
+            let (alpha, _, _) = lobe(Some(*alpha), None, None, None, "a plastic material")?;
+            let eta = eta.unwrap_or(crate::render::bsdf::plastic::DEFAULT_ETA);
+            if !(eta.is_finite() && eta > 1.0) {
+                return Err(format!("`eta` must be a number > 1, got {eta}"));
+            }
+            let (rho_d, rho_s) = (color(rho_d, "rho_d")?, color(rho_s, "rho_s")?);
+            energy(rho_d, rho_s, "`rho_d` + `rho_s`")?;
+            Material::Plastic {
+                rho_d,
+                rho_s,
+                alpha,
+                eta,
+            }
+        }
         MaterialSpec::Textured {
             texture,
             scale,

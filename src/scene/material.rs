@@ -60,6 +60,14 @@ pub enum Material {
         alpha_y: f32,
         theta: f32,
     },
+    /// A diffuse base under a rough dielectric coat (`render::bsdf::plastic`, Mitsuba's
+    /// `roughplastic` with GGX): ρd the base's reflectance, ρs the coat's at normal incidence.
+    Plastic {
+        rho_d: Rgb,
+        rho_s: Rgb,
+        alpha: f32,
+        eta: f32,
+    },
     /// Lambert with ρd(u, v) = scale × texture(u, v), and optionally a uniform Ward lobe on
     /// top (a varnish: glossy posters, lacquered wood).
     Textured {
@@ -79,7 +87,8 @@ impl Material {
             Material::Diffuse { rho_d }
             | Material::DiffuseMirror { rho_d, .. }
             | Material::Ward { rho_d, .. }
-            | Material::Microfacet { rho_d, .. } => *rho_d,
+            | Material::Microfacet { rho_d, .. }
+            | Material::Plastic { rho_d, .. } => *rho_d,
             Material::Textured { texture, scale, .. } => {
                 let n = texture.texels.len().max(1) as f32;
                 texture.texels.iter().copied().sum::<Rgb>() / n * *scale
@@ -93,7 +102,8 @@ impl Material {
             Material::Mirror { rho_s }
             | Material::DiffuseMirror { rho_s, .. }
             | Material::Ward { rho_s, .. }
-            | Material::Microfacet { rho_s, .. } => *rho_s,
+            | Material::Microfacet { rho_s, .. }
+            | Material::Plastic { rho_s, .. } => *rho_s,
             Material::Textured {
                 varnish: Some(v), ..
             } => v.rho_s,

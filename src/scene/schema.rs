@@ -41,6 +41,8 @@
 //! material = { type = "ward", rho_d = 0.1, rho_s = 0.9, alpha_x = 0.07, alpha_y = 0.11, theta_deg = 0 }
 //! # or a GGX lobe with the same keys (Mitsuba's roughconductor, material "none"):
 //! # material = { type = "microfacet", rho_d = 0.1, rho_s = 0.8, alpha = 0.2 }
+//! # or a coated diffuse base (Mitsuba's roughplastic; rho_s at normal incidence, eta 1.49):
+//! # material = { type = "plastic", rho_d = [0.7, 0.05, 0.05], rho_s = 0.039, alpha = 0.1 }
 //! # emission = [10, 10, 10]     # makes the object an area light (front side, along edge_u × edge_v)
 //!
 //! [[object]]
@@ -379,6 +381,15 @@ pub enum MaterialSpec {
         alpha_y: Option<f32>,
         #[serde(default, skip_serializing_if = "Option::is_none")]
         theta_deg: Option<f32>,
+    },
+    /// A diffuse base under a rough dielectric coat (Mitsuba's `roughplastic`, GGX): `rho_d`,
+    /// `rho_s` (the coat's reflectance at normal incidence), `alpha`, optional `eta` (1.49).
+    Plastic {
+        rho_d: Color,
+        rho_s: Color,
+        alpha: f32,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        eta: Option<f32>,
     },
     Textured {
         texture: String,

@@ -53,6 +53,17 @@ pub fn material_spec(m: &Material) -> MaterialSpec {
                 theta_deg,
             }
         }
+        Material::Plastic {
+            rho_d,
+            rho_s,
+            alpha,
+            eta,
+        } => MaterialSpec::Plastic {
+            rho_d: c(*rho_d),
+            rho_s: c(*rho_s),
+            alpha: *alpha,
+            eta: (*eta != crate::render::bsdf::plastic::DEFAULT_ETA).then_some(*eta),
+        },
         Material::Textured {
             texture,
             scale,

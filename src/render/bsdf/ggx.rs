@@ -116,6 +116,21 @@ impl Pair {
     }
 }
 
+/// cos θi and cos θo of a cached pair (in either order), and cos θd = ωi·ĥ, from its half
+/// vector (see [`Pair`]); None below the surface.
+pub fn cosines(hv: &HalfVector) -> Option<(f32, f32, f32)> {
+    let n = hv.norm[0];
+    if n <= 0.0 {
+        return None;
+    }
+    let hz2 = 1.0 / hv.inv_hz2;
+    let k = 4.0 * PI * n;
+    let p = 1.0 / (k * k);
+    let big = 0.5 * (hz2.sqrt() + (hz2 - 4.0 * p).max(0.0).sqrt());
+    let len2 = hv.hx * hv.hx + hv.hy * hv.hy + hz2;
+    Some((big, p / big, 0.5 * len2.sqrt()))
+}
+
 /// The isotropic lobe per unit ρs at a cached pair, and its derivative in ln α:
 ///   D = α² (1 + t)² / (π (α² + t)²)            (t = tan²θh; D of the module comment),
 ///   ∂ln D/∂ln α = 2 − 4α² / (α² + t),

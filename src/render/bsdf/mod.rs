@@ -7,9 +7,11 @@
 pub mod ggx;
 pub mod lambert;
 pub mod mirror;
+pub mod plastic;
 pub mod ward;
 
 pub use ggx::GgxLobe;
+pub use plastic::Coat;
 pub use ward::{Lobes8, WardLobe};
 
 use crate::math::{luminance_mean, Rgb, Sampler, Vec3, INV_PI};
@@ -32,6 +34,13 @@ pub enum Bsdf {
         rho_d: Rgb,
         rho_s: Rgb,
         lobe: GgxLobe,
+    },
+    /// A diffuse base of reflectance ρd under a rough dielectric coat of reflectance ρs at
+    /// normal incidence (`plastic.rs`).
+    Plastic {
+        rho_d: Rgb,
+        rho_s: Rgb,
+        coat: &'static Coat,
     },
     /// Reflects nothing.
     Black,
@@ -57,7 +66,7 @@ impl Bsdf {
             Bsdf::Diffuse { rho_d } | Bsdf::DiffuseMirror { rho_d, .. } => {
                 rho_d.max_element() > 0.0
             }
-            Bsdf::Ward { .. } | Bsdf::Microfacet { .. } => true,
+            Bsdf::Ward { .. } | Bsdf::Microfacet { .. } | Bsdf::Plastic { .. } => true,
             Bsdf::Black => false,
         }
     }
@@ -86,6 +95,12 @@ impl Bsdf {
             Bsdf::Microfacet { rho_d, rho_s, lobe } => {
                 lambert::eval(*rho_d, wo, wi) + *rho_s * lobe.eval(wo, wi)
             }
+            Bsdf::Plastic { rho_d, rho_s, coat } => {
+                if wo.z <= 0.0 || wi.z <= 0.0 {
+                    return Rgb::ZERO;
+                }
+                *rho_d * coat.diffuse(wo.z, wi.z) + *rho_s * coat.specular(wo, wi)
+            }
             Bsdf::Black => Rgb::ZERO,
         }
     }
@@ -105,6 +120,10 @@ impl Bsdf {
             Bsdf::Microfacet { rho_d, rho_s, lobe } => {
                 let pd = Self::diffuse_prob(*rho_d, *rho_s);
                 pd * lambert::pdf(wo, wi) + (1.0 - pd) * lobe.pdf(wo, wi)
+            }
+            Bsdf::Plastic { rho_d, rho_s, coat } => {
+                let pd = Self::diffuse_prob(*rho_d, *rho_s);
+                pd * lambert::pdf(wo, wi) + (1.0 - pd) * coat.lobe.pdf(wo, wi)
             }
             Bsdf::Black => 0.0,
         }
@@ -152,6 +171,9 @@ impl Bsdf {
             }
             Bsdf::Microfacet { rho_d, rho_s, lobe } => {
                 self.smooth_sample(wo, *rho_d, *rho_s, uc, u, |u| lobe.sample(wo, u))
+            }
+            Bsdf::Plastic { rho_d, rho_s, coat } => {
+                self.smooth_sample(wo, *rho_d, *rho_s, uc, u, |u| coat.lobe.sample(wo, u))
             }
             Bsdf::Black => None,
         }
@@ -386,6 +408,16 @@ mod tests {
                 ward(0.5, 0.5, 0.5, 0.4, WardVariant::Balanced),
                 std_frame,
                 wo(10.0, 0.0),
+            ),
+            (
+                "plastic",
+                Bsdf::Plastic {
+                    rho_d: Rgb::new(0.7, 0.1, 0.1),
+                    rho_s: Rgb::splat(0.04),
+                    coat: Coat::get(0.1, plastic::DEFAULT_ETA),
+                },
+                tilted,
+                wo(60.0, 30.0),
             ),
             ("ggx iso", ggx(0.0, 1.0, 0.2, 0.2), std_frame, wo(40.0, 0.0)),
             (

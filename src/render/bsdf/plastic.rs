@@ -1,0 +1,265 @@
+//! A rough plastic: a diffuse base under a rough dielectric coat, as Mitsuba 3's `roughplastic`
+//! with `distribution = "ggx"` (and `nonlinear = false`), which matfit exports it as. With η the
+//! coat's relative index of refraction, F(η, cos) the unpolarised Fresnel reflectance of a
+//! dielectric interface (Born & Wolf; total internal reflection where η < 1) and the GGX lobe of
+//! `ggx.rs`:
+//!
+//!   f = specular_reflectance · F(η, ωi·ĥ) D G1 G1 / (4 cosθi cosθo)
+//!     + diffuse_reflectance / (1 − F_int) · t(cosθi) t(cosθo) / (π η²)
+//!
+//! where t(μ) is the light the rough coat lets through at incidence μ: over the normals ĥ it
+//! shows (Heitz's visible normals), (1 − F(η, ωi·ĥ)) times the masking G1 of the refracted
+//! direction (the light the coat's shadowing loses is neither reflected nor transmitted, so
+//! t < 1 − R); and F_int = 2 ∫ R_{1/η}(μ) μ dμ, the coat's reflectance from inside averaged,
+//! with R_η(μ) the directional albedo of its reflection (the first term's ∫ f cosθo dωo at
+//! specular_reflectance 1). Mitsuba tabulates t at 64
+//! cosines i/63 and interpolates linearly, and averages F_int over the same 64 cosines; matfit
+//! does the same, with its own quadrature of R (a 128 × 64 midpoint grid in the GGX sampling
+//! variables, exact importance for D cos θh).
+//!
+//! The diffuse part falls off faster than the cosine towards grazing (t falls as the coat's
+//! Fresnel reflection rises), and the specular part rises there: the shape of a coated surface
+//! that neither Lambert nor a constant-ρs lobe has.
+//!
+//! matfit's parameters: ρd = diffuse_reflectance, and ρs = F0 · specular_reflectance with
+//! F0 = F(η, 1), the coat's reflectance at normal incidence (so that ρs means what it means at
+//! the other levels, and ρd + ρs ≤ 1 holds). The lobe per unit ρs is F(η, ωi·ĥ)/F0 · GGX.
+
+use super::ggx::GgxLobe;
+use crate::math::{Rgb, Vec3, PI};
+use std::collections::HashMap;
+use std::sync::{Mutex, OnceLock};
+
+/// The coat's relative index of refraction when none is given: Mitsuba's default for
+/// `roughplastic` (polypropylene, 1.49, in air).
+pub const DEFAULT_ETA: f32 = 1.49;
+
+/// Entries of the transmittance table (Mitsuba's `MI_ROUGH_TRANSMITTANCE_RES`).
+const RES: usize = 64;
+
+/// Unpolarised Fresnel reflectance of a dielectric interface of relative index `eta` (inside
+/// over outside) for light arriving from outside at cosine `cos_i` ≥ 0; 1 under total internal
+/// reflection (η < 1).
+pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
+    let cos_i = cos_i.clamp(0.0, 1.0);
+    let sin_t2 = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin_t2 >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin_t2).sqrt();
+    let a_s = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    let a_p = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    0.5 * (a_s * a_s + a_p * a_p)
+}
+
+/// A rough dielectric coat of GGX roughness α and index η, with its tables.
+#[derive(Debug, PartialEq)]
+pub struct Coat {
+    pub lobe: GgxLobe,
+    pub eta: f32,
+    /// F(η, 1).
+    pub f0: f32,
+    /// t(μ) at μ = i/63 (the first at 1e-6).
+    transmittance: [f32; RES],
+    /// 1 / (π η² (1 − F_int)): the diffuse part per unit ρd, but the two t's.
+    diffuse_scale: f32,
+}
+
+impl Coat {
+    fn new(alpha: f32, eta: f32) -> Coat {
+        let lobe = GgxLobe {
+            alpha_x: alpha,
+            alpha_y: alpha,
+        };
+        let mu = |i: usize| (i as f32 / (RES - 1) as f32).max(1e-6);
+        let transmittance = std::array::from_fn(|i| transmitted(&lobe, eta, mu(i)));
+        let internal = 2.0
+            * (0..RES)
+                .map(|i| albedo(&lobe, 1.0 / eta, mu(i)) * mu(i))
+                .sum::<f32>()
+            / RES as f32;
+        Coat {
+            lobe,
+            eta,
+            f0: fresnel_dielectric(1.0, eta),
+            transmittance,
+            diffuse_scale: 1.0 / (PI * eta * eta * (1.0 - internal)),
+        }
+    }
+
+    /// The coat of roughness `alpha` and index `eta`, computed once per pair and kept for the
+    /// run (a BSDF is a plain value that refers to it; a recovery makes a few per group).
+    pub fn get(alpha: f32, eta: f32) -> &'static Coat {
+        static COATS: OnceLock<Mutex<HashMap<(u32, u32), &'static Coat>>> = OnceLock::new();
+        let mut map = COATS
+            .get_or_init(Default::default)
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        map.entry((alpha.to_bits(), eta.to_bits()))
+            .or_insert_with(|| Box::leak(Box::new(Coat::new(alpha, eta))))
+    }
+
+    /// t(μ), linearly interpolated in the table as Mitsuba does.
+    #[inline]
+    pub fn transmittance(&self, mu: f32) -> f32 {
+        let x = mu.clamp(0.0, 1.0) * (RES - 1) as f32;
+        let i = (x as usize).min(RES - 2);
+        let w = x - i as f32;
+        (1.0 - w) * self.transmittance[i] + w * self.transmittance[i + 1]
+    }
+
+    /// The diffuse part per unit ρd (both directions above the surface).
+    #[inline]
+    pub fn diffuse(&self, cos_o: f32, cos_i: f32) -> f32 {
+        self.transmittance(cos_o) * self.transmittance(cos_i) * self.diffuse_scale
+    }
+
+    /// The specular part per unit ρs: F(η, ωi·ĥ)/F0 times the GGX lobe.
+    #[inline]
+    pub fn specular(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return 0.0;
+        }
+        let h = (wi + wo).normalize();
+        fresnel_dielectric(wi.dot(h), self.eta) / self.f0 * self.lobe.eval(wo, wi)
+    }
+}
+
+/// Per unit ρs and ρd, Σ c·(specular part) and Σ c·(diffuse part) over cached direction pairs
+/// (`ward::LobeSample`): what the fitter's objective needs for a trial coat. The pairs' cosines
+/// come from their half vectors (`ggx::cosines`).
+pub fn plastic_sums(samples: &[super::ward::LobeSample], coat: &Coat) -> (Rgb, Rgb) {
+    let (mut s, mut d) = (Rgb::ZERO, Rgb::ZERO);
+    for smp in samples {
+        let Some((ci, co, cd)) = super::ggx::cosines(&smp.half) else {
+            continue;
+        };
+        let g = super::ggx::ggx_at(&smp.half, coat.lobe.alpha_x).0;
+        s += smp.c * (fresnel_dielectric(cd, coat.eta) / coat.f0 * g);
+        d += smp.c * coat.diffuse(ci, co);
+    }
+    (s, d)
+}
+
+/// t(μ) of the module comment: with ĥ drawn from D cos θh, the visible normals' density is
+/// G1(ωi) (ωi·ĥ) D / μ, so t = E[(1 − F) G1(ωt) G1(ωi) (ωi·ĥ) / (μ cos θh)], ωt the refraction
+/// of ωi through ĥ (into the coat, 1/η).
+fn transmitted(lobe: &GgxLobe, eta: f32, mu: f32) -> f32 {
+    grid_mean(lobe, mu, |wi, h, d, g1| {
+        let f = fresnel_dielectric(d, eta);
+        if f >= 1.0 {
+            return 0.0;
+        }
+        let inv = 1.0 / eta;
+        let cos_t = (1.0 - inv * inv * (1.0 - d * d)).max(0.0).sqrt();
+        let wt = h * (d * inv - cos_t) - wi * inv;
+        (1.0 - f) * g1(wt) * g1(wi) * d / (mu * h.z)
+    })
+}
+
+/// The mean of `term(ωi, ĥ, ωi·ĥ, G1)` over a 128 × 64 midpoint grid of the GGX sampling
+/// variables (ĥ distributed as D cos θh), ωi at incidence μ; terms where ωi·ĥ ≤ 0 are 0.
+fn grid_mean(
+    lobe: &GgxLobe,
+    mu: f32,
+    term: impl Fn(Vec3, Vec3, f32, &dyn Fn(Vec3) -> f32) -> f32,
+) -> f32 {
+    let wi = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
+    let (n1, n2) = (128, 64);
+    let a = lobe.alpha_x;
+    let g1 = |w: Vec3| {
+        let t = a * a * (w.x * w.x + w.y * w.y) / (w.z * w.z);
+        2.0 / (1.0 + (1.0 + t).sqrt())
+    };
+    let mut sum = 0.0f64;
+    for i in 0..n1 {
+        let u1 = (i as f32 + 0.5) / n1 as f32;
+        let r = a * (u1 / (1.0 - u1)).sqrt();
+        for j in 0..n2 {
+            let (s, c) = (2.0 * PI * (j as f32 + 0.5) / n2 as f32).sin_cos();
+            let h = Vec3::new(r * c, r * s, 1.0).normalize();
+            let d = wi.dot(h);
+            if d > 0.0 {
+                sum += term(wi, h, d, &g1) as f64;
+            }
+        }
+    }
+    (sum / (n1 * n2) as f64) as f32
+}
+
+/// R_η(μ): the directional albedo of the coat's reflection at incidence μ (specular
+/// reflectance 1). With ĥ drawn from D cos θh (pdf_h), ωo its reflection, dωo = 4 (ωo·ĥ) dωh:
+/// R = E[F G1(ωi) G1(ωo) (ωi·ĥ) / (μ cos θh)].
+fn albedo(lobe: &GgxLobe, eta: f32, mu: f32) -> f32 {
+    grid_mean(lobe, mu, |wi, h, d, g1| {
+        let wo = 2.0 * d * h - wi;
+        if wo.z <= 0.0 {
+            return 0.0;
+        }
+        fresnel_dielectric(d, eta) * g1(wi) * g1(wo) * d / (mu * h.z)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Sampler;
+
+    /// Fresnel at normal incidence is ((η − 1)/(η + 1))², 1 at grazing, total internal
+    /// reflection beyond the critical angle from inside.
+    #[test]
+    fn fresnel_limits() {
+        let f0 = fresnel_dielectric(1.0, 1.5);
+        assert!((f0 - 0.04).abs() < 1e-6, "{f0}");
+        assert!(fresnel_dielectric(1e-4, 1.5) > 0.99);
+        let critical = (1.0f32 - 1.0 / 1.5f32.powi(2)).sqrt(); // cos of asin(1/1.5)
+        assert_eq!(fresnel_dielectric(critical - 1e-3, 1.0 / 1.5), 1.0);
+        assert!(fresnel_dielectric(critical + 1e-2, 1.0 / 1.5) < 1.0);
+    }
+
+    /// The coat's tables against brute force: the albedo R by sampling the coat's own lobe
+    /// (an independent estimate of the same integral), energy conservation of the whole BSDF
+    /// (diffuse reflectance 1 under the coat reflects at most what arrives), and the smooth
+    /// limit: a nearly smooth coat transmits 1 − F(η, μ).
+    #[test]
+    fn tables_match_brute_force_and_conserve_energy() {
+        let eta = DEFAULT_ETA;
+        for alpha in [0.05f32, 0.2, 0.5] {
+            let coat = Coat::get(alpha, eta);
+            let mut s = Sampler::new(5, 0);
+            for mu in [0.2f32, 0.5, 0.9] {
+                let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+                let (n, mut r, mut all) = (200_000, 0.0f64, 0.0f64);
+                for k in 0..n {
+                    s.start_sample(k);
+                    let u = s.next_2d();
+                    // Cosine sampling: f cos / pdf = π f.
+                    let wi = crate::math::warp::cosine_hemisphere(u);
+                    let spec = coat.specular(wo, wi) * coat.f0;
+                    r += (PI * spec) as f64;
+                    all += (PI * (spec + coat.diffuse(wo.z, wi.z))) as f64;
+                }
+                let (r, all) = (r / n as f64, all / n as f64);
+                let t = coat.transmittance(mu) as f64;
+                let table_r = albedo(&coat.lobe, eta, mu) as f64;
+                assert!(
+                    (table_r - r).abs() < 0.01,
+                    "α {alpha} μ {mu}: quadrature R {table_r} vs sampled {r}"
+                );
+                // What the coat's masking loses is neither reflected nor transmitted.
+                assert!(
+                    t + r <= 1.0 + 0.01 && t + r > 0.6,
+                    "α {alpha} μ {mu}: t {t} R {r}"
+                );
+                assert!(all < 1.0 + 0.01, "α {alpha} μ {mu}: albedo {all}");
+            }
+        }
+        let smooth = Coat::get(0.005, eta);
+        for mu in [0.3f32, 0.7, 1.0] {
+            let t = smooth.transmittance(mu);
+            let want = 1.0 - fresnel_dielectric(mu, eta);
+            assert!((t - want).abs() < 0.01, "μ {mu}: {t} vs {want}");
+        }
+        assert!(std::ptr::eq(Coat::get(0.2, eta), Coat::get(0.2, eta)));
+    }
+}
