@@ -80,11 +80,26 @@ pub fn sigma(
     // The lobe's free shape parameters: ln α (both axes at once) or ln αx, ln αy, θ.
     let shape: &[[f32; 3]] = match level {
         Level::Isotropic => &[[1.0, 1.0, 0.0]],
-        Level::Microfacet => &[[1.0, 0.0, 0.0]],
+        Level::Microfacet | Level::Plastic => &[[1.0, 0.0, 0.0]],
         Level::Anisotropic => &[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
         _ => &[],
     };
-    let specs = pixel_specs(cache, spec, variant, !shape.is_empty());
+    let mut specs = pixel_specs(cache, spec, variant, !shape.is_empty());
+    // The coat's α moves its diffuse term as well as its lobe, and neither has an analytic
+    // derivative here: central differences in ln α, ∂S into `ds_half`, ∂D into `dd`.
+    let mut dd = vec![Rgb::ZERO; specs.len()];
+    if let Spec::Plastic { alpha, eta } = spec {
+        let h = 0.02f32;
+        let at = |a: f32| pixel_specs(cache, Spec::Plastic { alpha: a, eta }, variant, false);
+        let (up, down) = (at(alpha * h.exp()), at(alpha / h.exp()));
+        for (((s, d), u), w) in specs.iter_mut().zip(&mut dd).zip(&up).zip(&down) {
+            for k in 0..2 {
+                s.ds_half[k][0] = (u.s_half[k] - w.s_half[k]) / (2.0 * h);
+            }
+            let (du, dw) = (u.d.unwrap_or_default().0, w.d.unwrap_or_default().0);
+            *d = (du - dw) / (2.0 * h);
+        }
+    }
     let n_tiles = cache.tiles;
     if n_tiles == 0 {
         return None;
@@ -92,9 +107,11 @@ pub fn sigma(
     // Per tile: photo, D, S, ∂S/∂(ln αx, ln αy, θ), and the model's half difference (L₀ − L₁)/2.
     let rd = if has_d { params.rho_d } else { Rgb::ZERO };
     let rs = if has_s { params.rho_s } else { Rgb::ZERO };
-    let mut tiles = vec![(Rgb::ZERO, Rgb::ZERO, Rgb::ZERO, [Rgb::ZERO; 3], Rgb::ZERO); n_tiles];
-    for (p, s) in cache.pixels.iter().zip(&specs) {
+    let zero = Rgb::ZERO;
+    let mut tiles = vec![(zero, zero, zero, [zero; 3], zero, zero); n_tiles];
+    for ((p, s), dd) in cache.pixels.iter().zip(&specs).zip(&dd) {
         let t = &mut tiles[p.tile as usize];
+        t.5 += *dd;
         t.0 += p.photo;
         let (d, d_half) = s.diffuse(p);
         t.1 += d;
@@ -138,7 +155,7 @@ pub fn sigma(
             }
             for (i, mix) in shape.iter().enumerate() {
                 let ds: f64 = (0..3).map(|k| mix[k] as f64 * t.3[k][c] as f64).sum();
-                jac.push((col_shape + i, rs * ds));
+                jac.push((col_shape + i, rs * ds + rd * t.5[c] as f64));
             }
             chi2 += w * r * r;
             cache_noise += w * (t.4[c] as f64).powi(2);
@@ -182,7 +199,7 @@ pub fn sigma(
         }
     }
     match level {
-        Level::Isotropic | Level::Microfacet => {
+        Level::Isotropic | Level::Microfacet | Level::Plastic => {
             out.alpha_x = params.alpha_x * sd(col_shape);
             out.alpha_y = out.alpha_x;
         }
