@@ -41,7 +41,7 @@ impl GgxLobe {
     /// Smith's G1 of a direction above the surface (and above the microfacet, which a half
     /// vector of two directions above the surface always is).
     #[inline]
-    fn g1(&self, w: Vec3) -> f32 {
+    pub(crate) fn g1(&self, w: Vec3) -> f32 {
         let (a, b) = (self.alpha_x * w.x, self.alpha_y * w.y);
         let t = (a * a + b * b) / (w.z * w.z);
         2.0 / (1.0 + (1.0 + t).sqrt())
@@ -97,15 +97,7 @@ struct Pair {
 impl Pair {
     #[inline]
     fn of(hv: &HalfVector) -> Option<Pair> {
-        let n = hv.norm[0];
-        if n <= 0.0 {
-            return None;
-        }
-        let hz2 = 1.0 / hv.inv_hz2;
-        let k = 4.0 * PI * n; // 1 / √P
-        let p = 1.0 / (k * k);
-        let big = 0.5 * (hz2.sqrt() + (hz2 - 4.0 * p).max(0.0).sqrt());
-        let small = p / big;
+        let (big, small, p, _) = roots(hv)?;
         let tan2 = |c: f32| (1.0 - c * c).max(0.0) / (c * c);
         Some(Pair {
             tan2_h: (hv.hx * hv.hx + hv.hy * hv.hy) * hv.inv_hz2,
@@ -119,16 +111,24 @@ impl Pair {
 /// cos θi and cos θo of a cached pair (in either order), and cos θd = ωi·ĥ, from its half
 /// vector (see [`Pair`]); None below the surface.
 pub fn cosines(hv: &HalfVector) -> Option<(f32, f32, f32)> {
+    let (big, small, _, hz2) = roots(hv)?;
+    let len2 = hv.hx * hv.hx + hv.hy * hv.hy + hz2;
+    Some((big, small, 0.5 * len2.sqrt()))
+}
+
+/// The larger and the smaller of a cached pair's two cosines, their product P and hz² (see
+/// [`Pair`]); None below the surface.
+#[inline]
+fn roots(hv: &HalfVector) -> Option<(f32, f32, f32, f32)> {
     let n = hv.norm[0];
     if n <= 0.0 {
         return None;
     }
     let hz2 = 1.0 / hv.inv_hz2;
-    let k = 4.0 * PI * n;
+    let k = 4.0 * PI * n; // 1 / √P
     let p = 1.0 / (k * k);
     let big = 0.5 * (hz2.sqrt() + (hz2 - 4.0 * p).max(0.0).sqrt());
-    let len2 = hv.hx * hv.hx + hv.hy * hv.hy + hz2;
-    Some((big, p / big, 0.5 * len2.sqrt()))
+    Some((big, p / big, p, hz2))
 }
 
 /// The isotropic lobe per unit ρs at a cached pair, and its derivative in ln α:

@@ -167,10 +167,7 @@ fn grid_mean(
     let wi = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
     let (n1, n2) = (128, 64);
     let a = lobe.alpha_x;
-    let g1 = |w: Vec3| {
-        let t = a * a * (w.x * w.x + w.y * w.y) / (w.z * w.z);
-        2.0 / (1.0 + (1.0 + t).sqrt())
-    };
+    let g1 = |w: Vec3| lobe.g1(w);
     let mut sum = 0.0f64;
     for i in 0..n1 {
         let u1 = (i as f32 + 0.5) / n1 as f32;
