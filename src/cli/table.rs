@@ -2,7 +2,7 @@
 //! recovered materials that ends `recover`.
 
 use matfit::fit::hierarchy::Status;
-use matfit::fit::Recovery;
+use matfit::fit::{Level, Recovery};
 use matfit::math::{Rgb, Vec3};
 use matfit::scene::{Material, Scene};
 
@@ -236,6 +236,20 @@ pub fn recovered(rec: &Recovery) -> String {
          the largest standard uncertainty of the group's reflectances (any channel) and of its \
          roughness (relative); every parameter's is in results.json `sigma`.\n",
     );
+    if rec
+        .groups
+        .iter()
+        .any(|st| st.is_fitted() && st.level == Level::Plastic)
+    {
+        use matfit::render::bsdf::plastic::{fresnel_dielectric, DEFAULT_ETA};
+        out.push_str(&format!(
+            "plastic: a diffuse base under a rough GGX dielectric coat whose index of refraction \
+             is not fitted but taken as η = {DEFAULT_ETA} (acrylic); its ρs is the coat's \
+             reflectance at normal incidence (F0 = {:.4} for that η; a ρs away from it is a coat \
+             reflecting more or less than clean acrylic).\n",
+            fresnel_dielectric(1.0, DEFAULT_ETA)
+        ));
+    }
     out
 }
 

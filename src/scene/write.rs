@@ -62,7 +62,8 @@ pub fn material_spec(m: &Material) -> MaterialSpec {
             rho_d: c(*rho_d),
             rho_s: c(*rho_s),
             alpha: *alpha,
-            eta: (*eta != crate::render::bsdf::plastic::DEFAULT_ETA).then_some(*eta),
+            // Written even at the default: a recovered η is an assumption the reader should see.
+            eta: Some(*eta),
         },
         Material::Textured {
             texture,
