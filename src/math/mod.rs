@@ -33,19 +33,6 @@ pub fn luminance_mean(c: Rgb) -> f32 {
     (c.x + c.y + c.z) / 3.0
 }
 
-/// exp(−x), the same number as `(-x).exp()`, without the cost of underflow: glibc's `expf`
-/// returns 0 for arguments below −103.97 through a slow path that also sets `errno`, and a
-/// glossy Ward lobe exp(−E) is there for most directions (that path was 6% of a recovery's
-/// time on figure6, and as much again in `expf` itself).
-#[inline]
-pub fn exp_neg(x: f32) -> f32 {
-    if x > 104.0 {
-        0.0
-    } else {
-        (-x).exp()
-    }
-}
-
 /// exp(−x) for x ≥ 0 (0 from x = 87 on, and for NaN), by the same operations as
 /// [`exp_neg_poly8`], so that the two agree to the bit: the renderer's Ward lobe, which the
 /// eight-lane path loop evaluates on lanes, takes it rather than libm's `expf` (a call per lane,
@@ -183,18 +170,5 @@ mod tests {
             assert_eq!(exp_neg_poly(*x).to_bits(), y.to_bits(), "x = {x}");
         }
         assert_eq!(exp_neg_poly(0.0), 1.0);
-    }
-
-    #[test]
-    fn exp_neg_is_libms_exp_to_the_bit() {
-        let mut x = 0.0f32;
-        while x < 200.0 {
-            assert_eq!(exp_neg(x).to_bits(), (-x).exp().to_bits(), "x = {x}");
-            x = x * 1.001 + 1e-3;
-        }
-        for x in [f32::INFINITY, 103.9, 103.98, 104.0, 104.01] {
-            assert_eq!(exp_neg(x).to_bits(), (-x).exp().to_bits(), "x = {x}");
-        }
-        assert!(exp_neg(f32::NAN).is_nan());
     }
 }

@@ -3,7 +3,7 @@
 //! derivatives with respect to ln αx, ln αy and θ. The same function as [`super::WardLobe::eval`]
 //! (a test holds them together), arranged so that the fit's many trial lobes divide nothing.
 
-use crate::math::{exp_neg, Vec3, PI};
+use crate::math::{exp_neg_poly, Vec3, PI};
 use crate::scene::WardVariant;
 
 /// What the Ward lobe needs of a pair of directions (ωo, ωi), in the unrotated local frame,
@@ -80,7 +80,7 @@ pub fn ward_at(hv: &HalfVector, p: &LobeParams) -> (f32, [f32; 3]) {
     let hy = -hv.hx * p.sin_t + hv.hy * p.cos_t;
     let a2 = hx * hx * p.inv_ax2 * hv.inv_hz2;
     let b2 = hy * hy * p.inv_ay2 * hv.inv_hz2;
-    let g = exp_neg(a2 + b2) * p.inv_axay * hv.norm[p.variant];
+    let g = exp_neg_poly(a2 + b2) * p.inv_axay * hv.norm[p.variant];
     let dtheta = -g * 2.0 * hx * hy * (p.inv_ax2 - p.inv_ay2) * hv.inv_hz2;
     (g, [g * (2.0 * a2 - 1.0), g * (2.0 * b2 - 1.0), dtheta])
 }

@@ -122,8 +122,9 @@ impl LobeSample {
 }
 
 /// Σ c·g over `samples` and, if asked, Σ c·2∂g/∂k for k = ln αx, ln αy, θ (zero otherwise):
-/// [`ward_at`] on eight samples at a time (AVX), the rest one by one. The eight-lane exp
-/// (`wide`'s) flushes results below e⁻⁸⁷·³ to zero and may differ from libm's in the last bit.
+/// [`ward_at`] on eight samples at a time (AVX), the rest one by one. Both take the renderer's
+/// exp ([`crate::math::exp_neg_poly`] and its lanes, equal to the bit), so fitter and renderer evaluate one
+/// lobe.
 pub fn lobe_sums(samples: &[LobeSample], p: &LobeParams, derivatives: bool) -> (Rgb, [Rgb; 3]) {
     let splat = f32x8::splat;
     let (cos_t, sin_t) = (splat(p.cos_t), splat(p.sin_t));
@@ -143,7 +144,7 @@ pub fn lobe_sums(samples: &[LobeSample], p: &LobeParams, derivatives: bool) -> (
         let ry = -hx * sin_t + hy * cos_t;
         let a2 = rx * rx * inv_ax2 * inv_hz2;
         let b2 = ry * ry * inv_ay2 * inv_hz2;
-        let g = (-(a2 + b2)).exp() * inv_axay * norm;
+        let g = exp_neg_poly8(a2 + b2) * inv_axay * norm;
         for ch in 0..3 {
             s[ch] += c[ch] * g;
         }
