@@ -8,6 +8,7 @@ use matfit::fit::{recover_resumable, Checkpoint, RecoverOptions, Recovery};
 use matfit::io::atomic::write_atomic;
 use matfit::photo::{Photo, UsableMask};
 use matfit::scene::Scene;
+use std::borrow::Cow;
 use std::io::{Seek, Write};
 use std::path::Path;
 
@@ -110,7 +111,7 @@ pub fn run_recover(
         return Err(e);
     }
     // The photo in the recovered scene's units, its exposure as the fit left it.
-    if rec.exposure_factor != 1.0 {
+    let (photo, inputs) = if rec.exposure_factor != 1.0 {
         let mut inputs = inputs.clone();
         if opts.grey_card.is_some() {
             inputs.exposure *= rec.exposure_factor;
@@ -119,10 +120,11 @@ pub fn run_recover(
         }
         let mut scaled = photo.clone();
         scaled.apply_exposure(rec.exposure_factor);
-        matfit::report::write_outputs(out, &rec, &scaled, Some(&inputs))?;
+        (Cow::Owned(scaled), Cow::Owned(inputs))
     } else {
-        matfit::report::write_outputs(out, &rec, photo, Some(inputs))?;
-    }
+        (Cow::Borrowed(photo), Cow::Borrowed(inputs))
+    };
+    matfit::report::write_outputs(out, &rec, &photo, Some(&inputs))?;
     Ok(rec)
 }
 
