@@ -275,19 +275,34 @@ fn microfacet_materials_round_trip_through_mitsuba() {
         .replace(
             "material = { type = \"diffuse\", rho_d = [0.77, 0.0, 0.0] }",
             "material = { type = \"microfacet\", rho_d = [0.5, 0.1, 0.1], rho_s = 0.3, alpha = 0.08 }",
+        )
+        .replace(
+            "material = { type = \"diffuse\", rho_d = 0.66 }",
+            "material = { type = \"plastic\", rho_d = [0.6, 0.3, 0.1], rho_s = 0.05, alpha = 0.15, eta = 1.6 }",
         );
     let dir = tempfile::tempdir().unwrap();
     let src = write(dir.path(), "scene.toml", &text);
     let back = round_trip(src.to_str().unwrap());
-    for (name, alpha) in [("small_block", 0.2), ("big_block", 0.08)] {
+    let material = |name: &str| {
         let g = back.group_index(name).unwrap();
-        let m = &back.objects[back.groups[g].objects[0]].material;
+        back.objects[back.groups[g].objects[0]].material.clone()
+    };
+    for (name, alpha) in [("small_block", 0.2), ("big_block", 0.08)] {
+        let m = material(name);
         assert!(
             matches!(m, Material::Microfacet { alpha_x, alpha_y, .. }
-                if *alpha_x == alpha && *alpha_y == alpha),
+                if alpha_x == alpha && alpha_y == alpha),
             "{name}: {m:?}"
         );
     }
+    // The plastic went out as roughplastic (specular_reflectance = ρs / F0) and comes back as
+    // itself, η included.
+    let m = material("left_wall");
+    assert!(
+        matches!(m, Material::Plastic { alpha, eta, .. }
+            if alpha == 0.15 && (eta - 1.6).abs() < 1e-6),
+        "{m:?}"
+    );
 }
 
 #[test]
@@ -528,7 +543,7 @@ fn approximations_are_warnings_listed_in_the_header() {
     let text = std::fs::read_to_string(&out).unwrap();
     for (line, what) in [
         (5, "no rfilter"),
-        (7, "imported as Ward"),
+        (7, "imported as plastic (a GGX coat"),
         (7, "one-sided"),
         (26, "a mirror with ρs = Fresnel"),
         (26, "one-sided"),
@@ -546,17 +561,19 @@ fn approximations_are_warnings_listed_in_the_header() {
     }
     let sc = load_scene(&out).unwrap();
     let obj = |n: &str| sc.objects.iter().find(|o| o.name == n).unwrap();
-    // Roughplastic: F0 = ((1.49/1.000277 − 1)/(1.49/1.000277 + 1))² ≈ 0.0387, α = alpha.
+    // Roughplastic (Mitsuba's default distribution, Beckmann): matfit's plastic, whose coat is
+    // GGX, with the same α and η = 1.49/1.000277, F0 = ((η − 1)/(η + 1))² ≈ 0.0387.
     match &obj("board").material {
-        Material::Ward {
+        Material::Plastic {
             rho_d,
             rho_s,
-            alpha_x,
-            ..
+            alpha,
+            eta,
         } => {
             assert!((rho_s.x - 0.0387).abs() < 1e-3, "{rho_s}");
-            assert!((rho_d.x - 0.5 * (1.0 - rho_s.x)).abs() < 1e-6, "{rho_d}");
-            assert_eq!(*alpha_x, 0.2);
+            assert!((*rho_d - Rgb::new(0.5, 0.4, 0.3)).abs().max_element() < 1e-6);
+            assert_eq!(*alpha, 0.2);
+            assert!((eta - 1.49 / 1.000277).abs() < 1e-6, "{eta}");
         }
         m => panic!("{m:?}"),
     }

@@ -48,14 +48,16 @@
 //!   textured) → diffuse; `conductor` with material `none` → mirror ρs = specular_reflectance;
 //!   `blendbsdf` of those → diffuse_mirror ρd = (1−w)·ρd₁ + w·ρd₂, ρs likewise (the exporter's
 //!   blend inverted); `roughconductor` with material `none` and `distribution = "ggx"`, alone or
-//!   blended with a `diffuse` → microfacet, likewise. Initial guesses, not truth (a warning each), with ρs from Fresnel
+//!   blended with a `diffuse` → microfacet, likewise; `roughplastic` with `distribution = "ggx"`
+//!   (and `nonlinear` false) → plastic (ρd = diffuse_reflectance, ρs = F0·specular_reflectance,
+//!   α, η = int_ior/ext_ior). Initial guesses, not truth (a warning each), with ρs from Fresnel
 //!   reflectance at normal incidence F0: conductors with eta/k (or a named metal, from a small
 //!   table) → mirror ρs = F0·specular_reflectance; `roughconductor` → Ward ρd 0, ρs as the
 //!   conductor, α = alpha (αx, αy = alpha_u, alpha_v; Beckmann's and Ward's α are the same slope
-//!   width); `plastic` → diffuse_mirror, `roughplastic` → Ward α = alpha, both with
-//!   F0 = ((η−1)/(η+1))², η = int_ior/ext_ior, ρs = F0·specular_reflectance,
-//!   ρd = (1−F0)·diffuse_reflectance; `principled` → Ward α = roughness², F0 = 0.08·specular
-//!   blended to base_color by metallic, ρd = (1−metallic)(1−F0)·base_color. Anything else
+//!   width); `plastic` → diffuse_mirror with F0 = ((η−1)/(η+1))², η = int_ior/ext_ior,
+//!   ρs = F0·specular_reflectance, ρd = (1−F0)·diffuse_reflectance; `roughplastic` with
+//!   another distribution than GGX or `nonlinear` → plastic with its α and η; `principled` →
+//!   Ward α = roughness², F0 = 0.08·specular blended to base_color by metallic, ρd = (1−metallic)(1−F0)·base_color. Anything else
 //!   (dielectrics, …) → diffuse 0.5 with a warning. A shape with no BSDF gets Mitsuba's default,
 //!   diffuse 0.5; a zero reflectance is written `black`. ρd + ρs over 1 is scaled down (a
 //!   warning).
@@ -157,6 +159,8 @@ struct Lobes {
     /// The rough part is exactly matfit's microfacet lobe: a GGX `roughconductor` with
     /// `material = "none"`.
     ggx: bool,
+    /// A `roughplastic`: matfit's plastic with this coat's η (d and s as matfit's ρd and ρs).
+    plastic: Option<f64>,
 }
 
 impl Lobes {
@@ -1256,29 +1260,42 @@ impl<'a> Ctx<'a> {
                     ..Default::default()
                 }
             }
-            "plastic" | "roughplastic" => {
-                let eta = self.float(b, "int_ior", 1.49)? / self.float(b, "ext_ior", 1.000277)?;
+            "roughplastic" => {
+                // matfit's plastic is this plugin with a GGX coat and `nonlinear = false`.
+                let eta = self.ior_ratio(b)?;
+                let f0 = crate::render::bsdf::plastic::fresnel_dielectric(1.0, eta as f32) as f64;
+                let distribution = self
+                    .string(b, "distribution")?
+                    .unwrap_or_else(|| "beckmann".into());
+                if distribution != "ggx" || self.boolean(b, "nonlinear")? {
+                    guess(
+                        self,
+                        "plastic (a GGX coat, `nonlinear` false) with the same alpha and η, \
+                         ρs = F0 × specular_reflectance",
+                    );
+                }
+                let (a, _) = self.alpha(b, 0.1)?;
+                Lobes {
+                    d: self.rgb(b, "diffuse_reflectance", 0.5)?,
+                    s: self.rgb(b, "specular_reflectance", 1.0)? * f0,
+                    alpha: Some((a, a)),
+                    plastic: Some(eta),
+                    ..Default::default()
+                }
+            }
+            "plastic" => {
+                let eta = self.ior_ratio(b)?;
                 let f0 = ((eta - 1.0) / (eta + 1.0)).powi(2);
-                let rough = ty == "roughplastic";
                 guess(
                     self,
                     &format!(
-                        "{} with F0 = ((η−1)/(η+1))² = {f0:.4}, ρs = F0 × specular_reflectance, \
-                         ρd = (1 − F0) × diffuse_reflectance{}",
-                        if rough { "Ward" } else { "diffuse_mirror" },
-                        if rough { ", α = alpha" } else { "" }
+                        "diffuse_mirror with F0 = ((η−1)/(η+1))² = {f0:.4}, ρs = F0 × \
+                         specular_reflectance, ρd = (1 − F0) × diffuse_reflectance"
                     ),
                 );
-                let d = self.rgb(b, "diffuse_reflectance", 0.5)? * (1.0 - f0);
-                let s = self.rgb(b, "specular_reflectance", 1.0)? * f0;
                 Lobes {
-                    d,
-                    s,
-                    alpha: if rough {
-                        Some(self.alpha(b, 0.1)?)
-                    } else {
-                        None
-                    },
+                    d: self.rgb(b, "diffuse_reflectance", 0.5)? * (1.0 - f0),
+                    s: self.rgb(b, "specular_reflectance", 1.0)? * f0,
                     ..Default::default()
                 }
             }
@@ -1328,12 +1345,16 @@ impl<'a> Ctx<'a> {
                         "the blend of its parts' ρd and ρs, the rough part's α (no textures)",
                     );
                 }
+                if la.plastic.is_some() || lc.plastic.is_some() {
+                    guess(self, "the blend of its parts' ρd and ρs as a Ward lobe");
+                }
                 Lobes {
                     d: la.d * (1.0 - w) + lc.d * w,
                     s: la.s * (1.0 - w) + lc.s * w,
                     alpha: la.alpha.or(lc.alpha),
                     texture: None,
                     ggx,
+                    plastic: None,
                 }
             }
             other => {
@@ -1347,6 +1368,15 @@ impl<'a> Ctx<'a> {
                 }
             }
         })
+    }
+
+    /// A dielectric's η = int_ior / ext_ior (Mitsuba's defaults: polypropylene in air).
+    fn ior_ratio(&self, b: N<'a>) -> Result<f64, String> {
+        let eta = self.float(b, "int_ior", 1.49)? / self.float(b, "ext_ior", 1.000277)?;
+        if !(eta > 1.0 && eta.is_finite()) {
+            return Err(self.err(b, "int_ior must exceed ext_ior"));
+        }
+        Ok(eta)
     }
 
     fn alpha(&self, b: N<'a>, default: f64) -> Result<(f64, f64), String> {
@@ -1429,6 +1459,14 @@ impl<'a> Ctx<'a> {
                 alpha_x: if has_s { alpha_x } else { None },
                 alpha_y: if has_s { alpha_y } else { None },
                 theta_deg: None,
+            };
+        }
+        if let (Some(eta), Some((a, _))) = (l.plastic, l.alpha) {
+            return MaterialSpec::Plastic {
+                rho_d: c(d),
+                rho_s: c(s),
+                alpha: a as f32,
+                eta: Some(eta as f32),
             };
         }
         if l.alpha.is_some() && has_s && l.ggx && l.texture.is_none() {
