@@ -216,75 +216,167 @@ fn check_ply_header(bytes: &[u8]) -> Result<(), String> {
     Ok(())
 }
 
+/// A PLY property as a number, whatever its stored type; None for lists.
+fn ply_number(p: &ply_rs_bw::ply::Property) -> Option<f32> {
+    use ply_rs_bw::ply::Property;
+    Some(match *p {
+        Property::Float(x) => x,
+        Property::Double(x) => x as f32,
+        Property::Int(x) => x as f32,
+        Property::UInt(x) => x as f32,
+        Property::Short(x) => x as f32,
+        Property::UShort(x) => x as f32,
+        Property::Char(x) => x as f32,
+        Property::UChar(x) => x as f32,
+        _ => return None,
+    })
+}
+
+/// One PLY vertex as matfit reads it: position, normal and UV (under the three names PLY files
+/// give it), NaN where the file has no such property. The parser hands over every property by
+/// name; a typed element keeps only these (ply-rs's generic `DefaultElement` kept a hash map per
+/// vertex and per face).
+struct PlyVertex {
+    p: [f32; 3],
+    n: [f32; 3],
+    /// u, s, texture_u and v, t, texture_v, in that order of preference.
+    uv: [[f32; 3]; 2],
+}
+
+impl ply_rs_bw::ply::PropertyAccess for PlyVertex {
+    fn new() -> Self {
+        PlyVertex {
+            p: [f32::NAN; 3],
+            n: [f32::NAN; 3],
+            uv: [[f32::NAN; 3]; 2],
+        }
+    }
+
+    fn set_property(&mut self, name: String, p: ply_rs_bw::ply::Property) {
+        let slot = match name.as_str() {
+            "x" => &mut self.p[0],
+            "y" => &mut self.p[1],
+            "z" => &mut self.p[2],
+            "nx" => &mut self.n[0],
+            "ny" => &mut self.n[1],
+            "nz" => &mut self.n[2],
+            "u" => &mut self.uv[0][0],
+            "s" => &mut self.uv[0][1],
+            "texture_u" => &mut self.uv[0][2],
+            "v" => &mut self.uv[1][0],
+            "t" => &mut self.uv[1][1],
+            "texture_v" => &mut self.uv[1][2],
+            _ => return,
+        };
+        *slot = ply_number(&p).unwrap_or(f32::NAN);
+    }
+}
+
+/// One PLY face: its vertex indices (`vertex_indices`, or `vertex_index` as some writers name
+/// it), the first three inline so that a triangle needs no allocation of its own.
+#[derive(Default)]
+struct PlyFace {
+    /// Whether an integer list was read.
+    read: bool,
+    len: usize,
+    head: [u32; 3],
+    rest: Vec<u32>,
+}
+
+impl ply_rs_bw::ply::PropertyAccess for PlyFace {
+    fn new() -> Self {
+        Self::default()
+    }
+
+    fn set_property(&mut self, name: String, p: ply_rs_bw::ply::Property) {
+        use ply_rs_bw::ply::Property;
+        if !(name == "vertex_indices" || (name == "vertex_index" && !self.read)) {
+            return;
+        }
+        let idx: Vec<u32> = match p {
+            Property::ListInt(v) => v.iter().map(|&x| x.max(0) as u32).collect(),
+            Property::ListUInt(v) => v,
+            Property::ListUChar(v) => v.iter().map(|&x| x as u32).collect(),
+            Property::ListUShort(v) => v.iter().map(|&x| x as u32).collect(),
+            Property::ListShort(v) => v.iter().map(|&x| x.max(0) as u32).collect(),
+            Property::ListChar(v) => v.iter().map(|&x| x.max(0) as u32).collect(),
+            _ => return,
+        };
+        self.read = true;
+        self.len = idx.len();
+        self.head = [0; 3];
+        for (h, &i) in self.head.iter_mut().zip(&idx) {
+            *h = i;
+        }
+        self.rest = idx.get(3..).map(<[u32]>::to_vec).unwrap_or_default();
+    }
+}
+
+/// Elements matfit does not read (edges, materials, …): parsed past, kept as nothing.
+struct PlyIgnored;
+
+impl ply_rs_bw::ply::PropertyAccess for PlyIgnored {
+    fn new() -> Self {
+        PlyIgnored
+    }
+}
+
 fn ply_from_bytes(bytes: &[u8], path: &Path) -> Result<TriangleMesh, String> {
     use ply_rs_bw::parser::Parser;
-    use ply_rs_bw::ply::{DefaultElement, Property};
     let bad = |what: String| format!("mesh file {}: {what}", path.display());
+    let unreadable = |e: std::io::Error| bad(format!("not a readable PLY file ({e})"));
     check_ply_header(bytes).map_err(|e| bad(format!("not a readable PLY file ({e})")))?;
-    let ply = Parser::<DefaultElement>::new()
-        .read_ply(&mut std::io::Cursor::new(bytes))
-        .map_err(|e| bad(format!("not a readable PLY file ({e})")))?;
-    let num = |p: Option<&Property>| -> Option<f32> {
-        Some(match p? {
-            Property::Float(x) => *x,
-            Property::Double(x) => *x as f32,
-            Property::Int(x) => *x as f32,
-            Property::UInt(x) => *x as f32,
-            Property::Short(x) => *x as f32,
-            Property::UShort(x) => *x as f32,
-            Property::Char(x) => *x as f32,
-            Property::UChar(x) => *x as f32,
-            _ => return None,
-        })
-    };
-    let verts = ply
-        .payload
-        .get("vertex")
-        .ok_or_else(|| bad("no 'vertex' element".into()))?;
+    let mut reader = std::io::Cursor::new(bytes);
+    let (vp, fp) = (Parser::<PlyVertex>::new(), Parser::<PlyFace>::new());
+    let header = vp.read_header(&mut reader).map_err(unreadable)?;
+    let (mut verts, mut faces) = (None, None);
+    for element in header.elements.values() {
+        match element.name.as_str() {
+            "vertex" if verts.is_none() => {
+                verts = Some(vp.read_payload_for_element(&mut reader, element, &header));
+            }
+            "face" if faces.is_none() => {
+                faces = Some(fp.read_payload_for_element(&mut reader, element, &header));
+            }
+            _ => {
+                Parser::<PlyIgnored>::new()
+                    .read_payload_for_element(&mut reader, element, &header)
+                    .map_err(unreadable)?;
+            }
+        }
+    }
+    let verts = verts
+        .ok_or_else(|| bad("no 'vertex' element".into()))?
+        .map_err(unreadable)?;
+    let faces = faces
+        .ok_or_else(|| bad("no 'face' element".into()))?
+        .map_err(unreadable)?;
     let mut m = TriangleMesh::default();
     let (mut ns, mut uvs) = (Vec::new(), Vec::new());
+    let given = |x: &[f32; 3]| x.iter().all(|c| !c.is_nan());
     for (i, v) in verts.iter().enumerate() {
-        let p = (num(v.get("x")), num(v.get("y")), num(v.get("z")));
-        let (Some(x), Some(y), Some(z)) = p else {
+        if !given(&v.p) {
             return Err(bad(format!("vertex {i} lacks numeric x, y, z")));
-        };
-        m.positions.push(Vec3::new(x, y, z));
-        if let (Some(a), Some(b), Some(c)) = (num(v.get("nx")), num(v.get("ny")), num(v.get("nz")))
-        {
-            ns.push(Vec3::new(a, b, c));
         }
-        let u = num(v.get("u"))
-            .or(num(v.get("s")))
-            .or(num(v.get("texture_u")));
-        let w = num(v.get("v"))
-            .or(num(v.get("t")))
-            .or(num(v.get("texture_v")));
-        if let (Some(u), Some(w)) = (u, w) {
+        m.positions.push(Vec3::from_array(v.p));
+        if given(&v.n) {
+            ns.push(Vec3::from_array(v.n));
+        }
+        let first = |names: [f32; 3]| names.into_iter().find(|c| !c.is_nan());
+        if let (Some(u), Some(w)) = (first(v.uv[0]), first(v.uv[1])) {
             uvs.push(Vec2::new(u, w));
         }
     }
-    let faces = ply
-        .payload
-        .get("face")
-        .ok_or_else(|| bad("no 'face' element".into()))?;
     for (i, f) in faces.iter().enumerate() {
-        let list = f.get("vertex_indices").or(f.get("vertex_index"));
-        let idx: Vec<u32> = match list {
-            Some(Property::ListInt(v)) => v.iter().map(|&x| x.max(0) as u32).collect(),
-            Some(Property::ListUInt(v)) => v.clone(),
-            Some(Property::ListUChar(v)) => v.iter().map(|&x| x as u32).collect(),
-            Some(Property::ListUShort(v)) => v.iter().map(|&x| x as u32).collect(),
-            Some(Property::ListShort(v)) => v.iter().map(|&x| x.max(0) as u32).collect(),
-            Some(Property::ListChar(v)) => v.iter().map(|&x| x.max(0) as u32).collect(),
-            _ => {
-                return Err(bad(format!(
-                    "face {i} has no integer 'vertex_indices' list"
-                )))
-            }
-        };
+        if !f.read {
+            return Err(bad(format!(
+                "face {i} has no integer 'vertex_indices' list"
+            )));
+        }
         // Fan triangulation of polygons.
-        for k in 1..idx.len().saturating_sub(1) {
-            m.indices.push([idx[0], idx[k], idx[k + 1]]);
+        let idx = |k: usize| if k < 3 { f.head[k] } else { f.rest[k - 3] };
+        for k in 1..f.len.saturating_sub(1) {
+            m.indices.push([idx(0), idx(k), idx(k + 1)]);
         }
     }
     m.normals = (ns.len() == m.positions.len() && !ns.is_empty()).then_some(ns);
