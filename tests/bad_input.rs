@@ -219,9 +219,7 @@ fn a_group_with_no_usable_pixels_gets_a_warning_and_a_stated_default() {
             && err.contains("--white-unseen"),
         "{err}"
     );
-    let res: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("out/results.json")).unwrap())
-            .unwrap();
+    let res = crate::common::results(&dir.join("out"));
     let g = res["groups"]
         .as_array()
         .unwrap()

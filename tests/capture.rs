@@ -70,8 +70,7 @@ fn gauss(i: u64) -> f32 {
 }
 
 fn params(dir: &std::path::Path, out: &str) -> serde_json::Value {
-    let text = std::fs::read_to_string(dir.join(out).join("results.json")).unwrap();
-    serde_json::from_str(&text).unwrap()
+    crate::common::results(&dir.join(out))
 }
 
 /// The truth is figure6's table; the capture differs from the model by its pose (`pose`: eye
@@ -298,21 +297,9 @@ impl Fit {
     }
 
     fn of(res: &serde_json::Value) -> Fit {
-        let group = |name: &str| {
-            res["groups"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .find(|g| g["name"] == name)
-                .unwrap()["params"]
-                .clone()
-        };
-        let rgb = |p: &serde_json::Value, k: &str| -> Vec<f64> {
-            match &p[k] {
-                serde_json::Value::Array(a) => a.iter().map(|x| x.as_f64().unwrap()).collect(),
-                x => vec![x.as_f64().unwrap(); 3],
-            }
-        };
+        use crate::common::{json_rgb, result_group};
+        let group = |name: &str| result_group(res, name)["params"].clone();
+        let rgb = |p: &serde_json::Value, k: &str| json_rgb(&p[k]);
         let mut v = Vec::new();
         for (g, _) in Fit::GROUPS {
             for (c, r) in rgb(&group(g), "rho_d").into_iter().enumerate() {

@@ -429,15 +429,8 @@ fn outputs_keep_the_input_layout_and_fixed_groups_their_material() {
         shelf_row.contains("fixed") && shelf_row.contains("0.8"),
         "{shelf_row}"
     );
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("out/results.json")).unwrap())
-            .unwrap();
-    let shelf = json["groups"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|g| g["name"] == "shelf")
-        .expect("shelf in results.json");
+    let json = crate::common::results(&dir.join("out"));
+    let shelf = crate::common::result_group(&json, "shelf");
     assert_eq!(shelf["status"], "fixed", "{shelf}");
     assert_eq!(shelf["level"], "specular", "{shelf}");
     let rho_s = shelf["params"]["rho_s"][0].as_f64().unwrap();
@@ -498,9 +491,7 @@ fn the_report_is_one_file_with_pictures_plots_inputs_and_a_noise_free_error_map(
     assert!(!html.contains("data-group=\"lamp\""));
     // The inputs, in the page and in results.json: enough to run it again.
     assert!(html.contains("id=\"inputs\""));
-    let res: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("out/results.json")).unwrap())
-            .unwrap();
+    let res = crate::common::results(&dir.join("out"));
     let inputs = &res["inputs"];
     assert_eq!(inputs["scene"], "scene.toml", "{inputs}");
     assert_eq!(inputs["photo"], "photo.exr", "{inputs}");

@@ -66,16 +66,8 @@ fn recover_floor(dir: &Path, photo: &str, extra: &[&str]) -> (Rgb, String) {
     args.extend(extra);
     let (code, out, err) = run(&args, dir);
     assert_eq!(code, 0, "{err}");
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("out/results.json")).unwrap())
-            .unwrap();
-    let floor = json["groups"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|g| g["name"] == "floor")
-        .expect("floor in results.json")
-        .clone();
+    let json = crate::common::results(&dir.join("out"));
+    let floor = crate::common::result_group(&json, "floor").clone();
     let rho = &floor["params"]["rho_d"];
     let c = |k: usize| rho[k].as_f64().unwrap() as f32;
     (Rgb::new(c(0), c(1), c(2)), format!("{out}\n{floor}"))

@@ -51,8 +51,7 @@ fn recover(dir: &Path, scene: &str, out: &str, extra: &[&str]) -> serde_json::Va
     args.extend(extra);
     let (code, _, err) = run(&args, dir);
     assert_eq!(code, 0, "{err}");
-    let text = std::fs::read_to_string(dir.join(out).join("results.json")).unwrap();
-    serde_json::from_str(&text).unwrap()
+    crate::common::results(&dir.join(out))
 }
 
 fn rho(json: &serde_json::Value, group: &str) -> f32 {

@@ -294,9 +294,7 @@ fn recover_half_size(name: &str, dir: &Path) -> (matfit::scene::Scene, serde_jso
     assert_eq!(code, 0, "{err}");
     let (code, out, err) = run(&["recover", s, "photo.exr", "-o", "out"], dir);
     assert_eq!(code, 0, "{out}{err}");
-    let json =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("out/results.json")).unwrap())
-            .unwrap();
+    let json = crate::common::results(&dir.join("out"));
     (parse_scene(&text, &scene).unwrap(), json)
 }
 
@@ -630,10 +628,7 @@ fn a_photo_through_a_distorting_lens_is_recovered_with_the_lens_model_and_not_wi
     let recovered = |scene: &str, out: &str| -> (f32, usize) {
         let (code, o, err) = run(&["recover", scene, "photo.exr", "-o", out], dir.path());
         assert_eq!(code, 0, "{o}{err}");
-        let json: serde_json::Value = serde_json::from_str(
-            &std::fs::read_to_string(dir.path().join(out).join("results.json")).unwrap(),
-        )
-        .unwrap();
+        let json = crate::common::results(&dir.path().join(out));
         let (mut worst, mut textured) = (0.0f32, 0);
         for g in json["groups"].as_array().unwrap() {
             if g["level"] == "textured" {

@@ -34,8 +34,7 @@ const FIT: [&str; 10] = [
 
 /// results.json without its timing, log.jsonl without the seconds and elapsed, and recovered.toml.
 fn outputs(dir: &Path) -> (serde_json::Value, Vec<serde_json::Value>, String) {
-    let mut res: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("results.json")).unwrap()).unwrap();
+    let mut res = crate::common::results(dir);
     res.as_object_mut().unwrap().remove("timing");
     let log = std::fs::read_to_string(dir.join("log.jsonl"))
         .unwrap()

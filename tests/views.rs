@@ -1,7 +1,7 @@
 //! Several photos of one scene (`[[view]]`, `recover SCENE PHOTO...`): one set of materials
 //! fitted to all, each photo with its own exposure factor; views checked and rendered.
 
-use crate::common::{root, run, write, SMALL_SCENE};
+use crate::common::{json_rgb, results, root, run, write, SMALL_SCENE};
 use matfit::render::film::{render, RenderOptions};
 use matfit::scene::load::parse_scene;
 use std::path::Path;
@@ -21,21 +21,11 @@ fn ok(args: &[&str], dir: &Path) -> String {
     out
 }
 
-fn results(dir: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(dir.join("results.json")).unwrap()).unwrap()
-}
-
 fn params(r: &serde_json::Value) -> (Vec<f64>, f64, f64) {
     let p = &r["groups"][0]["params"];
-    let v = |k: &str| -> Vec<f64> {
-        match &p[k] {
-            serde_json::Value::Array(a) => a.iter().map(|x| x.as_f64().unwrap()).collect(),
-            x => vec![x.as_f64().unwrap_or(f64::NAN); 3],
-        }
-    };
     (
-        v("rho_d"),
-        v("rho_s")[0],
+        json_rgb(&p["rho_d"]),
+        json_rgb(&p["rho_s"])[0],
         p["alpha_x"].as_f64().unwrap_or(f64::NAN),
     )
 }

@@ -28,6 +28,33 @@ pub fn run(args: &[&str], dir: &Path) -> (i32, String, String) {
     )
 }
 
+/// The `results.json` a recovery wrote into `dir`.
+pub fn results(dir: &Path) -> serde_json::Value {
+    let path = dir.join("results.json");
+    let text = std::fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap()
+}
+
+/// Group `name`'s entry in a `results.json`.
+pub fn result_group<'a>(res: &'a serde_json::Value, name: &str) -> &'a serde_json::Value {
+    res["groups"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|g| g["name"] == name)
+        .unwrap_or_else(|| panic!("no group '{name}' in results.json"))
+}
+
+/// A colour parameter of `results.json` as three channels: an RGB array, or a number for all
+/// three; NaN where the parameter is absent.
+pub fn json_rgb(v: &serde_json::Value) -> Vec<f64> {
+    match v {
+        serde_json::Value::Array(a) => a.iter().map(|x| x.as_f64().unwrap()).collect(),
+        x => vec![x.as_f64().unwrap_or(f64::NAN); 3],
+    }
+}
+
 /// Writes `text` to `dir/name` and returns the path.
 pub fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     let p = dir.join(name);
