@@ -125,11 +125,14 @@ fn texture_pixels(scene: &Scene, mask: &UsableMask) -> Vec<Vec<usize>> {
 /// from a few pixels each, not from the whole group, so their noise is that of single pixels.
 pub const TEXTURED_SAMPLES: u32 = 4;
 
-/// A group at a GGX level (8, 9) draws this many times the samples per pixel. A coat's lobe is
-/// weak (ρs ≈ 0.04 over a bright base) and its width is decided by a small part of the signal,
-/// so the cache's noise in the specular term biases it: minimising the cost over ρ, which
-/// divides by the noisy Σ s₀s₁, favours the noisier, narrower lobes.
-pub const GGX_SAMPLES: u32 = 4;
+/// A group at a GGX level (8, 9) draws `ggx_samples(α)` times the samples per pixel. A coat's
+/// lobe is weak (ρs ≈ 0.04 over a bright base) and its width is decided by a small part of the
+/// signal, so the cache's noise in the specular term biases it narrow (minimising the cost over
+/// ρ divides by the noisy Σ s₀s₁, and a narrower lobe's is noisier), the more so the narrower
+/// the lobe: 4× at α 0.1 and above, growing as 1/α to 16× at α 0.025 and below.
+pub fn ggx_samples(alpha: f32) -> u32 {
+    (0.4 / alpha.max(1e-3)).round().clamp(4.0, 16.0) as u32
+}
 
 impl<'a> RecoveryLoop<'a> {
     /// A fresh recovery: every fitted group starts at level 1 with grey parameters.
@@ -408,7 +411,7 @@ impl<'a> RecoveryLoop<'a> {
             }
             let factor = match self.states[g].level {
                 Level::Textured => TEXTURED_SAMPLES,
-                Level::Microfacet | Level::Plastic => GGX_SAMPLES,
+                Level::Microfacet | Level::Plastic => ggx_samples(self.states[g].params.alpha_x),
                 _ => 1,
             };
             let cache_opts = CacheOptions {
