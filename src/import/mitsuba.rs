@@ -57,7 +57,8 @@
 //!   width); `plastic` → diffuse_mirror with F0 = ((η−1)/(η+1))², η = int_ior/ext_ior,
 //!   ρs = F0·specular_reflectance, ρd = (1−F0)·diffuse_reflectance; `roughplastic` with
 //!   another distribution than GGX or `nonlinear` → plastic with its α and η; `principled` →
-//!   Ward α = roughness², F0 = 0.08·specular blended to base_color by metallic, ρd = (1−metallic)(1−F0)·base_color. Anything else
+//!   Ward α = roughness², F0 = 0.08·specular blended to base_color by metallic,
+//!   ρd = (1−metallic)(1−F0)·base_color. Anything else
 //!   (dielectrics, …) → diffuse 0.5 with a warning. A shape with no BSDF gets Mitsuba's default,
 //!   diffuse 0.5; a zero reflectance is written `black`. ρd + ρs over 1 is scaled down (a
 //!   warning).

@@ -123,8 +123,8 @@ impl LobeSample {
 
 /// Σ c·g over `samples` and, if asked, Σ c·2∂g/∂k for k = ln αx, ln αy, θ (zero otherwise):
 /// [`ward_at`] on eight samples at a time (AVX), the rest one by one. Both take the renderer's
-/// exp ([`crate::math::exp_neg_poly`] and its lanes, equal to the bit), so fitter and renderer evaluate one
-/// lobe.
+/// exp ([`crate::math::exp_neg_poly`] and its lanes, equal to the bit), so fitter and renderer
+/// evaluate one lobe.
 pub fn lobe_sums(samples: &[LobeSample], p: &LobeParams, derivatives: bool) -> (Rgb, [Rgb; 3]) {
     let splat = f32x8::splat;
     let (cos_t, sin_t) = (splat(p.cos_t), splat(p.sin_t));
