@@ -157,7 +157,10 @@ pub fn print_table(
                 format!("{:.4}", p.alpha_x),
             ));
         }
-        if st.params_level() == Level::Anisotropic {
+        if matches!(
+            st.params_level(),
+            Level::Anisotropic | Level::AnisotropicMicrofacet
+        ) {
             rows.push((
                 "alpha_y",
                 format!("{:.4}", t.alpha_y),

@@ -61,8 +61,13 @@ pub fn material(m: &Material) -> String {
             alpha_x,
             alpha_y,
             theta,
+            distribution,
         } => format!(
-            "microfacet (GGX) ρd {} ρs {} {}",
+            "microfacet ({}) ρd {} ρs {} {}",
+            match distribution {
+                matfit::scene::Distribution::Ggx => "GGX",
+                matfit::scene::Distribution::Beckmann => "Beckmann",
+            },
             rgb(*rho_d),
             rgb(*rho_s),
             alpha(*alpha_x, *alpha_y, *theta)
@@ -123,14 +128,23 @@ fn columns(m: &Material) -> (String, String, String) {
             alpha_x,
             alpha_y,
             theta,
-        }
-        | Material::Microfacet {
+        } => (rgb(*rho_d), rgb(*rho_s), alpha(*alpha_x, *alpha_y, *theta)),
+        Material::Microfacet {
             rho_d,
             rho_s,
             alpha_x,
             alpha_y,
             theta,
-        } => (rgb(*rho_d), rgb(*rho_s), alpha(*alpha_x, *alpha_y, *theta)),
+            distribution,
+        } => (
+            rgb(*rho_d),
+            rgb(*rho_s),
+            format!(
+                "{} {}",
+                alpha(*alpha_x, *alpha_y, *theta),
+                distribution.name()
+            ),
+        ),
         Material::Plastic {
             rho_d,
             rho_s,

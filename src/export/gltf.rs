@@ -436,10 +436,18 @@ pub fn material_spec(m: &Material, variant: WardVariant, warnings: &mut Vec<Stri
             alpha_x,
             alpha_y,
             theta,
+            distribution,
         } => {
             // glTF's lobe is GGX itself: only its Fresnel differs (a perfect conductor's F = 1).
             let (r, aniso) = ward_roughness(*alpha_x, *alpha_y, *theta, warnings);
             warnings.push(fresnel_warning("microfacet", *rho_s));
+            if *distribution != crate::scene::Distribution::Ggx {
+                warnings.push(format!(
+                    "a {} microfacet lobe is exported as glTF's GGX of the same α (a narrower \
+                     core and a wider halo)",
+                    distribution.name()
+                ));
+            }
             layered(*rho_d, *rho_s, r, aniso, warnings)
         }
         Material::Plastic {

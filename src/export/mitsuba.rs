@@ -46,9 +46,9 @@
 
 use super::ExportReport;
 use crate::math::sampler::{mix64, unit_f32};
-use crate::math::{Rgb, Vec2, Vec3, PI};
-use crate::render::bsdf::WardLobe;
-use crate::scene::{Material, Punctual, PunctualLight, Scene};
+use crate::math::{Rgb, Vec2, Vec3};
+use crate::render::bsdf::{MicrofacetLobe, WardLobe};
+use crate::scene::{Distribution, Material, Punctual, PunctualLight, Scene};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -429,13 +429,19 @@ fn write_sampler_and_film(xml: &mut String, scene: &Scene) {
     );
 }
 
-/// The scale k of the Beckmann lobe that stands for a Ward lobe in Mitsuba: the ratio of the
+/// The scale k of the Beckmann lobe that stands for a Ward lobe in Mitsuba (matfit's Beckmann
+/// microfacet lobe, `render::bsdf::microfacet`, which is that plugin's): the ratio of the
 /// two lobes' albedos ∫ f cosθi dωi, summed over the camera's view directions of `objects` (a
 /// 64 × 48 grid of camera rays) and estimated with 32 of Ward's own samples per view (common to
 /// both lobes, fixed hash: deterministic). `None` where the camera does not see them.
 fn ward_scale(scene: &Scene, objects: &[usize], lobe: WardLobe, theta: f32) -> Option<f32> {
     let spv = 32u64;
-    let (mut ward, mut beckmann) = (0.0f64, 0.0f64);
+    let beckmann = MicrofacetLobe {
+        alpha_x: lobe.alpha_x,
+        alpha_y: lobe.alpha_y,
+        distribution: Distribution::Beckmann,
+    };
+    let (mut ward, mut micro) = (0.0f64, 0.0f64);
     for (v, ray, hit) in scene.camera_grid_hits(64, 48) {
         if !objects.contains(&(hit.object as usize)) {
             continue;
@@ -453,41 +459,10 @@ fn ward_scale(scene: &Scene, objects: &[usize], lobe: WardLobe, theta: f32) -> O
                 continue;
             }
             ward += f64::from(lobe.eval(wo, wi) * wi.z / pdf);
-            beckmann += f64::from(beckmann_lobe(lobe.alpha_x, lobe.alpha_y, wo, wi) * wi.z / pdf);
+            micro += f64::from(beckmann.eval(wo, wi) * wi.z / pdf);
         }
     }
-    (beckmann > 0.0).then(|| (ward / beckmann) as f32)
-}
-
-/// Mitsuba 3's `roughconductor` with `material = "none"` and `distribution = "beckmann"`, per
-/// unit specular reflectance, in the local frame (Walter et al. 2007, "Microfacet models for
-/// refraction", eqs. 20, 25, 27): f = D(m)·G1(ωi)·G1(ωo) / (4 cosθi cosθo), m the half vector,
-/// D = exp(−(mx²/αu² + my²/αv²)/mz²) / (π αu αv mz⁴), and Smith's G1 for Beckmann in the
-/// rational form Mitsuba uses: a = 1/(α tanθ), G1 = (3.535a + 2.181a²)/(1 + 2.276a + 2.577a²)
-/// below a = 1.6, else 1.
-fn beckmann_lobe(au: f32, av: f32, wo: Vec3, wi: Vec3) -> f32 {
-    if wo.z <= 0.0 || wi.z <= 0.0 {
-        return 0.0;
-    }
-    let m = (wi + wo).normalize();
-    let e = ((m.x / au).powi(2) + (m.y / av).powi(2)) / (m.z * m.z);
-    let d = (-e).exp() / (PI * au * av * m.z.powi(4));
-    let g1 = |v: Vec3| {
-        if v.dot(m) <= 0.0 {
-            return 0.0;
-        }
-        let t2 = ((au * v.x).powi(2) + (av * v.y).powi(2)) / (v.z * v.z);
-        if t2 <= 0.0 {
-            return 1.0;
-        }
-        let a = 1.0 / t2.sqrt();
-        if a >= 1.6 {
-            1.0
-        } else {
-            (3.535 * a + 2.181 * a * a) / (1.0 + 2.276 * a + 2.577 * a * a)
-        }
-    };
-    d * g1(wi) * g1(wo) / (4.0 * wi.z * wo.z)
+    (micro > 0.0).then(|| (ward / micro) as f32)
 }
 
 /// The (one-sided) BSDF element of a material, without the `twosided` wrapper. `ward_scale`
@@ -538,10 +513,11 @@ fn bsdf_xml(
             rho_s,
             alpha_x,
             alpha_y,
+            distribution,
             ..
         } => {
-            // Exact: matfit's lobe is this plugin's value (`render::bsdf::ggx`).
-            let lobe = |c: Rgb| rough_conductor("ggx", *alpha_x, *alpha_y, c);
+            // Exact: matfit's lobe is this plugin's value (`render::bsdf::microfacet`).
+            let lobe = |c: Rgb| rough_conductor(distribution.name(), *alpha_x, *alpha_y, c);
             blend(*rho_d, *rho_s, lobe, name, "microfacet", warnings)
         }
         Material::Plastic {
@@ -850,6 +826,7 @@ mod tests {
                 alpha_x: 0.2,
                 alpha_y: 0.2,
                 theta: 0.0,
+                distribution: crate::scene::Distribution::Ggx,
             },
             "block",
             || panic!("no Ward scale for a microfacet lobe"),

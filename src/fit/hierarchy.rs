@@ -55,7 +55,7 @@ pub struct HierarchyOptions {
     pub margin: f32,
     /// ...and by more than this many noise floors.
     pub noise_factor: f32,
-    /// Whether levels 8 and 9, the GGX lobes (microfacet and plastic), are tried (off: the
+    /// Whether levels 8, 9 and 10, the GGX lobes (microfacet, plastic, anisotropic), are tried (off: the
     /// hierarchy of the notes and the Ward lobes alone, for comparison).
     #[serde(default = "yes")]
     pub microfacet: bool,
@@ -223,8 +223,15 @@ impl GroupState {
 
     /// Adds a confirmed fit of weight `weight` to the running mean and sets the parameters to the
     /// mean.
+    /// The mean is over fits of one microfacet distribution: a fit that changes it starts anew.
     fn accumulate(&mut self, weight: f32) {
         let p = self.params;
+        if self
+            .average
+            .is_some_and(|(sums, _, _)| sums.distribution != p.distribution)
+        {
+            self.average = None;
+        }
         let (sums, n, total) = self
             .average
             .get_or_insert((GroupParams::zero_sums(), 0, 0.0));
@@ -604,7 +611,7 @@ impl GroupState {
         let mut level = self.level;
         let mut texture = None;
         while let Some(next) = level.next() {
-            if matches!(next, Level::Microfacet | Level::Plastic) && !opts.microfacet {
+            if (next.is_microfacet() || next == Level::Plastic) && !opts.microfacet {
                 level = next;
                 continue;
             }
@@ -657,10 +664,17 @@ impl GroupState {
                 alpha_x: last.params.alpha_x,
                 alpha_y: last.params.alpha_y,
                 theta: last.params.theta,
+                distribution: last.params.distribution,
                 ..best.params
             };
             let f = fit_level_above(cache, next, &start, &tried, variant);
-            let (earned, gain_noise) = Self::earns(&best, &f, opts);
+            let (mut earned, gain_noise) = Self::earns(&best, &f, opts);
+            // Level 10's shape minimises a plain cost on tiles (`objective::pooled`), which
+            // trades the cache's noise for bias and so lowers ε as no unbiased fit does: it
+            // must also lower the unbiased cross-half cost, or it only fits the noise.
+            if next == Level::AnisotropicMicrofacet && f.cost >= best.cost {
+                earned = false;
+            }
             let (kept, held_out) = if earned {
                 let (ok, held) = Self::predicts(cache, &best, &f, variant);
                 (ok, Some(held))

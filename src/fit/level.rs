@@ -24,9 +24,13 @@ pub enum Level {
     /// 5 or 6 on top where one earned its place (`fit/texture.rs`).
     Textured = 7,
     /// 8 (beyond the notes): Lambert + isotropic GGX microfacet lobe, ρd, ρs, α
-    /// (`render::bsdf::ggx`): the wide-tailed highlight of most real glossy surfaces, which no
+    /// (`render::bsdf::microfacet`): the wide-tailed highlight of most real glossy surfaces, which no
     /// Ward lobe makes. Tried after the Ward levels and before the texture, the last resort.
     Microfacet = 8,
+    /// 10 (beyond the notes): Lambert + anisotropic GGX lobe, ρd, ρs, αx, αy, θ: brushed metal,
+    /// whose stretched highlight has the microfacet halo. Tried right after level 8, as level 6
+    /// after level 5.
+    AnisotropicMicrofacet = 10,
     /// 9 (beyond the notes): a diffuse base under a rough dielectric coat, ρd, ρs (at normal
     /// incidence), α (`render::bsdf::plastic`): plastics, paint, lacquer, whose reflection rises
     /// towards grazing and whose diffuse light falls off faster than the cosine.
@@ -46,7 +50,7 @@ impl Ord for Level {
 }
 
 impl Level {
-    pub const FITTED: [Level; 9] = [
+    pub const FITTED: [Level; 10] = [
         Level::Diffuse,
         Level::PerfectSpecular,
         Level::Specular,
@@ -54,6 +58,7 @@ impl Level {
         Level::Isotropic,
         Level::Anisotropic,
         Level::Microfacet,
+        Level::AnisotropicMicrofacet,
         Level::Plastic,
         Level::Textured,
     ];
@@ -68,8 +73,9 @@ impl Level {
             Level::Isotropic => 4,
             Level::Anisotropic => 5,
             Level::Microfacet => 6,
-            Level::Plastic => 7,
-            Level::Textured => 8,
+            Level::AnisotropicMicrofacet => 7,
+            Level::Plastic => 8,
+            Level::Textured => 9,
         }
     }
 
@@ -87,6 +93,7 @@ impl Level {
             Level::Anisotropic => "anisotropic",
             Level::Textured => "textured",
             Level::Microfacet => "microfacet",
+            Level::AnisotropicMicrofacet => "anisotropic_microfacet",
             Level::Plastic => "plastic",
         }
     }
@@ -112,7 +119,12 @@ impl Level {
     /// Whether the level's specular part is a glossy lobe (Ward or microfacet) whose shape the
     /// cache's direction pairs determine.
     pub fn has_lobe(self) -> bool {
-        self.is_ward() || matches!(self, Level::Microfacet | Level::Plastic)
+        self.is_ward() || self.is_microfacet() || self == Level::Plastic
+    }
+
+    /// Whether the level is Lambert + a GGX lobe (8 or 10).
+    pub fn is_microfacet(self) -> bool {
+        matches!(self, Level::Microfacet | Level::AnisotropicMicrofacet)
     }
 }
 
@@ -131,7 +143,7 @@ pub struct Thresholds {
     /// threshold: that is the texture threshold of Algorithm 1.
     #[serde(default = "textured_threshold")]
     pub textured: f32,
-    /// As the glossy Ward levels' (levels 8 and 9).
+    /// As the glossy Ward levels' (levels 8, 9 and 10).
     #[serde(default = "microfacet_threshold")]
     pub microfacet: f32,
     /// The texture threshold of Algorithm 1, on what the error metric cannot see: a group whose
@@ -196,7 +208,7 @@ impl Thresholds {
             Level::Isotropic => self.isotropic,
             Level::Anisotropic => self.anisotropic,
             Level::Textured => self.textured,
-            Level::Microfacet | Level::Plastic => self.microfacet,
+            Level::Microfacet | Level::AnisotropicMicrofacet | Level::Plastic => self.microfacet,
         }
     }
 }

@@ -7,7 +7,7 @@
 
 use super::level::Level;
 use crate::math::Rgb;
-use crate::scene::Material;
+use crate::scene::{Distribution, Material};
 use serde::{Deserialize, Serialize};
 
 /// Lower and upper bounds of the lobes' roughness (Ward and microfacet).
@@ -81,6 +81,7 @@ const LOBE_LEVELS: &[Level] = &[
     Level::Isotropic,
     Level::Anisotropic,
     Level::Microfacet,
+    Level::AnisotropicMicrofacet,
     Level::Plastic,
 ];
 
@@ -97,6 +98,7 @@ pub const REGISTRY: [ParamInfo; 5] = [
             Level::Isotropic,
             Level::Anisotropic,
             Level::Microfacet,
+            Level::AnisotropicMicrofacet,
             Level::Plastic,
         ],
         watched: true,
@@ -116,6 +118,7 @@ pub const REGISTRY: [ParamInfo; 5] = [
             Level::Isotropic,
             Level::Anisotropic,
             Level::Microfacet,
+            Level::AnisotropicMicrofacet,
             Level::Plastic,
         ],
         watched: true,
@@ -141,7 +144,7 @@ pub const REGISTRY: [ParamInfo; 5] = [
         max: ALPHA_MAX,
         fallback: 0.1,
         scale: Scale::Log,
-        levels: &[Level::Anisotropic],
+        levels: &[Level::Anisotropic, Level::AnisotropicMicrofacet],
         watched: true,
         get: |p| std::slice::from_ref(&p.alpha_y),
         get_mut: |p| std::slice::from_mut(&mut p.alpha_y),
@@ -155,7 +158,7 @@ pub const REGISTRY: [ParamInfo; 5] = [
         max: f32::INFINITY,
         fallback: 0.0,
         scale: Scale::Linear,
-        levels: &[Level::Anisotropic],
+        levels: &[Level::Anisotropic, Level::AnisotropicMicrofacet],
         watched: false,
         get: |p| std::slice::from_ref(&p.theta),
         get_mut: |p| std::slice::from_mut(&mut p.theta),
@@ -201,6 +204,9 @@ pub struct GroupParams {
     pub alpha_y: f32,
     /// Radians.
     pub theta: f32,
+    /// The microfacet levels' distribution (GGX elsewhere).
+    #[serde(default)]
+    pub distribution: Distribution,
 }
 
 impl Default for GroupParams {
@@ -211,6 +217,7 @@ impl Default for GroupParams {
             alpha_x: 0.1,
             alpha_y: 0.1,
             theta: 0.0,
+            distribution: Distribution::Ggx,
         }
     }
 }
@@ -247,6 +254,7 @@ impl GroupParams {
             alpha_x: 0.0,
             alpha_y: 0.0,
             theta: 0.0,
+            distribution: Distribution::Ggx,
         }
     }
 
@@ -254,6 +262,7 @@ impl GroupParams {
     /// parameter on its scale: roughness in the log domain, as it is fitted), and returns the
     /// mean of the sums over the total weight `total` (this weight included), clamped.
     pub fn add_to_mean(&self, sums: &mut GroupParams, weight: f32, total: f32) -> GroupParams {
+        sums.distribution = self.distribution;
         let mut mean = *sums;
         for row in &REGISTRY {
             let sum = (row.get_mut)(sums);
@@ -304,6 +313,9 @@ impl GroupParams {
             p.alpha_x = ax;
             p.alpha_y = ay;
             p.theta = theta;
+        }
+        if let Material::Microfacet { distribution, .. } = m {
+            p.distribution = *distribution;
         }
         p
     }
@@ -362,6 +374,15 @@ impl GroupParams {
                 alpha_x: self.alpha_x,
                 alpha_y: self.alpha_x,
                 theta: 0.0,
+                distribution: self.distribution,
+            },
+            Level::AnisotropicMicrofacet => Material::Microfacet {
+                rho_d: self.rho_d,
+                rho_s: self.rho_s,
+                alpha_x: self.alpha_x,
+                alpha_y: self.alpha_y,
+                theta: self.theta,
+                distribution: self.distribution,
             },
             Level::Plastic => Material::Plastic {
                 rho_d: self.rho_d,
@@ -428,6 +449,7 @@ mod tests {
             alpha_x: 0.0,
             alpha_y: f32::INFINITY,
             theta: f32::NAN,
+            distribution: Distribution::Ggx,
         }
         .clamped();
         for c in 0..3 {
@@ -471,6 +493,7 @@ mod tests {
             alpha_x: 0.04,
             alpha_y: 0.1,
             theta: 0.3,
+            distribution: Distribution::Ggx,
         };
         let b = GroupParams {
             rho_d: Rgb::new(0.4, 0.4, 0.2),

@@ -125,7 +125,7 @@ fn texture_pixels(scene: &Scene, mask: &UsableMask) -> Vec<Vec<usize>> {
 /// from a few pixels each, not from the whole group, so their noise is that of single pixels.
 pub const TEXTURED_SAMPLES: u32 = 4;
 
-/// A group at a GGX level (8, 9) draws `ggx_samples(α)` times the samples per pixel. A coat's
+/// A group at a GGX level (8, 9, 10) draws `ggx_samples(α)` times the samples per pixel. A coat's
 /// lobe is weak (ρs ≈ 0.04 over a bright base) and its width is decided by a small part of the
 /// signal, so the cache's noise in the specular term biases it narrow (minimising the cost over
 /// ρ divides by the noisy Σ s₀s₁, and a narrower lobe's is noisier), the more so the narrower
@@ -412,6 +412,10 @@ impl<'a> RecoveryLoop<'a> {
             let factor = match self.states[g].level {
                 Level::Textured => TEXTURED_SAMPLES,
                 Level::Microfacet | Level::Plastic => ggx_samples(self.states[g].params.alpha_x),
+                Level::AnisotropicMicrofacet => {
+                    let p = &self.states[g].params;
+                    ggx_samples(p.alpha_x.min(p.alpha_y))
+                }
                 _ => 1,
             };
             let cache_opts = CacheOptions {

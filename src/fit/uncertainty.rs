@@ -31,11 +31,13 @@ pub fn weak_lobe(level: Level, params: &GroupParams, sigma: &GroupParams) -> Opt
         return None;
     }
     let rho = sigma.rho_s.max_element() / params.rho_s.max_element().max(1e-6);
-    let alpha = (sigma.alpha_x / params.alpha_x.max(1e-6)).max(if level == Level::Anisotropic {
-        sigma.alpha_y / params.alpha_y.max(1e-6)
-    } else {
-        0.0
-    });
+    let alpha = (sigma.alpha_x / params.alpha_x.max(1e-6)).max(
+        if matches!(level, Level::Anisotropic | Level::AnisotropicMicrofacet) {
+            sigma.alpha_y / params.alpha_y.max(1e-6)
+        } else {
+            0.0
+        },
+    );
     (rho > WEAK_LOBE || alpha > WEAK_LOBE).then(|| {
         format!(
             "ρs and α weakly determined (1σ: ρs ±{:.0}%, α ±{:.0}%): its pixels show little \
@@ -69,10 +71,9 @@ pub fn sigma(
             alpha_y,
             theta,
         },
-        Level::Microfacet => Spec::Microfacet {
-            alpha: params.alpha_x,
-        },
-        Level::Plastic => super::fitter::spec_of(level, params),
+        Level::Microfacet | Level::AnisotropicMicrofacet | Level::Plastic => {
+            super::fitter::spec_of(level, params)
+        }
         Level::Textured => return None,
     };
     let has_d = !matches!(level, Level::PerfectSpecular | Level::Specular);
@@ -81,7 +82,9 @@ pub fn sigma(
     let shape: &[[f32; 3]] = match level {
         Level::Isotropic => &[[1.0, 1.0, 0.0]],
         Level::Microfacet | Level::Plastic => &[[1.0, 0.0, 0.0]],
-        Level::Anisotropic => &[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        Level::Anisotropic | Level::AnisotropicMicrofacet => {
+            &[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+        }
         _ => &[],
     };
     let mut specs = pixel_specs(cache, spec, variant, !shape.is_empty());
@@ -203,7 +206,7 @@ pub fn sigma(
             out.alpha_x = params.alpha_x * sd(col_shape);
             out.alpha_y = out.alpha_x;
         }
-        Level::Anisotropic => {
+        Level::Anisotropic | Level::AnisotropicMicrofacet => {
             out.alpha_x = params.alpha_x * sd(col_shape);
             out.alpha_y = params.alpha_y * sd(col_shape + 1);
             out.theta = sd(col_shape + 2);

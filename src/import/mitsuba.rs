@@ -47,8 +47,8 @@
 //!   warning). Exact: `diffuse` (reflectance rgb / constant or sampled spectrum / bitmap texture →
 //!   textured) → diffuse; `conductor` with material `none` → mirror ρs = specular_reflectance;
 //!   `blendbsdf` of those → diffuse_mirror ρd = (1−w)·ρd₁ + w·ρd₂, ρs likewise (the exporter's
-//!   blend inverted); `roughconductor` with material `none` and `distribution = "ggx"`, alone or
-//!   blended with a `diffuse` → microfacet, likewise; `roughplastic` with `distribution = "ggx"`
+//!   blend inverted); `roughconductor` with material `none` and `distribution` "ggx" or
+//!   "beckmann", alone or blended with a `diffuse` → microfacet, likewise; `roughplastic` with `distribution = "ggx"`
 //!   (and `nonlinear` false) → plastic (ρd = diffuse_reflectance, ρs = F0·specular_reflectance,
 //!   α, η = int_ior/ext_ior). Initial guesses, not truth (a warning each), with ρs from Fresnel
 //!   reflectance at normal incidence F0: conductors with eta/k (or a named metal, from a small
@@ -71,6 +71,7 @@ use crate::scene::schema::{
     ProjectionKind, RenderSpec, SceneFile, ShapeKind, TransformSpec,
 };
 use crate::scene::write::relative;
+use crate::scene::Distribution;
 use glam::{DMat3, DMat4, DQuat, DVec3, DVec4, EulerRot};
 use roxmltree::{Document, Node};
 use std::collections::{HashMap, HashSet};
@@ -157,9 +158,9 @@ struct Lobes {
     s: DVec3,
     alpha: Option<(f64, f64)>,
     texture: Option<String>,
-    /// The rough part is exactly matfit's microfacet lobe: a GGX `roughconductor` with
-    /// `material = "none"`.
-    ggx: bool,
+    /// The rough part is exactly matfit's microfacet lobe of this distribution: a GGX or
+    /// Beckmann `roughconductor` with `material = "none"`.
+    microfacet: Option<Distribution>,
     /// A `roughplastic`: matfit's plastic with this coat's η (d and s as matfit's ρd and ρs).
     plastic: Option<f64>,
 }
@@ -1238,8 +1239,13 @@ impl<'a> Ctx<'a> {
                 } else {
                     String::new()
                 };
-                let ggx = rough && f0.is_none() && distribution == "ggx";
-                if f0.is_some() || (rough && !ggx) {
+                let microfacet = match distribution.as_str() {
+                    "ggx" => Some(Distribution::Ggx),
+                    "beckmann" => Some(Distribution::Beckmann),
+                    _ => None,
+                }
+                .filter(|_| rough && f0.is_none());
+                if f0.is_some() || (rough && microfacet.is_none()) {
                     guess(
                         self,
                         if rough {
@@ -1257,7 +1263,7 @@ impl<'a> Ctx<'a> {
                     } else {
                         None
                     },
-                    ggx,
+                    microfacet,
                     ..Default::default()
                 }
             }
@@ -1334,8 +1340,12 @@ impl<'a> Ctx<'a> {
                 };
                 let (la, lc) = (self.lobes(a)?, self.lobes(c)?);
                 // The exporter's form of a microfacet material: exact.
-                let ggx = (la.ggx && lc.plain_diffuse()) || (lc.ggx && la.plain_diffuse());
-                if !ggx
+                let microfacet = match (la.microfacet, lc.microfacet) {
+                    (Some(d), None) if lc.plain_diffuse() => Some(d),
+                    (None, Some(d)) if la.plain_diffuse() => Some(d),
+                    _ => None,
+                };
+                if microfacet.is_none()
                     && (la.texture.is_some()
                         || lc.texture.is_some()
                         || la.alpha.is_some()
@@ -1354,7 +1364,7 @@ impl<'a> Ctx<'a> {
                     s: la.s * (1.0 - w) + lc.s * w,
                     alpha: la.alpha.or(lc.alpha),
                     texture: None,
-                    ggx,
+                    microfacet,
                     plastic: None,
                 }
             }
@@ -1470,7 +1480,9 @@ impl<'a> Ctx<'a> {
                 eta: Some(eta as f32),
             };
         }
-        if l.alpha.is_some() && has_s && l.ggx && l.texture.is_none() {
+        if let (Some(distribution), Some(_), true, None) =
+            (l.microfacet, l.alpha, has_s, &l.texture)
+        {
             return MaterialSpec::Microfacet {
                 rho_d: c(d),
                 rho_s: c(s),
@@ -1478,6 +1490,7 @@ impl<'a> Ctx<'a> {
                 alpha_x,
                 alpha_y,
                 theta_deg: None,
+                distribution,
             };
         }
         if l.alpha.is_some() && has_s {

@@ -5,7 +5,7 @@
 //!
 //! Surfaces are two-sided: the shading frame is flipped towards the viewer.
 
-use super::bsdf::{Bsdf, GgxLobe, WardLobe};
+use super::bsdf::{Bsdf, MicrofacetLobe, WardLobe};
 use super::lights::Lights;
 use crate::geometry::{offset_origin, Hit, Ray};
 use crate::math::{power_heuristic, Frame, Rgb, Sampler, Vec3};
@@ -54,13 +54,15 @@ pub fn bsdf_at(material: &Material, hit: &SurfaceHit, variant: WardVariant) -> (
             alpha_x,
             alpha_y,
             theta,
+            distribution,
         } => (
             Bsdf::Microfacet {
                 rho_d: *rho_d,
                 rho_s: *rho_s,
-                lobe: GgxLobe {
+                lobe: MicrofacetLobe {
                     alpha_x: *alpha_x,
                     alpha_y: *alpha_y,
+                    distribution: *distribution,
                 },
             },
             hit.frame.rotated(*theta),

@@ -39,6 +39,9 @@ pub struct GroupResult {
     pub band_width: usize,
     pub edge_test: bool,
     pub params: BTreeMap<&'static str, Value>,
+    /// The microfacet levels' distribution ("ggx" or "beckmann"), chosen by the fit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub distribution: Option<&'static str>,
     /// The 1σ of each parameter in `params` (same units), from the group's last cache
     /// (`fit/uncertainty.rs`); absent where not fitted or not computable.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
@@ -137,7 +140,13 @@ fn level_of(m: &Material) -> Level {
             ..
         } if alpha_x == alpha_y && *theta == 0.0 => Level::Isotropic,
         Material::Ward { .. } => Level::Anisotropic,
-        Material::Microfacet { .. } => Level::Microfacet,
+        Material::Microfacet {
+            alpha_x,
+            alpha_y,
+            theta,
+            ..
+        } if alpha_x == alpha_y && *theta == 0.0 => Level::Microfacet,
+        Material::Microfacet { .. } => Level::AnisotropicMicrofacet,
         Material::Plastic { .. } => Level::Plastic,
         Material::Textured { .. } => Level::Textured,
         Material::Diffuse { .. } | Material::Black => Level::Diffuse,
@@ -179,6 +188,7 @@ pub fn results(rec: &Recovery) -> Results {
                 band_width: st.band_width,
                 edge_test: st.edge_test,
                 params: params.named(named_at).into_iter().collect(),
+                distribution: named_at.is_microfacet().then(|| params.distribution.name()),
                 sigma: match (s.status, &s.sigma) {
                     (Status::Analysing | Status::Confirmed, Some(sd)) => {
                         sd.named(named_at).into_iter().collect()

@@ -916,6 +916,7 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
             alpha_x,
             alpha_y,
             theta_deg,
+            distribution,
         } => {
             let (ax, ay, theta) = lobe(
                 *alpha,
@@ -932,6 +933,7 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
                 alpha_x: ax,
                 alpha_y: ay,
                 theta,
+                distribution: *distribution,
             }
         }
         MaterialSpec::Plastic {

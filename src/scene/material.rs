@@ -25,6 +25,27 @@ impl WardVariant {
     }
 }
 
+/// The microfacet normals' distribution of a microfacet lobe (`render::bsdf::microfacet`), as
+/// Mitsuba's `distribution` parameter names it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Distribution {
+    /// Trowbridge–Reitz (GGX): a sharp core with a wide halo (Walter et al. 2007).
+    #[default]
+    Ggx,
+    /// Beckmann: Gaussian in the half vector's slope, Ward's shape with Smith's masking.
+    Beckmann,
+}
+
+impl Distribution {
+    pub fn name(self) -> &'static str {
+        match self {
+            Distribution::Ggx => "ggx",
+            Distribution::Beckmann => "beckmann",
+        }
+    }
+}
+
 /// A uniform Ward lobe over a textured diffuse term: ρs, αx, αy and θ (radians) as in
 /// [`Material::Ward`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -51,14 +72,15 @@ pub enum Material {
         alpha_y: f32,
         theta: f32,
     },
-    /// Lambert + a GGX microfacet lobe of a perfect conductor (`render::bsdf::ggx`, Mitsuba's
-    /// `roughconductor` with `material = "none"`); isotropic when αx = αy.
+    /// Lambert + a microfacet lobe of a perfect conductor (`render::bsdf::microfacet`, Mitsuba's
+    /// `roughconductor` with `material = "none"`), GGX or Beckmann; isotropic when αx = αy.
     Microfacet {
         rho_d: Rgb,
         rho_s: Rgb,
         alpha_x: f32,
         alpha_y: f32,
         theta: f32,
+        distribution: Distribution,
     },
     /// A diffuse base under a rough dielectric coat (`render::bsdf::plastic`, Mitsuba's
     /// `roughplastic` with GGX): ρd the base's reflectance, ρs the coat's at normal incidence.

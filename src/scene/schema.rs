@@ -39,7 +39,8 @@
 //! edge_v = [0, 0, -2]
 //! tangent = [1, 0, 0]           # optional reference axis of the anisotropy angle
 //! material = { type = "ward", rho_d = 0.1, rho_s = 0.9, alpha_x = 0.07, alpha_y = 0.11, theta_deg = 0 }
-//! # or a GGX lobe with the same keys (Mitsuba's roughconductor, material "none"):
+//! # or a microfacet lobe with the same keys (Mitsuba's roughconductor, material "none"), GGX
+//! # unless distribution = "beckmann":
 //! # material = { type = "microfacet", rho_d = 0.1, rho_s = 0.8, alpha = 0.2 }
 //! # or a coated diffuse base (Mitsuba's roughplastic; rho_s at normal incidence, eta 1.49):
 //! # material = { type = "plastic", rho_d = [0.7, 0.05, 0.05], rho_s = 0.039, alpha = 0.1 }
@@ -72,6 +73,7 @@
 //! rotate_deg = [0, 90, 0]       # about X, then Y, then Z
 //! ```
 
+use crate::scene::Distribution;
 use serde::{Deserialize, Serialize};
 use toml::Spanned;
 
@@ -367,8 +369,8 @@ pub enum MaterialSpec {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         theta_deg: Option<f32>,
     },
-    /// Lambert + a GGX microfacet lobe (Mitsuba's `roughconductor`, `material = "none"`):
-    /// the keys of a ward material.
+    /// Lambert + a microfacet lobe (Mitsuba's `roughconductor`, `material = "none"`): the keys
+    /// of a ward material, and `distribution` ("ggx", the default, or "beckmann").
     Microfacet {
         #[serde(default = "zero_color")]
         rho_d: Color,
@@ -381,6 +383,8 @@ pub enum MaterialSpec {
         alpha_y: Option<f32>,
         #[serde(default, skip_serializing_if = "Option::is_none")]
         theta_deg: Option<f32>,
+        #[serde(default, skip_serializing_if = "is_ggx")]
+        distribution: Distribution,
     },
     /// A diffuse base under a rough dielectric coat (Mitsuba's `roughplastic`, GGX): `rho_d`,
     /// `rho_s` (the coat's reflectance at normal incidence), `alpha`, optional `eta` (1.49).
@@ -415,6 +419,10 @@ pub enum MaterialSpec {
         theta_deg: Option<f32>,
     },
     Black,
+}
+
+fn is_ggx(d: &Distribution) -> bool {
+    *d == Distribution::Ggx
 }
 
 fn zero_color() -> Color {

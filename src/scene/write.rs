@@ -42,6 +42,7 @@ pub fn material_spec(m: &Material) -> MaterialSpec {
             alpha_x,
             alpha_y,
             theta,
+            distribution,
         } => {
             let [alpha, alpha_x, alpha_y, theta_deg] = lobe_keys(*alpha_x, *alpha_y, *theta);
             MaterialSpec::Microfacet {
@@ -51,6 +52,7 @@ pub fn material_spec(m: &Material) -> MaterialSpec {
                 alpha_x,
                 alpha_y,
                 theta_deg,
+                distribution: *distribution,
             }
         }
         Material::Plastic {

@@ -4,13 +4,13 @@
 //!
 //! A BSDF is a plain enum (no trait objects): the shapes of reflection of the hierarchy.
 
-pub mod ggx;
 pub mod lambert;
+pub mod microfacet;
 pub mod mirror;
 pub mod plastic;
 pub mod ward;
 
-pub use ggx::GgxLobe;
+pub use microfacet::MicrofacetLobe;
 pub use plastic::Coat;
 pub use ward::{Lobes8, WardLobe};
 
@@ -29,11 +29,11 @@ pub enum Bsdf {
         rho_s: Rgb,
         lobe: WardLobe,
     },
-    /// ρd / π plus ρs × a GGX microfacet lobe of a perfect conductor (`ggx.rs`).
+    /// ρd / π plus ρs × a GGX microfacet lobe of a perfect conductor (`microfacet.rs`).
     Microfacet {
         rho_d: Rgb,
         rho_s: Rgb,
-        lobe: GgxLobe,
+        lobe: MicrofacetLobe,
     },
     /// A diffuse base of reflectance ρd under a rough dielectric coat of reflectance ρs at
     /// normal incidence (`plastic.rs`).
@@ -354,9 +354,15 @@ mod tests {
         let ggx = |rd: f32, rs: f32, ax: f32, ay: f32| Bsdf::Microfacet {
             rho_d: Rgb::splat(rd),
             rho_s: Rgb::splat(rs),
-            lobe: GgxLobe {
+            lobe: MicrofacetLobe::ggx(ax, ay),
+        };
+        let beckmann = |rd: f32, rs: f32, ax: f32, ay: f32| Bsdf::Microfacet {
+            rho_d: Rgb::splat(rd),
+            rho_s: Rgb::splat(rs),
+            lobe: MicrofacetLobe {
                 alpha_x: ax,
                 alpha_y: ay,
+                distribution: crate::scene::Distribution::Beckmann,
             },
         };
         let tilted = Frame::from_normal(Vec3::new(0.1, -0.2, 1.0).normalize());
@@ -425,6 +431,12 @@ mod tests {
                 ggx(0.3, 0.6, 0.06, 0.25),
                 tilted.rotated(25f32.to_radians()),
                 wo(70.0, 150.0),
+            ),
+            (
+                "beckmann aniso θ=25° tilted",
+                beckmann(0.2, 0.7, 0.08, 0.3),
+                tilted.rotated(25f32.to_radians()),
+                wo(50.0, 100.0),
             ),
         ];
         let n = cases.len();

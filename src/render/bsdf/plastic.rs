@@ -2,7 +2,7 @@
 //! with `distribution = "ggx"` (and `nonlinear = false`), which matfit exports it as. With η the
 //! coat's relative index of refraction, F(η, cos) the unpolarised Fresnel reflectance of a
 //! dielectric interface (Born & Wolf; total internal reflection where η < 1) and the GGX lobe of
-//! `ggx.rs`:
+//! `microfacet.rs`:
 //!
 //!   f = specular_reflectance · F(η, ωi·ĥ) D G1 G1 / (4 cosθi cosθo)
 //!     + diffuse_reflectance / (1 − F_int) · t(cosθi) t(cosθo) / (π η²)
@@ -25,7 +25,7 @@
 //! F0 = F(η, 1), the coat's reflectance at normal incidence (so that ρs means what it means at
 //! the other levels, and ρd + ρs ≤ 1 holds). The lobe per unit ρs is F(η, ωi·ĥ)/F0 · GGX.
 
-use super::ggx::GgxLobe;
+use super::microfacet::MicrofacetLobe;
 use crate::math::{Rgb, Vec3, PI};
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
@@ -55,7 +55,7 @@ pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
 /// A rough dielectric coat of GGX roughness α and index η, with its tables.
 #[derive(Debug, PartialEq)]
 pub struct Coat {
-    pub lobe: GgxLobe,
+    pub lobe: MicrofacetLobe,
     pub eta: f32,
     /// F(η, 1).
     pub f0: f32,
@@ -67,10 +67,7 @@ pub struct Coat {
 
 impl Coat {
     fn new(alpha: f32, eta: f32) -> Coat {
-        let lobe = GgxLobe {
-            alpha_x: alpha,
-            alpha_y: alpha,
-        };
+        let lobe = MicrofacetLobe::ggx(alpha, alpha);
         let mu = |i: usize| (i as f32 / (RES - 1) as f32).max(1e-6);
         let transmittance = std::array::from_fn(|i| transmitted(&lobe, eta, mu(i)));
         let internal = 2.0
@@ -127,14 +124,14 @@ impl Coat {
 
 /// Per unit ρs and ρd, Σ c·(specular part) and Σ c·(diffuse part) over cached direction pairs
 /// (`ward::LobeSample`): what the fitter's objective needs for a trial coat. The pairs' cosines
-/// come from their half vectors (`ggx::cosines`).
+/// come from their half vectors (`microfacet::cosines`).
 pub fn plastic_sums(samples: &[super::ward::LobeSample], coat: &Coat) -> (Rgb, Rgb) {
     let (mut s, mut d) = (Rgb::ZERO, Rgb::ZERO);
     for smp in samples {
-        let Some((ci, co, cd)) = super::ggx::cosines(&smp.half) else {
+        let Some((ci, co, cd)) = super::microfacet::cosines(&smp.half) else {
             continue;
         };
-        let g = super::ggx::ggx_at(&smp.half, coat.lobe.alpha_x).0;
+        let g = super::microfacet::ggx_at(&smp.half, coat.lobe.alpha_x).0;
         s += smp.c * (fresnel_dielectric(cd, coat.eta) / coat.f0 * g);
         d += smp.c * coat.diffuse(ci, co);
     }
@@ -144,7 +141,7 @@ pub fn plastic_sums(samples: &[super::ward::LobeSample], coat: &Coat) -> (Rgb, R
 /// t(μ) of the module comment: with ĥ drawn from D cos θh, the visible normals' density is
 /// G1(ωi) (ωi·ĥ) D / μ, so t = E[(1 − F) G1(ωt) G1(ωi) (ωi·ĥ) / (μ cos θh)], ωt the refraction
 /// of ωi through ĥ (into the coat, 1/η).
-fn transmitted(lobe: &GgxLobe, eta: f32, mu: f32) -> f32 {
+fn transmitted(lobe: &MicrofacetLobe, eta: f32, mu: f32) -> f32 {
     grid_mean(lobe, mu, |wi, h, d, g1| {
         let f = fresnel_dielectric(d, eta);
         if f >= 1.0 {
@@ -160,7 +157,7 @@ fn transmitted(lobe: &GgxLobe, eta: f32, mu: f32) -> f32 {
 /// The mean of `term(ωi, ĥ, ωi·ĥ, G1)` over a 128 × 64 midpoint grid of the GGX sampling
 /// variables (ĥ distributed as D cos θh), ωi at incidence μ; terms where ωi·ĥ ≤ 0 are 0.
 fn grid_mean(
-    lobe: &GgxLobe,
+    lobe: &MicrofacetLobe,
     mu: f32,
     term: impl Fn(Vec3, Vec3, f32, &dyn Fn(Vec3) -> f32) -> f32,
 ) -> f32 {
@@ -187,7 +184,7 @@ fn grid_mean(
 /// R_η(μ): the directional albedo of the coat's reflection at incidence μ (specular
 /// reflectance 1). With ĥ drawn from D cos θh (pdf_h), ωo its reflection, dωo = 4 (ωo·ĥ) dωh:
 /// R = E[F G1(ωi) G1(ωo) (ωi·ĥ) / (μ cos θh)].
-fn albedo(lobe: &GgxLobe, eta: f32, mu: f32) -> f32 {
+fn albedo(lobe: &MicrofacetLobe, eta: f32, mu: f32) -> f32 {
     grid_mean(lobe, mu, |wi, h, d, g1| {
         let wo = 2.0 * d * h - wi;
         if wo.z <= 0.0 {

@@ -105,19 +105,25 @@ impl Lobes8 {
 }
 
 /// A direction pair reduced to its half vector, with the weight c it is summed with (for the
-/// cache: incident radiance · cos θi · MIS weight / (pdf · N)).
-#[derive(Clone, Copy, Debug)]
+/// cache: incident radiance · cos θi · MIS weight / (pdf · N)), and the tangential components
+/// of ωi − ωo: with the half vector's they give each direction's own, which the anisotropic
+/// microfacet lobe's masking needs (`microfacet::aniso_sums`); zero below the surface.
+#[derive(Clone, Copy, Debug, Default)]
 pub struct LobeSample {
     pub half: HalfVector,
     pub c: Rgb,
+    pub d: [f32; 2],
 }
 
 impl LobeSample {
     pub fn new(wo: Vec3, wi: Vec3, c: Rgb) -> LobeSample {
-        LobeSample {
-            half: HalfVector::new(wo, wi),
-            c,
-        }
+        let half = HalfVector::new(wo, wi);
+        let d = if half.norm[0] > 0.0 {
+            [wi.x - wo.x, wi.y - wo.y]
+        } else {
+            [0.0; 2]
+        };
+        LobeSample { half, c, d }
     }
 }
 
