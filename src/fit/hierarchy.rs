@@ -669,10 +669,11 @@ impl GroupState {
             };
             let f = fit_level_above(cache, next, &start, &tried, variant);
             let (mut earned, gain_noise) = Self::earns(&best, &f, opts);
-            // Level 10's shape minimises a plain cost on tiles (`objective::pooled`), which
-            // trades the cache's noise for bias and so lowers ε as no unbiased fit does: it
-            // must also lower the unbiased cross-half cost, or it only fits the noise.
-            if next == Level::AnisotropicMicrofacet && f.cost >= best.cost {
+            // Levels 10 and 9 choose their shape on a plain cost on tiles (`objective::pooled`),
+            // which trades the cache's noise for bias and so lowers ε as no unbiased fit does:
+            // they must also lower the unbiased cross-half cost, or they only fit the noise.
+            if matches!(next, Level::AnisotropicMicrofacet | Level::Plastic) && f.cost >= best.cost
+            {
                 earned = false;
             }
             let (kept, held_out) = if earned {
