@@ -493,8 +493,8 @@ pub struct FitArgs {
     /// Never climb to level 7 (textures): uniform materials only, as before textures existed.
     #[arg(long)]
     no_textures: bool,
-    /// Never try levels 8 and 9, the GGX lobes (microfacet and plastic): the Ward lobes alone,
-    /// as before they existed (to measure what they gain).
+    /// Never try levels 8, 9 and 10, the microfacet lobes (isotropic, plastic, anisotropic): the
+    /// Ward lobes alone, as before they existed (to measure what they gain).
     #[arg(long)]
     no_microfacet: bool,
     /// Fit mirrors only against a render of what they reflect, never against the photo's

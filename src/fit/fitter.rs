@@ -474,8 +474,15 @@ fn fit_level_among(
             }
             let mut evals = 0;
             let mut best: Option<(Spec, f64)> = None;
-            for &distribution in distributions {
-                for &s in &starts {
+            let mut best_x = starts[0];
+            for (k, &distribution) in distributions.iter().enumerate() {
+                // The second distribution starts from the first one's optimum and the warm start
+                // only (the shapes agree to within their difference of tails).
+                let from: Vec<[f64; 3]> = match k {
+                    0 => starts.clone(),
+                    _ => vec![best_x, starts[0]],
+                };
+                for s in from {
                     let (x, cost, n) = levenberg_marquardt(
                         s,
                         |x| {
@@ -483,11 +490,12 @@ fn fit_level_among(
                             linearise(cache, variant, x, shape, |d| [d[0], d[1], d[2]], pool)
                         },
                         |x| [x[0].clamp(ln_lo, ln_hi), x[1].clamp(ln_lo, ln_hi), x[2]],
-                        60,
+                        if pool { 30 } else { 60 },
                     );
                     evals += n;
                     if best.is_none_or(|b| cost < b.1) {
                         best = Some((lobe(&x, distribution), cost));
+                        best_x = x;
                     }
                 }
             }

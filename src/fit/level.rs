@@ -23,13 +23,13 @@ pub enum Level {
     /// 7: a per-texel diffuse map (radiosity texture, §5.2), with the uniform Ward lobe of level
     /// 5 or 6 on top where one earned its place (`fit/texture.rs`).
     Textured = 7,
-    /// 8 (beyond the notes): Lambert + isotropic GGX microfacet lobe, ρd, ρs, α
-    /// (`render::bsdf::microfacet`): the wide-tailed highlight of most real glossy surfaces, which no
-    /// Ward lobe makes. Tried after the Ward levels and before the texture, the last resort.
+    /// 8 (beyond the notes): Lambert + an isotropic microfacet lobe, ρd, ρs, α, GGX or Beckmann
+    /// (whichever fits better; `render::bsdf::microfacet`): GGX's wide-tailed highlight of most
+    /// real glossy surfaces, which no Ward lobe makes, and Beckmann's Gaussian one with Smith's
+    /// masking. Tried after the Ward levels and before the texture, the last resort.
     Microfacet = 8,
-    /// 10 (beyond the notes): Lambert + anisotropic GGX lobe, ρd, ρs, αx, αy, θ: brushed metal,
-    /// whose stretched highlight has the microfacet halo. Tried right after level 8, as level 6
-    /// after level 5.
+    /// 10 (beyond the notes): Lambert + an anisotropic microfacet lobe (GGX or Beckmann), ρd,
+    /// ρs, αx, αy, θ: brushed metal. Tried right after level 8, as level 6 after level 5.
     AnisotropicMicrofacet = 10,
     /// 9 (beyond the notes): a diffuse base under a rough dielectric coat, ρd, ρs (at normal
     /// incidence), α (`render::bsdf::plastic`): plastics, paint, lacquer, whose reflection rises
