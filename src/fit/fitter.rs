@@ -395,7 +395,7 @@ fn fit_level_among(
             let cost = |ln_a: f64| {
                 let a = (ln_a.exp() as f32).clamp(alpha.min, alpha.max);
                 let specs = pixel_specs(cache, Spec::Plastic { alpha: a, eta }, variant, false);
-                project_rho(cache, &specs, Free::Both, true).2
+                project_rho(cache, &specs, Free::Both, false).2
             };
             let grid: Vec<f64> = [0.01f64, 0.02, 0.04, 0.07, 0.12, 0.2, 0.35, 0.6, 1.0]
                 .iter()

@@ -669,11 +669,10 @@ impl GroupState {
             };
             let f = fit_level_above(cache, next, &start, &tried, variant);
             let (mut earned, gain_noise) = Self::earns(&best, &f, opts);
-            // Levels 10 and 9 choose their shape on a plain cost on tiles (`objective::pooled`),
-            // which trades the cache's noise for bias and so lowers ε as no unbiased fit does:
-            // they must also lower the unbiased cross-half cost, or they only fit the noise.
-            if matches!(next, Level::AnisotropicMicrofacet | Level::Plastic) && f.cost >= best.cost
-            {
+            // Level 10 chooses its shape on a plain cost on tiles (`objective::pooled`), which
+            // trades the cache's noise for bias and so lowers ε as no unbiased fit does: it
+            // must also lower the unbiased cross-half cost, or it only fits the noise.
+            if next == Level::AnisotropicMicrofacet && f.cost >= best.cost {
                 earned = false;
             }
             let (kept, held_out) = if earned {
