@@ -28,15 +28,9 @@ pub struct LevelFit {
     pub evals: u32,
 }
 
-/// ρd, ρs per channel for given specular terms, and the least-squares cost (on the error's
-/// tiles where `pool`, `objective::pooled`).
-fn project_rho(cache: &GroupCache, specs: &[PixelSpec], free: Free, pool: bool) -> (Rgb, Rgb, f64) {
-    let m = if pool {
-        let (c, s) = pooled(cache, specs);
-        moments(&c, &s)
-    } else {
-        moments(cache, specs)
-    };
+/// ρd, ρs per channel for given specular terms, and the least-squares cost.
+fn project_rho(cache: &GroupCache, specs: &[PixelSpec], free: Free) -> (Rgb, Rgb, f64) {
+    let m = moments(cache, specs);
     let (mut rd, mut rs, mut cost) = (Rgb::ZERO, Rgb::ZERO, 0.0);
     for c in 0..3 {
         let (d, s) = solve_rho(&m[c], free);
@@ -69,7 +63,7 @@ fn linearise<const N: usize>(
     } else {
         (cache, &specs[..])
     };
-    let (rd, rs, cost) = project_rho(cache, specs, Free::Both, false);
+    let (rd, rs, cost) = project_rho(cache, specs, Free::Both);
     let mut lin = Linearisation {
         cost,
         jtj: [[0.0; N]; N],
@@ -113,7 +107,7 @@ fn finish(
     let (rho_d, rho_s) = match level {
         Level::PerfectSpecular => (Rgb::ZERO, Rgb::ONE),
         _ => {
-            let (rd, rs, _) = project_rho(cache, &specs, free, false);
+            let (rd, rs, _) = project_rho(cache, &specs, free);
             (rd, rs)
         }
     };
@@ -122,38 +116,29 @@ fn finish(
         rho_s,
         ..base
     };
-    match spec {
+    // The lobe's shape, and the microfacet levels' distribution.
+    let shape = match spec {
         Spec::Lobe {
             alpha_x,
             alpha_y,
             theta,
-        } => {
-            params.alpha_x = alpha_x;
-            params.alpha_y = alpha_y;
-            params.theta = theta;
-        }
+        } => Some((alpha_x, alpha_y, theta, None)),
         Spec::AnisoMicrofacet {
             alpha_x,
             alpha_y,
             theta,
             distribution,
-        } => {
-            params.alpha_x = alpha_x;
-            params.alpha_y = alpha_y;
-            params.theta = theta;
-            params.distribution = distribution;
-        }
+        } => Some((alpha_x, alpha_y, theta, Some(distribution))),
         Spec::Microfacet {
             alpha,
             distribution,
-        } => {
-            (params.alpha_x, params.alpha_y, params.theta) = (alpha, alpha, 0.0);
-            params.distribution = distribution;
-        }
-        Spec::Plastic { alpha, .. } => {
-            (params.alpha_x, params.alpha_y, params.theta) = (alpha, alpha, 0.0);
-        }
-        Spec::None | Spec::Mirror => {}
+        } => Some((alpha, alpha, 0.0, Some(distribution))),
+        Spec::Plastic { alpha, .. } => Some((alpha, alpha, 0.0, None)),
+        Spec::None | Spec::Mirror => None,
+    };
+    if let Some((alpha_x, alpha_y, theta, distribution)) = shape {
+        (params.alpha_x, params.alpha_y, params.theta) = (alpha_x, alpha_y, theta);
+        params.distribution = distribution.unwrap_or(params.distribution);
     }
     let params = if matches!(level, Level::Anisotropic | Level::AnisotropicMicrofacet) {
         params.clamped().canonical()
@@ -355,7 +340,7 @@ fn fit_level_among(
                 for a in [start.alpha_x, 0.01, 0.02, 0.04, 0.07, 0.12, 0.2, 0.35, 0.6] {
                     let a = a.clamp(alpha.min, alpha.max);
                     let specs = pixel_specs(cache, lobe(a), variant, false);
-                    let cost = project_rho(cache, &specs, Free::Both, false).2;
+                    let cost = project_rho(cache, &specs, Free::Both).2;
                     evals += 1;
                     if cost < best.0 {
                         best = (cost, a);
@@ -395,7 +380,7 @@ fn fit_level_among(
             let cost = |ln_a: f64| {
                 let a = (ln_a.exp() as f32).clamp(alpha.min, alpha.max);
                 let specs = pixel_specs(cache, Spec::Plastic { alpha: a, eta }, variant, false);
-                project_rho(cache, &specs, Free::Both, false).2
+                project_rho(cache, &specs, Free::Both).2
             };
             let grid: Vec<f64> = [0.01f64, 0.02, 0.04, 0.07, 0.12, 0.2, 0.35, 0.6, 1.0]
                 .iter()

@@ -175,9 +175,7 @@ pub fn pixel_specs(
 /// cross-half cost then rewards narrowing it further (its ρs solve divides by a Σ s₀s₁ that the
 /// spikes leave too small); a plain cost on pixels penalises the spikes' variance instead and
 /// widens the lobe. Summed over a tile (~70 pixels) the variance is small and the tiles'
-/// pattern still pins the shape. On Mitsuba's brushed metal (αx 0.08, αy 0.3, θ 0°): cross-half
-/// per pixel αx 0.04, αy 0.5 (ε 0.060); plain on 4×4-pixel blocks 0.10, 0.25; plain on tiles
-/// 0.084, 0.303, −0.6° (ε 0.017).
+/// pattern still pins the shape (the measurements are in the commit that added it, b168191).
 pub fn pooled(cache: &GroupCache, specs: &[PixelSpec]) -> (GroupCache, Vec<PixelSpec>) {
     let zero = Rgb::ZERO;
     let n = cache.tiles.max(1);
