@@ -23,9 +23,15 @@ Cases
                   Mitsuba's `orthographic` sensor as the export writes it.
   skyroom         the same room lit by an HDR environment map alone (scenes/skyroom/sky.pfm:
                   sky, ground and a 3-degree sun), Ward ball made diffuse.
-For the figure6, glossy and sunroom(-ortho) cases Mitsuba loads the XML written by `matfit export mitsuba`.
+  poster-diffuse  scenes/poster (a textured poster, six textured book spines, a textured desk)
+                  with the desk's varnish removed: the export's bitmap textures and UVs alone.
+  poster          scenes/poster as it is: the desk's varnish is a Ward lobe (mapped, below).
+  scene=PATH      any scene file, e.g. a recovery's recovered.toml (its textures over atlases);
+                  mapped when the export warns that a Ward lobe has no Mitsuba form.
+For the figure6, glossy, sunroom(-ortho) and poster cases Mitsuba loads the XML written by
+`matfit export mitsuba`.
 Ward has no Mitsuba form: the export maps it to a Beckmann microfacet lobe (src/export/mitsuba.rs),
-so in figure6-ward and glossy the groups with a Ward material (and those they light) measure that
+so in figure6-ward, glossy and poster the groups with a Ward material (and those they light) measure that
 mapping's error: their rows are marked "mapped" and do not fail the check (--mapped-cases).
 Before rendering, a calibrated camera with an off-centre principal point is exported and Mitsuba's
 camera rays are checked against the OpenCV projection (principal_point_offset_x/y), and the same
@@ -233,6 +239,20 @@ edge_v = [0.0, 100.0, 0.0]
 """
 
 
+def poster_without_varnish(dst_dir):
+    """scenes/poster with the desk's varnish removed, its textures referenced where they are."""
+    src = os.path.join(ROOT, "scenes", "poster")
+    text = open(os.path.join(src, "scene.toml")).read()
+    varnish = ', rho_s = 0.1, alpha = 0.08 }'
+    assert text.count(varnish) == 1, "the poster's desk material changed"
+    text = text.replace(varnish, " }")
+    text = re.sub(r'texture = "([^"]+)"',
+                  lambda m: f'texture = "{os.path.join(src, m.group(1))}"', text)
+    path = os.path.join(dst_dir, "scene.toml")
+    open(path, "w").write(text)
+    return path
+
+
 def exported_sensor(exe, mi, d, text):
     os.makedirs(d, exist_ok=True)
     with open(os.path.join(d, "scene.toml"), "w") as f:
@@ -306,8 +326,8 @@ def main():
                     help="figure6 resolution (same vertical fov; the scene's own is 512x384)")
     ap.add_argument("--cases",
                     default="cornell,figure6-diffuse,figure6-mirror,figure6-ward,figure6-ggx,"
-                    "figure6-plastic,glossy,sunroom,sunroom-ortho,skyroom")
-    ap.add_argument("--mapped-cases", default="figure6-ward,glossy",
+                    "figure6-plastic,glossy,sunroom,sunroom-ortho,skyroom,poster-diffuse,poster")
+    ap.add_argument("--mapped-cases", default="figure6-ward,glossy,poster",
                     help="cases whose Ward groups measure the export's mapping error")
     ap.add_argument("--out", help="keep images here (default: a temporary folder)")
     ap.add_argument("--md", help="also write the table, command and versions to this Markdown file")
@@ -335,16 +355,20 @@ def main():
     t_all = time.perf_counter()
     for case in args.cases.split(","):
         spp = args.mirror_spp if case == "figure6-mirror" else args.spp
-        d = os.path.join(work, case)
+        d = os.path.join(work, re.sub(r"[^A-Za-z0-9_.-]", "_", case))
         os.makedirs(d, exist_ok=True)
         if case == "cornell":
             scene = os.path.join(ROOT, "scenes", "cornell", "scene.toml")
             xml_path, xml_text = CBOX, cornell_xml(args.spp)
             params = dict(res=256, max_depth=6)
-        elif case.startswith("figure6-") or case in ("glossy", "sunroom", "sunroom-ortho",
-                                                      "skyroom"):
-            if case == "glossy":
-                scene = os.path.join(ROOT, "scenes", "glossy", "scene.toml")
+        elif case.startswith("figure6-") or case.startswith("scene=") or case in (
+                "glossy", "sunroom", "sunroom-ortho", "skyroom", "poster", "poster-diffuse"):
+            if case.startswith("scene="):
+                scene = os.path.abspath(case[len("scene="):])
+            elif case in ("glossy", "poster"):
+                scene = os.path.join(ROOT, "scenes", case, "scene.toml")
+            elif case == "poster-diffuse":
+                scene = poster_without_varnish(d)
             elif case in ("sunroom", "skyroom"):
                 scene = ball_made_diffuse(case, d)
             elif case == "sunroom-ortho":
@@ -367,9 +391,11 @@ def main():
             mi_dir = os.path.join(d, "mitsuba")
             r = subprocess.run([exe, "export", "mitsuba", scene, "-o", mi_dir],
                                capture_output=True, text=True)
+            if case.startswith("scene=") and "has no Mitsuba equivalent" in r.stderr:
+                mapped_cases.add(case)
             warned = [l for l in r.stderr.splitlines()
                       if l.strip() and not l.startswith("note:")
-                      and not (case in mapped_cases and "Ward has no Mitsuba" in l)]
+                      and not (case in mapped_cases and "has no Mitsuba equivalent" in l)]
             if r.returncode != 0 or warned:
                 sys.exit(f"matfit export failed or warned:\n{r.stdout}{r.stderr}")
             xml_path, xml_text, params = os.path.join(mi_dir, "scene.xml"), None, {}

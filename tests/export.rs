@@ -141,3 +141,208 @@ fn figure6_exports_the_same_triangles_camera_and_lights() {
         "a look-at camera is centred"
     );
 }
+
+/// Mitsuba's `bitmap` lookup as Mitsuba 3.9 does it (checked with its Python bindings): v = 0
+/// is the image's top row, bilinear between texel centres, `repeat` or `clamp` at the border.
+fn mitsuba_bitmap(img: &matfit::io::image::Image, uv: [f32; 2], repeat: bool) -> [f32; 3] {
+    let (w, h) = (img.width as i64, img.height as i64);
+    let (x, y) = (uv[0] * w as f32 - 0.5, uv[1] * h as f32 - 0.5);
+    let (x0, y0) = (x.floor(), y.floor());
+    let (ax, ay) = (x - x0, y - y0);
+    let at = |i: i64, j: i64| {
+        let (i, j) = if repeat {
+            (i.rem_euclid(w), j.rem_euclid(h))
+        } else {
+            (i.clamp(0, w - 1), j.clamp(0, h - 1))
+        };
+        img.get(i as usize, j as usize).to_array()
+    };
+    let (i, j) = (x0 as i64, y0 as i64);
+    let taps = [
+        (at(i, j), (1.0 - ax) * (1.0 - ay)),
+        (at(i + 1, j), ax * (1.0 - ay)),
+        (at(i, j + 1), (1.0 - ax) * ay),
+        (at(i + 1, j + 1), ax * ay),
+    ];
+    let mut out = [0.0f32; 3];
+    for (c, wt) in taps {
+        for k in 0..3 {
+            out[k] += c[k] * wt;
+        }
+    }
+    out
+}
+
+/// A texture leaves as a `bitmap` that Mitsuba reads, at every surface point the camera sees,
+/// where matfit reads it: over a mesh's UVs (the poster, the book spines; a flipped v would
+/// mirror them) and over a recovered texture's atlas (charts of boxes, no UVs of their own).
+#[test]
+fn textures_export_as_bitmaps_mitsuba_reads_where_matfit_does() {
+    use matfit::math::Rgb;
+    use matfit::scene::atlas::Atlas;
+    use matfit::scene::texture::{Mapping, Texture};
+    use matfit::scene::Material;
+    use std::sync::Arc;
+
+    let mut scene = load_scene(&root().join("scenes/poster/scene.toml")).unwrap();
+    // The books as a recovery writes them: one atlas over the group, texels of no symmetry.
+    let books = scene.group_index("books").unwrap();
+    let objs: Vec<usize> = (0..scene.objects.len())
+        .filter(|&o| scene.objects[o].group == books)
+        .collect();
+    let atlas = Arc::new(Atlas::build(
+        &scene.geometry,
+        &objs,
+        scene.objects.len(),
+        0.01,
+    ));
+    let n = atlas.width * atlas.height;
+    let texture = Arc::new(Texture {
+        width: atlas.width,
+        height: atlas.height,
+        texels: (0..n)
+            .map(|i| {
+                let h = |k: usize| ((i * 7919 + k * 104_729) % 1000) as f32 / 1000.0;
+                Rgb::new(h(1), h(2), h(3))
+            })
+            .collect(),
+        path: "books.exr".into(),
+        mapping: Mapping::Atlas(atlas),
+    });
+    for &o in &objs {
+        scene.objects[o].material = Material::Textured {
+            texture: texture.clone(),
+            scale: Rgb::new(0.9, 0.8, 0.7),
+            varnish: None,
+        };
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let report = matfit::export::mitsuba::export(&scene, dir.path()).unwrap();
+    // The desk's varnish is the only approximation.
+    assert_eq!(report.warnings.len(), 1, "{:?}", report.warnings);
+    assert!(
+        report.warnings[0].contains("varnish"),
+        "{}",
+        report.warnings[0]
+    );
+
+    // Each shape's PLY and the bitmap (file, wrap) of its BSDF, inline or by reference.
+    let xml = std::fs::read_to_string(dir.path().join("scene.xml")).unwrap();
+    let doc = roxmltree::Document::parse(&xml).unwrap();
+    let string = |n: roxmltree::Node, name: &str| {
+        n.children()
+            .find(|c| c.has_tag_name("string") && c.attribute("name") == Some(name))
+            .and_then(|c| c.attribute("value"))
+            .map(str::to_string)
+    };
+    // (file, repeat, the diffuse part's weight 1 − w in a varnish's blendbsdf).
+    let bitmap_of = |n: roxmltree::Node| {
+        n.descendants()
+            .find(|c| c.has_tag_name("texture"))
+            .map(|t| {
+                assert_eq!(t.attribute("type"), Some("bitmap"));
+                let weight = t
+                    .ancestors()
+                    .find(|a| a.attribute("type") == Some("blendbsdf"))
+                    .map_or(1.0, |b| {
+                        let w = b.children().find(|c| c.has_tag_name("float")).unwrap();
+                        1.0 - w.attribute("value").unwrap().parse::<f32>().unwrap()
+                    });
+                (
+                    string(t, "filename").unwrap(),
+                    string(t, "wrap_mode").unwrap() == "repeat",
+                    weight,
+                )
+            })
+    };
+    let bsdfs: std::collections::HashMap<String, (String, bool, f32)> = doc
+        .root_element()
+        .children()
+        .filter(|c| c.has_tag_name("bsdf"))
+        .filter_map(|b| Some((b.attribute("id")?.to_string(), bitmap_of(b)?)))
+        .collect();
+    let mut shapes = std::collections::HashMap::new();
+    for s in doc
+        .root_element()
+        .children()
+        .filter(|c| c.has_tag_name("shape"))
+    {
+        let ply = string(s, "filename").unwrap();
+        let oi: usize = ply["meshes/".len()..][..3].parse().unwrap();
+        let bitmap = match s.children().find(|c| c.has_tag_name("ref")) {
+            Some(r) => bsdfs.get(r.attribute("id").unwrap()).cloned(),
+            None => bitmap_of(s),
+        };
+        if let Some(b) = bitmap {
+            shapes.insert(oi, (ply, b));
+        }
+    }
+    let textured: Vec<usize> = (0..scene.objects.len())
+        .filter(|&o| matches!(scene.objects[o].material, Material::Textured { .. }))
+        .collect();
+    assert_eq!(shapes.len(), textured.len(), "{shapes:?}");
+
+    let (mut hits, mut worst, mut sum) = (0usize, 0.0f32, 0.0f64);
+    let mut per_object = vec![0usize; scene.objects.len()];
+    let mut files = std::collections::HashMap::new();
+    for (_, _, hit) in scene.camera_grid_hits(240, 180) {
+        let oi = hit.object as usize;
+        let Some((ply, (image, repeat, weight))) = shapes.get(&oi) else {
+            continue;
+        };
+        let Material::Textured { texture, scale, .. } = &scene.objects[oi].material else {
+            unreachable!()
+        };
+        let want = texture.at(&hit) * *scale;
+        // The hit's barycentrics in its PLY face (the PLY keeps matfit's triangle order).
+        let (p, f, uv, img) = files.entry(oi).or_insert_with(|| {
+            let bytes = std::fs::read(dir.path().join(ply)).unwrap();
+            let (p, f) = read_ply(&bytes);
+            let img = matfit::io::image::read_linear(&dir.path().join(image)).unwrap();
+            (p, f, read_ply_uv(&bytes), img)
+        });
+        let face = f[hit.prim as usize - scene.objects[oi].tri_range.start as usize];
+        let v = |k: usize| glam::Vec3::from(p[face[k] as usize]);
+        let (e1, e2, d) = (v(1) - v(0), v(2) - v(0), hit.p - v(0));
+        let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+        let (d1, d2) = (d.dot(e1), d.dot(e2));
+        let den = d11 * d22 - d12 * d12;
+        let (b1, b2) = ((d22 * d1 - d12 * d2) / den, (d11 * d2 - d12 * d1) / den);
+        let at = |k: usize| uv[face[k] as usize];
+        let uvh = [0, 1].map(|c| (1.0 - b1 - b2) * at(0)[c] + b1 * at(1)[c] + b2 * at(2)[c]);
+        let got = mitsuba_bitmap(img, uvh, *repeat).map(|c| c * weight);
+        let err = (0..3)
+            .map(|k| (got[k] - want.to_array()[k]).abs())
+            .fold(0.0, f32::max);
+        worst = worst.max(err);
+        sum += err as f64;
+        hits += 1;
+        per_object[oi] += 1;
+    }
+    // Every textured object is seen, the poster and the books many times.
+    for &o in &textured {
+        assert!(
+            per_object[o] > 20,
+            "{}: {}",
+            scene.objects[o].name,
+            per_object[o]
+        );
+    }
+    let mean = sum / hits as f64;
+    eprintln!("{hits} hits: mean |Δ| {mean:.2e}, largest {worst:.2e}");
+    // Rounding only (bilinear weights from the UVs instead of the chart's projection); a texel
+    // off, a flipped v or a chart blending into its neighbour would be 0.01-0.5.
+    assert!(mean < 1e-5, "mean {mean}");
+    assert!(worst < 1e-3, "largest {worst}");
+}
+
+/// The vertices' (u, v) of a PLY as written by the exporter ([`read_ply`]'s layout).
+fn read_ply_uv(bytes: &[u8]) -> Vec<[f32; 2]> {
+    let (p, _) = read_ply(bytes);
+    let end = b"end_header\n";
+    let hdr_len = bytes.windows(end.len()).position(|w| w == end).unwrap() + end.len();
+    let f32_at = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
+    (0..p.len())
+        .map(|i| [f32_at(hdr_len + i * 32 + 24), f32_at(hdr_len + i * 32 + 28)])
+        .collect()
+}

@@ -954,6 +954,18 @@ pub fn run(cmd: Command) -> Result<()> {
                         .map_err(anyhow::Error::msg)?
                 }
             };
+            let folder = match output.parent() {
+                Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+                _ => std::path::PathBuf::from("."),
+            };
+            for (name, image) in &report.textures {
+                let path = folder.join(name);
+                if let Some(dir) = path.parent() {
+                    std::fs::create_dir_all(dir)
+                        .with_context(|| format!("cannot create {}", dir.display()))?;
+                }
+                image.write(&path).map_err(anyhow::Error::msg)?;
+            }
             // The written file must be a scene that loads (its meshes found from its folder).
             matfit::scene::load::parse_scene(&report.toml, &output).map_err(|e| {
                 anyhow::anyhow!("the imported scene does not load (a bug of the importer): {e}")
@@ -964,10 +976,18 @@ pub fn run(cmd: Command) -> Result<()> {
                 out::warn(w.clone());
             }
             outln!(
-                "wrote {} ({} warning{})",
+                "wrote {} ({} warning{}){}",
                 output.display(),
                 report.warnings.len(),
-                if report.warnings.len() == 1 { "" } else { "s" }
+                if report.warnings.len() == 1 { "" } else { "s" },
+                match report.textures.len() {
+                    0 => String::new(),
+                    n => format!(
+                        " and {n} texture{} turned to matfit's texture coordinates in {}",
+                        if n == 1 { "" } else { "s" },
+                        folder.join("textures").display()
+                    ),
+                }
             );
             Ok(())
         }

@@ -771,22 +771,7 @@ pub fn object_mesh(scene: &Scene, oi: usize, tangents: bool) -> ObjectMesh {
 /// An 8-bit sRGB PNG of factor × texels, and how many texels clipped at 1. An atlas gets a
 /// one-texel border around each chart copied from the chart's edge (see the module comment).
 pub fn texture_png(texture: &Texture, factor: Rgb) -> Result<(Vec<u8>, usize), String> {
-    let (w, h) = (texture.width, texture.height);
-    let mut img = crate::io::image::Image::new(w, h);
-    for (o, t) in img.data.iter_mut().zip(&texture.texels) {
-        *o = *t * factor;
-    }
-    if let Mapping::Atlas(atlas) = &texture.mapping {
-        let src = img.data.clone();
-        for [x0, y0, cw, ch] in atlas.chart_rects() {
-            for y in y0.saturating_sub(1)..(y0 + ch + 1).min(h) {
-                for x in x0.saturating_sub(1)..(x0 + cw + 1).min(w) {
-                    let (sx, sy) = (x.clamp(x0, x0 + cw - 1), y.clamp(y0, y0 + ch - 1));
-                    img.data[y * w + x] = src[sy * w + sx];
-                }
-            }
-        }
-    }
+    let img = super::texture_image(texture, factor);
     let clipped = img
         .data
         .iter()

@@ -27,8 +27,13 @@
 //!   `specular_reflectance` = ρs; diffuse + mirror → `blendbsdf` of weight w of
 //!   `diffuse`(ρd/(1−w)) and `conductor`(ρs/w), which is exactly ρd·Lambert + ρs·mirror when both
 //!   stay ≤ 1, i.e. when max ρd + max ρs ≤ 1 (w = max ρs / (max ρd + max ρs)); otherwise a warning
-//!   and the blend is clamped. A texture is not exported: a warning, `diffuse` with the texture's
-//!   mean × scale. Black → `diffuse` 0 (Mitsuba would otherwise give a shape its default 50% grey).
+//!   and the blend is clamped. A texture → `diffuse` with a `bitmap` reflectance: the texels ×
+//!   the material's scale in `textures/*.exr` (linear, `raw`, bilinear like matfit's lookup;
+//!   `repeat` over mesh UVs, `clamp` over an atlas), and the object's PLY carries the texture's
+//!   coordinates in Mitsuba's convention (v from the image's top row; matfit's runs up; an
+//!   atlas's chart positions for recovered textures). A varnish is the Ward blend below with
+//!   the bitmap as its diffuse part. Black → `diffuse` 0 (Mitsuba would otherwise give a shape
+//!   its default 50% grey).
 //! - **Ward** has no Mitsuba form; the closest is the same blend with the mirror replaced by
 //!   `roughconductor` (`material = "none"`, `distribution = "beckmann"`, `alpha_u` = αx,
 //!   `alpha_v` = αy, `specular_reflectance` = k·ρs/w). Ward's lobe is a Gaussian in the half
@@ -48,9 +53,11 @@ use super::ExportReport;
 use crate::math::sampler::{mix64, unit_f32};
 use crate::math::{Rgb, Vec2, Vec3};
 use crate::render::bsdf::{MicrofacetLobe, WardLobe};
-use crate::scene::{Distribution, Material, Punctual, PunctualLight, Scene};
+use crate::scene::texture::{Mapping, Texture};
+use crate::scene::{Distribution, Material, Punctual, PunctualLight, Scene, Varnish};
 use std::fmt::Write as _;
 use std::path::Path;
+use std::sync::Arc;
 
 /// Writes `dir/scene.xml` and `dir/meshes/*.ply` for `scene`. `dir` is created if needed.
 pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
@@ -79,13 +86,15 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
     // Each object's BSDF and its warnings, computed once.
     let mut bsdfs: Vec<(String, Vec<String>)> = vec![Default::default(); scene.objects.len()];
     let mut shared: Vec<Option<String>> = vec![None; scene.groups.len()];
+    let mut textures = TextureFiles::default();
     for (g, group) in scene.groups.iter().enumerate() {
         let objs: Vec<usize> = (0..scene.objects.len())
             .filter(|&oi| scene.objects[oi].group == g)
             .collect();
         for &oi in &objs {
             let mut warnings = Vec::new();
-            bsdfs[oi] = (object_bsdf(scene, oi, &objs, &mut warnings), warnings);
+            let bsdf = object_bsdf(scene, oi, &objs, &mut textures, &mut warnings);
+            bsdfs[oi] = (bsdf, warnings);
         }
         let id = mitsuba_id(&group.name, 'g');
         let taken = scene
@@ -123,6 +132,7 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
                 theta,
                 ..
             } if alpha_x != alpha_y => object_ply_with(scene, oi, Some(*theta)),
+            Material::Textured { .. } => textured_ply(scene, oi),
             _ => object_ply(scene, oi),
         };
         let path = dir.join(&file);
@@ -189,12 +199,14 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
         );
     }
     xml.push_str("</scene>\n");
+    let texture_files = textures.write(dir)?;
 
     let xml_path = dir.join("scene.xml");
     crate::io::atomic::write_atomic(&xml_path, xml.as_bytes())
         .map_err(|e| format!("cannot write {}: {e}", xml_path.display()))?;
     report.files.push(xml_path);
     report.files.extend(ply_files);
+    report.files.extend(texture_files);
     Ok(report)
 }
 
@@ -275,32 +287,129 @@ fn mitsuba_id(name: &str, prefix: char) -> String {
     }
 }
 
-/// Object `oi`'s BSDF element (without `twosided`); a Ward lobe's scale k is taken over the
-/// camera's view of all of `group` (its group's objects), so that the group shares one BSDF.
-fn object_bsdf(scene: &Scene, oi: usize, group: &[usize], warnings: &mut Vec<String>) -> String {
+/// Object `oi`'s BSDF element (without `twosided`); a Ward lobe's scale k (a Ward material's
+/// or a texture's varnish) is taken over the camera's view of all of `group` (its group's
+/// objects), so that the group shares one BSDF.
+fn object_bsdf(
+    scene: &Scene,
+    oi: usize,
+    group: &[usize],
+    textures: &mut TextureFiles,
+    warnings: &mut Vec<String>,
+) -> String {
     let obj = &scene.objects[oi];
+    let lobe = match &obj.material {
+        Material::Ward {
+            alpha_x,
+            alpha_y,
+            theta,
+            ..
+        }
+        | Material::Textured {
+            varnish:
+                Some(Varnish {
+                    alpha_x,
+                    alpha_y,
+                    theta,
+                    ..
+                }),
+            ..
+        } => Some((*alpha_x, *alpha_y, *theta)),
+        _ => None,
+    };
     bsdf_xml(
         &obj.material,
         &obj.name,
-        || match obj.material {
-            Material::Ward {
+        || {
+            let (alpha_x, alpha_y, theta) = lobe?;
+            let variant = scene.render.ward_variant;
+            let ward = WardLobe {
                 alpha_x,
                 alpha_y,
-                theta,
-                ..
-            } => ward_scale(
-                scene,
-                group,
-                WardLobe {
-                    alpha_x,
-                    alpha_y,
-                    variant: scene.render.ward_variant,
-                },
-                theta,
-            ),
-            _ => None,
+                variant,
+            };
+            ward_scale(scene, group, ward, theta)
         },
+        textures,
         warnings,
+    )
+}
+
+/// The texture files an export writes: one EXR per texture and factor, under `textures/`.
+#[derive(Default)]
+struct TextureFiles {
+    files: Vec<TextureFile>,
+}
+
+struct TextureFile {
+    name: String,
+    texture: Arc<Texture>,
+    factor: Rgb,
+    /// Texels clamped to 1 (a blend's diffuse part).
+    clamp: bool,
+}
+
+impl TextureFiles {
+    /// The file (relative to the scene's folder) that holds `texture` × `factor` (at most 1
+    /// where `clamp`), linear.
+    fn file(&mut self, texture: &Arc<Texture>, factor: Rgb, clamp: bool) -> String {
+        if let Some(f) = self
+            .files
+            .iter()
+            .find(|f| Arc::ptr_eq(&f.texture, texture) && f.factor == factor && f.clamp == clamp)
+        {
+            return f.name.clone();
+        }
+        let stem = texture
+            .path
+            .file_stem()
+            .map(|s| file_stem(&s.to_string_lossy()))
+            .unwrap_or_default();
+        let name = format!("textures/{:03}_{stem}.exr", self.files.len());
+        self.files.push(TextureFile {
+            name: name.clone(),
+            texture: texture.clone(),
+            factor,
+            clamp,
+        });
+        name
+    }
+
+    /// Writes every file into `dir`; returns their paths.
+    fn write(&self, dir: &Path) -> Result<Vec<std::path::PathBuf>, String> {
+        let mut paths = Vec::new();
+        for f in &self.files {
+            let mut image = super::texture_image(&f.texture, f.factor);
+            if f.clamp {
+                image.data.iter_mut().for_each(|c| *c = c.min(Rgb::ONE));
+            }
+            let path = dir.join(&f.name);
+            if let Some(parent) = path.parent() {
+                std::fs::create_dir_all(parent)
+                    .map_err(|e| format!("cannot create {}: {e}", parent.display()))?;
+            }
+            image.write(&path)?;
+            paths.push(path);
+        }
+        Ok(paths)
+    }
+}
+
+/// Mitsuba's Lambert BSDF whose reflectance is the `bitmap` `file`: linear (`raw`), bilinear as
+/// matfit's lookup; repeating over mesh UVs, clamped in an atlas (whose charts must not bleed
+/// into each other across the texture's border).
+fn bitmap_diffuse(file: &str, mapping: &Mapping) -> String {
+    let wrap = match mapping {
+        Mapping::Uv => "repeat",
+        Mapping::Atlas(_) => "clamp",
+    };
+    format!(
+        "<bsdf type=\"diffuse\">\n    <texture type=\"bitmap\" name=\"reflectance\">\n        \
+         <string name=\"filename\" value=\"{}\"/>\n        \
+         <boolean name=\"raw\" value=\"true\"/>\n        \
+         <string name=\"filter_type\" value=\"bilinear\"/>\n        \
+         <string name=\"wrap_mode\" value=\"{wrap}\"/>\n    </texture>\n</bsdf>\n",
+        escape(file)
     )
 }
 
@@ -471,6 +580,7 @@ fn bsdf_xml(
     m: &Material,
     name: &str,
     ward_scale: impl FnOnce() -> Option<f32>,
+    textures: &mut TextureFiles,
     warnings: &mut Vec<String>,
 ) -> String {
     let mirror = |c: Rgb| {
@@ -493,19 +603,7 @@ fn bsdf_xml(
             ..
         } => {
             let lobe = |c: Rgb| rough_conductor("beckmann", *alpha_x, *alpha_y, c);
-            let (k, seen) = match ward_scale() {
-                Some(k) => (
-                    k,
-                    "Ward's albedo over Beckmann's, from the camera's view of it",
-                ),
-                None => (1.0, "the camera does not see the object"),
-            };
-            warnings.push(format!(
-                "object '{name}': Ward has no Mitsuba equivalent; exported as ρd·Lambert + \
-                 k·ρs·Beckmann microfacet (roughconductor, α as Ward's) with k = {k:.3} \
-                 ({seen}), which matches Ward's highlight from this camera and differs from \
-                 other views (bench/CROSSCHECK.md measures the difference)"
-            ));
+            let k = ward_k(ward_scale, name, "Ward", warnings);
             blend(*rho_d, *rho_s * k, lobe, name, "ward", warnings)
         }
         Material::Microfacet {
@@ -536,19 +634,41 @@ fn bsdf_xml(
                 rgb("specular_reflectance", *rho_s / f0)
             )
         }
-        Material::Textured { varnish, .. } => {
-            let mean = m.rho_d();
-            warnings.push(format!(
-                "object '{name}': textures are not exported; diffuse with the texture's mean \
-                 {:?}{}",
-                mean.to_array(),
-                if varnish.is_some() {
-                    " (its varnish, a Ward lobe, is dropped)"
-                } else {
-                    ""
-                }
-            ));
-            diffuse(mean)
+        Material::Textured {
+            texture,
+            scale,
+            varnish,
+        } => {
+            // Mitsuba's bitmap has no scale: the factor is baked into the file.
+            let mut bitmap = |f: Rgb, clamp: bool| {
+                bitmap_diffuse(&textures.file(texture, f, clamp), &texture.mapping)
+            };
+            let Some(v) = varnish else {
+                return bitmap(*scale, false);
+            };
+            if v.alpha_x != v.alpha_y {
+                warnings.push(format!(
+                    "object '{name}': Mitsuba orients an anisotropic lobe along the UVs' dp/du, \
+                     which here are the texture's: the varnish's direction (θ) is not carried"
+                ));
+            }
+            let lobe = |c: Rgb| rough_conductor("beckmann", v.alpha_x, v.alpha_y, c);
+            let k = ward_k(ward_scale, name, "the varnish, a Ward lobe,", warnings);
+            let d = texture
+                .texels
+                .iter()
+                .map(|&t| (t * *scale).max_element())
+                .fold(0.0, f32::max);
+            let diffuse_part = |f: f32| bitmap(*scale * f, true);
+            blend_with(
+                d,
+                diffuse_part,
+                v.rho_s * k,
+                lobe,
+                name,
+                "textured",
+                warnings,
+            )
         }
         Material::Black => diffuse(Rgb::ZERO),
     }
@@ -583,9 +703,24 @@ fn blend(
     kind: &str,
     warnings: &mut Vec<String>,
 ) -> String {
-    let (d, s) = (rho_d.max_element(), rho_s.max_element());
+    let part = |f: f32| diffuse((rho_d * f).min(Rgb::ONE));
+    blend_with(rho_d.max_element(), part, rho_s, lobe, name, kind, warnings)
+}
+
+/// [`blend`] with any diffuse part (a texture): `diffuse(f)` is the Lambert part of ρd × f,
+/// clamped to 1, and `d` is ρd's largest channel anywhere.
+fn blend_with(
+    d: f32,
+    diffuse: impl FnOnce(f32) -> String,
+    rho_s: Rgb,
+    lobe: impl Fn(Rgb) -> String,
+    name: &str,
+    kind: &str,
+    warnings: &mut Vec<String>,
+) -> String {
+    let s = rho_s.max_element();
     if s <= 0.0 {
-        return diffuse(rho_d);
+        return diffuse(1.0);
     }
     if d <= 0.0 {
         return lobe(rho_s);
@@ -598,13 +733,36 @@ fn blend(
         ));
     }
     let w = s / (d + s);
-    let a = (rho_d / (1.0 - w)).min(Rgb::ONE);
     let b = (rho_s / w).min(Rgb::ONE);
     format!(
         "<bsdf type=\"blendbsdf\">\n    <float name=\"weight\" value=\"{w}\"/>\n{}{}</bsdf>\n",
-        indent(&diffuse(a), 4),
+        indent(&diffuse(1.0 / (1.0 - w)), 4),
         indent(&lobe(b), 4)
     )
+}
+
+/// The scale k of the Beckmann lobe standing for a Ward lobe ([`ward_scale`]; 1 where the
+/// camera does not see the object), with the warning that says so.
+fn ward_k(
+    ward_scale: impl FnOnce() -> Option<f32>,
+    name: &str,
+    what: &str,
+    warnings: &mut Vec<String>,
+) -> f32 {
+    let (k, seen) = match ward_scale() {
+        Some(k) => (
+            k,
+            "Ward's albedo over Beckmann's, from the camera's view of it",
+        ),
+        None => (1.0, "the camera does not see the object"),
+    };
+    warnings.push(format!(
+        "object '{name}': {what} has no Mitsuba equivalent; exported as ρd·Lambert + \
+         k·ρs·Beckmann microfacet (roughconductor, α as Ward's) with k = {k:.3} \
+         ({seen}), which matches Ward's highlight from this camera and differs from \
+         other views (bench/CROSSCHECK.md measures the difference)"
+    ));
+    k
 }
 
 /// Binary little-endian PLY of object `oi`'s triangles: positions, normals, uvs, matfit's vertex
@@ -654,29 +812,58 @@ fn object_ply_with(scene: &Scene, oi: usize, anisotropy: Option<f32>) -> Vec<u8>
             }
         })
         .collect();
+    let verts: Vec<PlyVertex> = (verts.iter())
+        .map(|&(i, uv)| PlyVertex {
+            p: g.positions[i as usize],
+            n: g.normals[i as usize],
+            uv: uv.unwrap_or(g.uvs[i as usize]),
+        })
+        .collect();
+    ply_bytes(&obj.name, &verts, &faces)
+}
+
+/// Object `oi`'s PLY with its texture's coordinates in Mitsuba's convention, v down from the
+/// image's top row (Mitsuba's PLY loader keeps v as stored; matfit's v runs up), or an atlas's
+/// position in it; vertices are duplicated on an atlas's chart seams.
+fn textured_ply(scene: &Scene, oi: usize) -> Vec<u8> {
+    let m = super::gltf::object_mesh(scene, oi, false);
+    let uv = |k: usize| m.uvs.as_ref().map_or(Vec2::ZERO, |u| u[k]);
+    let verts: Vec<PlyVertex> = (0..m.positions.len())
+        .map(|k| PlyVertex {
+            p: m.positions[k],
+            n: m.normals[k],
+            uv: uv(k),
+        })
+        .collect();
+    ply_bytes(&scene.objects[oi].name, &verts, &m.indices)
+}
+
+struct PlyVertex {
+    p: Vec3,
+    n: Vec3,
+    uv: Vec2,
+}
+
+/// A binary little-endian PLY of triangles.
+fn ply_bytes(name: &str, verts: &[PlyVertex], faces: &[[u32; 3]]) -> Vec<u8> {
     let mut out = format!(
         "ply\nformat binary_little_endian 1.0\ncomment matfit export: object '{}'\n\
          element vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
          property float nx\nproperty float ny\nproperty float nz\n\
          property float u\nproperty float v\n\
          element face {}\nproperty list uchar int vertex_indices\nend_header\n",
-        scene.objects[oi].name.replace(['\n', '\r'], " "),
+        name.replace(['\n', '\r'], " "),
         verts.len(),
         faces.len()
     )
     .into_bytes();
     out.reserve(verts.len() * 32 + faces.len() * 13);
-    for &(i, uv) in &verts {
-        let (p, n, uv): (Vec3, Vec3, Vec2) = (
-            g.positions[i as usize],
-            g.normals[i as usize],
-            uv.unwrap_or(g.uvs[i as usize]),
-        );
+    for PlyVertex { p, n, uv } in verts {
         for x in [p.x, p.y, p.z, n.x, n.y, n.z, uv.x, uv.y] {
             out.extend_from_slice(&x.to_le_bytes());
         }
     }
-    for f in &faces {
+    for f in faces {
         out.push(3);
         for i in f {
             out.extend_from_slice(&(*i as i32).to_le_bytes());
@@ -759,6 +946,7 @@ mod tests {
             &Material::DiffuseMirror { rho_d, rho_s },
             "t",
             || None,
+            &mut TextureFiles::default(),
             &mut warnings,
         );
         assert!(warnings.is_empty(), "{warnings:?}");
@@ -781,6 +969,7 @@ mod tests {
             },
             "u",
             || None,
+            &mut TextureFiles::default(),
             &mut warnings,
         );
         assert_eq!(warnings.len(), 1);
@@ -799,6 +988,7 @@ mod tests {
             },
             "floor",
             || Some(0.5),
+            &mut TextureFiles::default(),
             &mut warnings,
         );
         assert_eq!(warnings.len(), 1, "{warnings:?}");
@@ -830,6 +1020,7 @@ mod tests {
             },
             "block",
             || panic!("no Ward scale for a microfacet lobe"),
+            &mut TextureFiles::default(),
             &mut warnings,
         );
         assert!(warnings.is_empty(), "{warnings:?}");
@@ -855,6 +1046,7 @@ mod tests {
             },
             "block",
             || panic!("no Ward scale for a plastic"),
+            &mut TextureFiles::default(),
             &mut warnings,
         );
         assert!(warnings.is_empty(), "{warnings:?}");

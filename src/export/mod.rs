@@ -37,3 +37,30 @@ pub(crate) fn far_clip(scene: &crate::scene::Scene, eye: crate::math::Vec3) -> f
     }
     (2.0 * far).max(1e-3)
 }
+
+/// A texture's texels × `factor` as an image for a renderer that reads it through UVs with a
+/// plain bilinear filter. In an atlas each chart's edge texels are copied into the one-texel gap
+/// around it, so that a lookup within half a texel of a chart's edge blends the chart's own
+/// colour (matfit's lookup clamps to the chart), not the next chart's or the empty gap's.
+pub(crate) fn texture_image(
+    texture: &crate::scene::texture::Texture,
+    factor: crate::math::Rgb,
+) -> crate::io::image::Image {
+    let (w, h) = (texture.width, texture.height);
+    let mut img = crate::io::image::Image::new(w, h);
+    for (o, t) in img.data.iter_mut().zip(&texture.texels) {
+        *o = *t * factor;
+    }
+    if let crate::scene::texture::Mapping::Atlas(atlas) = &texture.mapping {
+        let src = img.data.clone();
+        for [x0, y0, cw, ch] in atlas.chart_rects() {
+            for y in y0.saturating_sub(1)..(y0 + ch + 1).min(h) {
+                for x in x0.saturating_sub(1)..(x0 + cw + 1).min(w) {
+                    let (sx, sy) = (x.clamp(x0, x0 + cw - 1), y.clamp(y0, y0 + ch - 1));
+                    img.data[y * w + x] = src[sy * w + sx];
+                }
+            }
+        }
+    }
+    img
+}

@@ -31,6 +31,14 @@
 //!   a shear cannot be written: an error). `flip_normals` on an emitting box, sphere or mesh is
 //!   an error (matfit emits along the wound normal, outward), elsewhere it changes nothing
 //!   (matfit's surfaces reflect on both sides).
+//! - **Texture coordinates.** Mitsuba reads a bitmap with v = 0 at the image's top row; matfit
+//!   at its bottom row. Mitsuba's OBJ loader flips v, so an OBJ's texture is used as it is; on a
+//!   PLY and a rectangle ((x + 1)/2, (y + 1)/2 of its square) the import writes the texture
+//!   flipped top to bottom, and on a mirrored rectangle (whose edges matfit swaps: Mitsuba's
+//!   (u, v) is matfit's (v, u)) transposed as well: linear EXRs in `textures/` beside the scene
+//!   file (`ImportReport::textures`; the values matfit decodes from the source), so that every
+//!   point reads what Mitsuba reads. A texture on a `cube` or `sphere`, whose coordinates differ
+//!   from matfit's box and sphere, is a warning.
 //! - **Groups.** What matfit fits: a shape whose BSDF has an id (a `<ref>` to a shared BSDF, or
 //!   an inline one with an id) is in the group named by that id, so that shapes sharing a BSDF
 //!   share their reflectance; any other shape is its own group, named by its id (or
@@ -45,10 +53,14 @@
 //!   lights are known inputs of a recovery, and one dropped would bias every group.
 //! - **BSDFs** (matfit's surfaces are two-sided: `twosided` is unwrapped, a one-sided BSDF is a
 //!   warning). Exact: `diffuse` (reflectance rgb / constant or sampled spectrum / bitmap texture →
-//!   textured) → diffuse; `conductor` with material `none` → mirror ρs = specular_reflectance;
+//!   textured; `raw` matters to 8/16-bit images only, whose matfit decoding is sRGB: a warning)
+//!   → diffuse; `conductor` with material `none` → mirror ρs = specular_reflectance;
 //!   `blendbsdf` of those → diffuse_mirror ρd = (1−w)·ρd₁ + w·ρd₂, ρs likewise (the exporter's
 //!   blend inverted); `roughconductor` with material `none` and `distribution` "ggx" or
-//!   "beckmann", alone or blended with a `diffuse` → microfacet, likewise; `roughplastic` with `distribution = "ggx"`
+//!   "beckmann", alone or blended with a `diffuse` → microfacet, likewise; a textured `diffuse`
+//!   blended with a specular lobe (the exporter's varnished texture) → textured, scale 1 − w,
+//!   with the lobe's ρs and α as its Ward varnish (a warning where the lobe is a microfacet one:
+//!   matfit's varnish is Ward's); `roughplastic` with `distribution = "ggx"`
 //!   (and `nonlinear` false) → plastic (ρd = diffuse_reflectance, ρs = F0·specular_reflectance,
 //!   α, η = int_ior/ext_ior). Initial guesses, not truth (a warning each), with ρs from Fresnel
 //!   reflectance at normal incidence F0: conductors with eta/k (or a named metal, from a small
@@ -112,6 +124,8 @@ pub fn import_str(
         ids: HashMap::new(),
         warnings: Vec::new(),
         warned: HashSet::new(),
+        reoriented: HashMap::new(),
+        textures: Vec::new(),
     };
     let file = cx.scene()?;
     let mut header = format!(
@@ -133,6 +147,7 @@ pub fn import_str(
     Ok(ImportReport {
         toml: format!("{header}\n{}", compact(&body)),
         warnings: cx.warnings,
+        textures: cx.textures,
     })
 }
 
@@ -146,6 +161,22 @@ struct Ctx<'a> {
     warnings: Vec<String>,
     /// Elements (by text offset) already warned about, so that a shared BSDF warns once.
     warned: HashSet<(usize, &'static str)>,
+    /// Re-oriented copies of textures: (source path, orientation) → the copy's path.
+    reoriented: HashMap<(String, Orient), String>,
+    /// The copies' images, to be written next to the scene file.
+    textures: Vec<(String, crate::io::image::Image)>,
+}
+
+/// How a texture must be turned so that matfit's lookup over a shape's UVs reads what Mitsuba's
+/// reads: matfit's v runs up from the image's bottom row, Mitsuba's down from its top.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum Orient {
+    /// Mitsuba's (u, v) is matfit's (u, v) on this shape (OBJ: Mitsuba's loader flips v).
+    Same,
+    /// The same (u, v) on both sides, read from opposite ends (PLY, a rectangle).
+    FlipV,
+    /// Mitsuba's (u, v) is matfit's (v, u) (a mirrored rectangle, whose edges matfit swaps).
+    Transpose,
 }
 
 type N<'a> = Node<'a, 'a>;
@@ -414,7 +445,16 @@ impl<'a> Ctx<'a> {
                 let f = self.string(p, "filename")?.ok_or_else(|| {
                     self.err(p, "a bitmap texture needs <string name=\"filename\">")
                 })?;
-                if self.boolean(p, "raw")? {
+                let float = matches!(
+                    Path::new(&f)
+                        .extension()
+                        .and_then(|e| e.to_str())
+                        .map(str::to_lowercase)
+                        .as_deref(),
+                    Some("exr" | "hdr" | "pfm")
+                );
+                // A float image is linear in both renderers; raw changes 8/16-bit ones only.
+                if self.boolean(p, "raw")? && !float {
                     self.warn(
                         p,
                         "raw=\"true\" bitmap: matfit decodes 8-bit textures as sRGB, Mitsuba \
@@ -1071,14 +1111,17 @@ impl<'a> Ctx<'a> {
             }
             Ok(())
         };
+        let mut orient = None;
         match ty {
             "rectangle" => {
                 let (mut u, mut v) = (
                     lin * DVec3::new(2.0, 0.0, 0.0),
                     lin * DVec3::new(0.0, 2.0, 0.0),
                 );
+                orient = Some(Orient::FlipV);
                 if (lin.determinant() < 0.0) != flip {
                     std::mem::swap(&mut u, &mut v);
+                    orient = Some(Orient::Transpose);
                 }
                 if u.cross(v).length() == 0.0 {
                     return Err(self.err(n, "the rectangle's to_world collapses it"));
@@ -1142,6 +1185,11 @@ impl<'a> Ctx<'a> {
                 if m != DMat4::IDENTITY {
                     o.transform = Some(self.decompose(n, m)?);
                 }
+                orient = Some(if ty == "obj" {
+                    Orient::Same
+                } else {
+                    Orient::FlipV
+                });
             }
             other => {
                 return Err(self.err(
@@ -1153,7 +1201,71 @@ impl<'a> Ctx<'a> {
                 ))
             }
         }
+        if let Some(MaterialSpec::Textured { texture, .. }) =
+            o.material.as_mut().map(Spanned::get_mut)
+        {
+            match orient {
+                Some(orient) => *texture = self.reoriented(n, texture, orient)?,
+                None => self.warn(
+                    n,
+                    format!(
+                        "Mitsuba's {ty} has texture coordinates of its own; matfit's {ty} lays \
+                         the texture out differently"
+                    ),
+                ),
+            }
+        }
         Ok(o)
+    }
+
+    /// The texture at `path` (relative to the output's folder) turned by `orient`: a copy, as a
+    /// linear EXR in `textures/` next to the scene file (the values matfit decodes from the
+    /// source), or the source itself when it needs no turning.
+    fn reoriented(&mut self, n: N<'a>, path: &str, orient: Orient) -> Result<String, String> {
+        if orient == Orient::Same {
+            return Ok(path.to_string());
+        }
+        let key = (path.to_string(), orient);
+        if let Some(p) = self.reoriented.get(&key) {
+            return Ok(p.clone());
+        }
+        let src = crate::io::image::read_linear(&self.out_dir.join(path))
+            .map_err(|e| self.err(n, format!("texture: {e}")))?;
+        let (w, h) = (src.width, src.height);
+        let image = match orient {
+            Orient::Same => unreachable!(),
+            // matfit's row (1 − v)·H is Mitsuba's row v·H.
+            Orient::FlipV => crate::io::image::Image {
+                width: w,
+                height: h,
+                data: (0..h)
+                    .rev()
+                    .flat_map(|y| src.data[y * w..(y + 1) * w].to_vec())
+                    .collect(),
+            },
+            // matfit's (column u·W', row (1 − v)·H') is Mitsuba's (column v·W, row u·H).
+            Orient::Transpose => {
+                let mut out = crate::io::image::Image::new(h, w);
+                for r in 0..w {
+                    for c in 0..h {
+                        out.set(c, r, src.get(w - 1 - r, c));
+                    }
+                }
+                out
+            }
+        };
+        let stem = Path::new(path)
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let suffix = match orient {
+            Orient::FlipV => "flipped",
+            _ => "transposed",
+        };
+        let name = format!("textures/{:03}_{stem}_{suffix}.exr", self.textures.len());
+        self.textures.push((name.clone(), image));
+        self.reoriented.insert(key, name.clone());
+        Ok(name)
     }
 
     /// matfit's transform (scale, then rotations about X, Y, Z, then translate) of an affine
@@ -1224,8 +1336,10 @@ impl<'a> Ctx<'a> {
                     d: c,
                     ..Default::default()
                 },
+                // For a texture, d is the factor on its texels.
                 Some(Err(tex)) => Lobes {
                     texture: Some(tex),
+                    d: DVec3::ONE,
                     ..Default::default()
                 },
             },
@@ -1345,7 +1459,31 @@ impl<'a> Ctx<'a> {
                     (None, Some(d)) if la.plain_diffuse() => Some(d),
                     _ => None,
                 };
-                if microfacet.is_none()
+                // The exporter's form of a varnished texture: a textured diffuse and a lobe
+                // with no diffuse part.
+                let varnished = |t: &Lobes, l: &Lobes| {
+                    t.texture.is_some()
+                        && t.s == DVec3::ZERO
+                        && t.alpha.is_none()
+                        && l.texture.is_none()
+                        && l.d == DVec3::ZERO
+                        && l.plastic.is_none()
+                };
+                let texture = if varnished(&la, &lc) {
+                    la.texture.clone()
+                } else if varnished(&lc, &la) {
+                    lc.texture.clone()
+                } else {
+                    None
+                };
+                if texture.is_some() && (la.microfacet.is_some() || lc.microfacet.is_some()) {
+                    guess(
+                        self,
+                        "a textured Ward varnish of the rough part's α (matfit's varnish is a \
+                         Ward lobe, not a microfacet one)",
+                    );
+                } else if texture.is_none()
+                    && microfacet.is_none()
                     && (la.texture.is_some()
                         || lc.texture.is_some()
                         || la.alpha.is_some()
@@ -1363,8 +1501,8 @@ impl<'a> Ctx<'a> {
                     d: la.d * (1.0 - w) + lc.d * w,
                     s: la.s * (1.0 - w) + lc.s * w,
                     alpha: la.alpha.or(lc.alpha),
-                    texture: None,
-                    microfacet,
+                    microfacet: if texture.is_some() { None } else { microfacet },
+                    texture,
                     plastic: None,
                 }
             }
@@ -1445,7 +1583,8 @@ impl<'a> Ctx<'a> {
         let mut d = l.d.max(DVec3::ZERO);
         let mut s = l.s.max(DVec3::ZERO);
         let sum = (d + s).max_element();
-        if sum > 1.0 + 1e-6 {
+        // (A texture's d is a factor on its texels, not a reflectance.)
+        if sum > 1.0 + 1e-6 && l.texture.is_none() {
             self.warn(
                 b,
                 format!("ρd + ρs reaches {sum:.4} > 1 (more light out than in): scaled to 1"),
@@ -1462,7 +1601,7 @@ impl<'a> Ctx<'a> {
         if let Some(t) = l.texture {
             return MaterialSpec::Textured {
                 texture: t,
-                scale: None,
+                scale: (d != DVec3::ONE).then(|| c(d)),
                 mapping: None,
                 texel_size: None,
                 rho_s: has_s.then(|| c(s)),
@@ -1685,5 +1824,85 @@ mod tests {
         assert!((fov_y("larger") - fov_y("x")).abs() < 1e-4);
         // Diagonal 90°: half-diagonal = 1, so half-height = 1/√5.
         assert!((fov_y("diagonal") - deg(2.0 * (1.0 / 5f64.sqrt()).atan())).abs() < 1e-4);
+    }
+
+    /// Mitsuba reads a bitmap with v down from the image's top row over a rectangle's
+    /// (x + 1, y + 1)/2 (checked with Mitsuba 3.9's Python bindings), also through a mirroring
+    /// `to_world`, whose edges matfit swaps: the imported texture, turned, gives every point of
+    /// both rectangles Mitsuba's value.
+    #[test]
+    fn textures_on_rectangles_are_turned_to_read_as_in_mitsuba() {
+        let dir = tempfile::tempdir().unwrap();
+        let (w, h) = (5usize, 3usize);
+        let mut img = crate::io::image::Image::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                img.set(
+                    x,
+                    y,
+                    crate::math::Rgb::new(x as f32 / 4.0, y as f32 / 2.0, 0.25),
+                );
+            }
+        }
+        img.write(&dir.path().join("t.exr")).unwrap();
+        let xml = r#"<scene version="3.0.0">
+            <sensor type="perspective"><float name="fov" value="90"/>
+                <transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0"
+                    up="0, 1, 0"/></transform>
+                <film type="hdrfilm"><integer name="width" value="8"/>
+                <integer name="height" value="8"/><rfilter type="box"/></film></sensor>
+            <bsdf type="twosided" id="tex"><bsdf type="diffuse">
+                <texture type="bitmap" name="reflectance">
+                <string name="filename" value="t.exr"/></texture></bsdf></bsdf>
+            <shape type="rectangle"><ref id="tex"/>
+                <transform name="to_world"><translate x="-3"/></transform></shape>
+            <shape type="rectangle"><ref id="tex"/>
+                <transform name="to_world"><scale x="-1"/><translate x="3"/></transform>
+            </shape></scene>"#;
+        let xml_path = dir.path().join("s.xml");
+        let out = dir.path().join("o.toml");
+        let r = import_str(xml, &xml_path, &out, &[]).unwrap();
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        assert_eq!(r.textures.len(), 2, "one flipped, one transposed");
+        for (name, image) in &r.textures {
+            let p = dir.path().join(name);
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            image.write(&p).unwrap();
+        }
+        let scene = crate::scene::load::parse_scene(&r.toml, &out).unwrap();
+        // Mitsuba's bilinear lookup at (u, v), v = 0 at the top row, repeating (its default).
+        let mitsuba = |u: f32, v: f32| {
+            let (x, y) = (u * w as f32 - 0.5, v * h as f32 - 0.5);
+            let at = |i: f32, j: f32| {
+                img.get(
+                    (i as i64).rem_euclid(w as i64) as usize,
+                    (j as i64).rem_euclid(h as i64) as usize,
+                )
+            };
+            let (x0, y0) = (x.floor(), y.floor());
+            let (ax, ay) = (x - x0, y - y0);
+            at(x0, y0) * ((1.0 - ax) * (1.0 - ay))
+                + at(x0 + 1.0, y0) * (ax * (1.0 - ay))
+                + at(x0, y0 + 1.0) * ((1.0 - ax) * ay)
+                + at(x0 + 1.0, y0 + 1.0) * (ax * ay)
+        };
+        for (centre, sx) in [(-3.0f32, 1.0f32), (3.0, -1.0)] {
+            for (lx, ly) in [(-0.7f32, -0.6f32), (0.5, -0.2), (-0.1, 0.8), (0.3, 0.35)] {
+                let o = crate::math::Vec3::new(centre + sx * lx, ly, 5.0);
+                let ray = crate::geometry::Ray::new(o, crate::math::Vec3::new(0.0, 0.0, -1.0));
+                let hit = scene.intersect(&ray, f32::INFINITY).unwrap();
+                let crate::scene::Material::Textured { texture, .. } =
+                    &scene.objects[hit.object as usize].material
+                else {
+                    panic!("not textured")
+                };
+                let got = texture.at(&hit);
+                let want = mitsuba((lx + 1.0) / 2.0, (ly + 1.0) / 2.0);
+                assert!(
+                    (got - want).abs().max_element() < 1e-5,
+                    "rectangle at x {centre}, local ({lx}, {ly}): {got} vs Mitsuba's {want}"
+                );
+            }
+        }
     }
 }

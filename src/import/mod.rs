@@ -11,4 +11,7 @@ pub struct ImportReport {
     pub toml: String,
     /// One message per approximation, each naming the element and its line.
     pub warnings: Vec<String>,
+    /// Textures the scene file refers to that the import made (paths relative to its folder):
+    /// copies turned to matfit's texture coordinates.
+    pub textures: Vec<(String, crate::io::image::Image)>,
 }
