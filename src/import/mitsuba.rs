@@ -1262,7 +1262,10 @@ impl<'a> Ctx<'a> {
             Orient::FlipV => "flipped",
             _ => "transposed",
         };
-        let name = format!("textures/{:03}_{stem}_{suffix}.exr", self.textures.len());
+        let mut name = format!("textures/{stem}_{suffix}.exr");
+        if self.textures.iter().any(|(n, _)| *n == name) {
+            name = format!("textures/{stem}_{suffix}_{}.exr", self.textures.len());
+        }
         self.textures.push((name.clone(), image));
         self.reoriented.insert(key, name.clone());
         Ok(name)
