@@ -502,6 +502,11 @@ pub struct FitArgs {
     /// default; log.jsonl's `hypotheses` events show what they chose).
     #[arg(long)]
     no_pseudo_textures: bool,
+    /// Fit a textured group from its own pixels only, never also from its image in a confirmed
+    /// mirror (on by default; log.jsonl's `mirror_view` events show each mirror's pixels and
+    /// the level factor applied to them).
+    #[arg(long)]
+    no_mirror_views: bool,
     /// Fit every group as Lambertian (level 1) and never climb: a baseline to compare the
     /// hierarchy's models against.
     #[arg(long)]
@@ -529,6 +534,7 @@ impl FitArgs {
             final_spp: self.final_spp.max(2),
             first_pixels: self.first_pixels,
             pseudo_textures: !self.no_pseudo_textures,
+            mirror_views: !self.no_mirror_views,
             unseen: matfit::fit::unseen::UnseenOptions {
                 enabled: !self.white_unseen,
                 ..d.unseen.clone()

@@ -359,11 +359,72 @@ fn stride_of(n: usize, opts: &CacheOptions) -> usize {
     stride
 }
 
-/// Builds the cache of `group` for the chosen pixels, tracing through `scene` as it is now.
+/// Where a cached pixel's primary rays come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Primary {
+    /// The camera's rays through the pixel, which must hit the group.
+    Camera,
+    /// The camera's rays through a pixel of the ideal mirror group `0`, reflected once about
+    /// its shading normal, which must then hit the group: the group as the mirror shows it
+    /// (§5.1; the pixel's radiance is the mirror's ρs times the group's along the reflection).
+    Mirror(usize),
+}
+
+/// The primary ray of the film position `film` as `primary` makes it and its hit, which must
+/// be on `group` when that is given (None: the ray strays, off the mirror or off the group).
+fn primary_hit(
+    scene: &Scene,
+    film: Vec2,
+    primary: Primary,
+    group: Option<usize>,
+) -> Option<(Ray, crate::scene::SurfaceHit)> {
+    let group_of = |h: &crate::scene::SurfaceHit| scene.objects[h.object as usize].group;
+    let ray = scene.camera.ray(film);
+    let hit = scene.intersect(&ray, f32::INFINITY)?;
+    let (ray, hit) = match primary {
+        Primary::Camera => (ray, hit),
+        Primary::Mirror(m) => {
+            if group_of(&hit) != m {
+                return None;
+            }
+            let (frame, ng) = facing(hit.frame, hit.ng, -ray.d);
+            let r = crate::math::reflect(-ray.d, frame.n);
+            if r.dot(ng) <= 0.0 {
+                return None;
+            }
+            let reflected = Ray::new(offset_origin(hit.p, ng, r), r);
+            let h = scene.intersect(&reflected, f32::INFINITY)?;
+            (reflected, h)
+        }
+    };
+    group
+        .is_none_or(|g| group_of(&hit) == g)
+        .then_some((ray, hit))
+}
+
+/// Whether pixel `pixel` shows `group` wholly in the ideal mirror group `mirror`: the rays
+/// through its corners, edge midpoints and centre all hit the mirror and, reflected, the group.
+/// A pixel whose reflection straddles two groups mixes them in the photo, which no model of
+/// one group explains.
+pub fn shows_in_mirror(scene: &Scene, pixel: usize, mirror: usize, group: usize) -> bool {
+    let w = scene.camera.width as usize;
+    let (x, y) = ((pixel % w) as f32, (pixel / w) as f32);
+    const AT: [f32; 3] = [0.001, 0.5, 0.999];
+    AT.iter().all(|&dy| {
+        AT.iter().all(|&dx| {
+            let film = Vec2::new(x + dx, y + dy);
+            primary_hit(scene, film, Primary::Mirror(mirror), Some(group)).is_some()
+        })
+    })
+}
+
+/// Builds the cache of `group` for the chosen pixels, tracing through `scene` as it is now,
+/// with the pixels' primary rays as `primary` makes them.
 pub fn build(
     scene: &Scene,
     pt: &PathTracer,
     group: usize,
+    primary: Primary,
     pixels: &[usize],
     tiles: &[u32],
     n_tiles: usize,
@@ -404,15 +465,10 @@ pub fn build(
                 let mut sampler = Sampler::new(seed ^ (0x9E37_79B9 * (half as u64 + 1)), p as u64);
                 sampler.start_sample(k);
                 let film = Vec2::new(x, y) + sampler.next_2d();
-                let ray = cam.ray(film);
-                let Some(hit) = scene.intersect(&ray, f32::INFINITY) else {
+                let Some((ray, hit)) = primary_hit(scene, film, primary, Some(group)) else {
                     stray += 1;
                     continue;
                 };
-                if scene.objects[hit.object as usize].group != group {
-                    stray += 1;
-                    continue;
-                }
                 let wo_world = -ray.d;
                 let taps = atlas.and_then(|a| a.taps(hit.object, hit.p, hit.ng));
                 let (frame, ng) = facing(hit.frame, hit.ng, wo_world);
@@ -581,9 +637,9 @@ pub fn build(
                     let mut sm = Sampler::new(seed ^ (0x6D69_7272 * (half as u64 + 1)), p as u64);
                     sm.start_sample(k);
                     let film = Vec2::new(x, y) + sm.next_2d();
-                    let ray = cam.ray(film);
                     n_half[half] += 1;
-                    let Some(hit) = scene.intersect(&ray, f32::INFINITY) else {
+                    // As for the samples, but a ray that leaves the group still reads its reflection.
+                    let Some((ray, hit)) = primary_hit(scene, film, primary, None) else {
                         continue;
                     };
                     let (frame, ng) = facing(hit.frame, hit.ng, -ray.d);
@@ -833,4 +889,125 @@ pub(crate) fn synthetic_cache(
     }
     cache.samples = samples.into();
     cache
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::aov::index_buffers;
+    use crate::scene::load::parse_scene;
+
+    /// A black floor in front of a mirror, lit by a directional light from above and in front:
+    /// every floor point receives the light's irradiance × cos θ and nothing else (the floor
+    /// reflects nothing; light by way of the mirror is a caustic no sample reaches).
+    const MIRROR_ROOM: &str = r#"
+[render]
+spp = 4
+seed = 1
+[camera]
+width = 64
+height = 48
+eye = [0.0, 0.8, 1.5]
+target = [0.0, 0.8, -2.0]
+up = [0.0, 1.0, 0.0]
+fov_y_deg = 60.0
+[[object]]
+name = "floor"
+group = "floor"
+shape = "quad"
+corner = [-3.0, 0.0, 3.0]
+edge_u = [6.0, 0.0, 0.0]
+edge_v = [0.0, 0.0, -6.0]
+material = { type = "diffuse", rho_d = 0.0 }
+[[object]]
+name = "mirror"
+group = "mirror"
+shape = "quad"
+corner = [-1.5, 0.2, -2.0]
+edge_u = [3.0, 0.0, 0.0]
+edge_v = [0.0, 1.8, 0.0]
+material = { type = "mirror", rho_s = 0.8 }
+[[light]]
+name = "sun"
+type = "directional"
+direction = [0.0, -1.0, -0.5]
+irradiance = 2.0
+"#;
+
+    #[test]
+    fn a_group_seen_in_a_mirror_is_cached_at_its_reflected_points() {
+        let scene = parse_scene(MIRROR_ROOM, std::path::Path::new("room.toml")).unwrap();
+        let (floor, mirror) = (
+            scene.group_index("floor").unwrap(),
+            scene.group_index("mirror").unwrap(),
+        );
+        let ib = index_buffers(&scene, &scene.camera);
+        let w = scene.camera.width as usize;
+        let shows = |i: usize| shows_in_mirror(&scene, i, mirror, floor);
+        // Mirror pixels whose whole footprint reflects the floor, and the rest.
+        let via: Vec<usize> = (0..ib.group.len()).filter(|&i| shows(i)).collect();
+        assert!(
+            via.len() > 50,
+            "{} pixels show the floor in the mirror",
+            via.len()
+        );
+        for &i in &via {
+            assert_eq!(
+                (ib.group[i], ib.mirror_group[i]),
+                (mirror as i32, floor as i32)
+            );
+        }
+        let direct = (0..ib.group.len())
+            .find(|&i| ib.group[i] == floor as i32)
+            .unwrap();
+        assert!(!shows(direct), "a pixel seeing the floor directly");
+        let sky = (0..ib.group.len())
+            .find(|&i| ib.group[i] == mirror as i32 && ib.mirror_group[i] < 0)
+            .unwrap();
+        assert!(!shows(sky), "a mirror pixel reflecting nothing");
+        // The cache through the mirror: no stray ray, and D = E cos θ / π at every pixel.
+        let pt = PathTracer::new(&scene);
+        let photo = vec![Rgb::ZERO; ib.group.len()];
+        let opts = CacheOptions::default();
+        let tiles = vec![0u32; via.len()];
+        let build_as = |primary, pixels: &[usize]| {
+            build(
+                &scene,
+                &pt,
+                floor,
+                primary,
+                pixels,
+                &tiles[..pixels.len()],
+                1,
+                &photo,
+                CacheNeeds::default(),
+                None,
+                &[],
+                None,
+                &opts,
+                7,
+            )
+        };
+        let c = build_as(Primary::Mirror(mirror), &via);
+        assert_eq!(c.stray, 0);
+        let want = 2.0 * (1.0 / 1.25f32.sqrt()) * INV_PI;
+        for p in &c.pixels {
+            let e = (p.d - Rgb::splat(want)).abs().max_element() / want;
+            assert!(
+                e < 1e-3,
+                "pixel {} ({}, {}): D {:?}, want {want}",
+                p.pixel,
+                p.pixel as usize % w,
+                p.pixel as usize / w,
+                p.d
+            );
+        }
+        // The same pixels as the camera sees them are the mirror's: every ray strays.
+        let c = build_as(Primary::Camera, &via[..4]);
+        assert!(c.pixels.iter().all(|p| p.d == Rgb::ZERO));
+        assert_eq!(
+            c.stray as u32,
+            4 * (opts.light_samples + opts.indirect_samples)
+        );
+    }
 }

@@ -197,6 +197,16 @@ pub enum Event {
         error_pseudo: f32,
         chose: String,
     },
+    /// Issue 25: the textured group's image in a confirmed mirror joined its cache (`used`), or
+    /// was left out because its level disagreed with the model's by more than
+    /// `recovery::MIRROR_SCALE_LIMIT`. `scale`: the factor that brought the photo's image
+    /// (divided by the mirror's ρs) to the model's mean over those pixels.
+    MirrorView {
+        mirror: String,
+        pixels: usize,
+        scale: [f32; 3],
+        used: bool,
+    },
 }
 
 impl GroupState {
@@ -279,6 +289,15 @@ impl GroupState {
     /// Whether the group is fitted at all.
     pub fn is_fitted(&self) -> bool {
         matches!(self.status, Status::Analysing | Status::Confirmed)
+    }
+
+    /// The ideal mirror's ρs at the group's level (level 2's is 1 by definition).
+    pub fn mirror_rho_s(&self) -> crate::math::Rgb {
+        if self.level == Level::PerfectSpecular {
+            crate::math::Rgb::ONE
+        } else {
+            self.params.rho_s
+        }
     }
 
     /// What the group's cache must hold this iteration.

@@ -84,6 +84,10 @@ pub struct RecoverOptions {
     /// that are still being analysed read from the photo, and the better hypothesis is used.
     #[serde(default = "yes")]
     pub pseudo_textures: bool,
+    /// Issue 25: a textured group is also fitted from its image in the confirmed ideal mirrors
+    /// (`recovery.rs`, `cache::Primary::Mirror`).
+    #[serde(default = "yes")]
+    pub mirror_views: bool,
     /// Samples per pixel of the final render.
     pub final_spp: u32,
     pub seed: u64,
@@ -119,6 +123,7 @@ impl Default for RecoverOptions {
             unseen: Default::default(),
             first_pixels: 1500,
             pseudo_textures: true,
+            mirror_views: true,
             final_spp: 64,
             seed: 0,
             progress: true,

@@ -10,7 +10,7 @@
 //! a group's cache already sees the groups refitted before it in the same iteration: this
 //! converges in fewer iterations than updating all groups at the end (bench/README.md).
 
-use super::cache::{build, choose_pixels, CacheOptions, UnseenProbe};
+use super::cache::{build, choose_pixels, CacheOptions, Primary, UnseenProbe};
 use super::checkpoint::{Checkpoint, CHECKPOINT_VERSION};
 use super::error::{block_tile, tiled_error, PixelTerms};
 use super::hierarchy::{Event, GroupState, Motion, Status};
@@ -80,6 +80,8 @@ pub struct RecoveryLoop<'a> {
     /// Per group, the pixels a texture of it is fitted from (`texture_pixels`), found when a
     /// group first needs them.
     texture_pixels: std::cell::OnceCell<Vec<Vec<usize>>>,
+    /// The scene's index buffers in the first photo, found when first needed.
+    index_buffers: std::cell::OnceCell<crate::render::aov::IndexBuffers>,
     /// The further photos fitted with the first (`views.rs`); empty for one photo.
     extra: Vec<ViewRun<'a>>,
     /// Per photo (the first included), its exposure factor: all 1 for one photo.
@@ -100,10 +102,13 @@ pub struct RecoveryLoop<'a> {
 /// guessed. The model is registered to the photo before masking (`photo/register.rs`), so a
 /// pixel the object covers wholly (`photo/coverage.rs`) sees that object in the photo too;
 /// pixels that mix two objects stay out.
-fn texture_pixels(scene: &Scene, mask: &UsableMask) -> Vec<Vec<usize>> {
+fn texture_pixels(
+    scene: &Scene,
+    mask: &UsableMask,
+    ib: &crate::render::aov::IndexBuffers,
+) -> Vec<Vec<usize>> {
     use crate::photo::mask::Reject;
-    let ib = crate::render::aov::index_buffers(scene, &scene.camera);
-    let pure = crate::photo::coverage::pure_pixels(scene, &scene.camera, &ib);
+    let pure = crate::photo::coverage::pure_pixels(scene, &scene.camera, ib);
     let mut out = vec![Vec::new(); scene.groups.len()];
     for (i, (&g, r)) in mask.group.iter().zip(&mask.reason).enumerate() {
         let g = match r {
@@ -120,6 +125,35 @@ fn texture_pixels(scene: &Scene, mask: &UsableMask) -> Vec<Vec<usize>> {
     }
     out
 }
+
+/// The per-channel factor that brings the photo's image of a group in a mirror (already
+/// divided by the mirror's ρs) to the model's mean over the same pixels, and whether the
+/// pixels are to be used: not where the two disagree by more than [`MIRROR_SCALE_LIMIT`] (the
+/// mirror's image is then not that group's, or the mirror not what it was fitted as).
+///
+/// The mirror's image determines the product of its ρs and the group's reflectance only: the
+/// mirror's ρs is fitted from the same pixels against the group's current render, so their
+/// overall level says nothing new about the group and would only drag it towards its last
+/// value. What they add is the pattern, seen a second time from another direction; the level
+/// is left to the group's own pixels.
+fn mirror_scale(cache: &super::cache::GroupCache, model: &[Rgb]) -> (Rgb, bool) {
+    let (photo, model) = cache
+        .pixels
+        .iter()
+        .zip(model)
+        .fold((Rgb::ZERO, Rgb::ZERO), |(a, b), (p, m)| {
+            (a + p.photo, b + *m)
+        });
+    let scale = model / photo;
+    let ok = (0..3).all(|c| {
+        scale[c].is_finite() && (1.0 / MIRROR_SCALE_LIMIT..=MIRROR_SCALE_LIMIT).contains(&scale[c])
+    });
+    (scale, ok)
+}
+
+/// How far (as a factor) the photo's image of a group in a mirror may be from the model's for
+/// those pixels to be used ([`mirror_scale`]).
+pub const MIRROR_SCALE_LIMIT: f32 = 1.25;
 
 /// A textured group's cache draws this many times the samples per pixel: its texels are fitted
 /// from a few pixels each, not from the whole group, so their noise is that of single pixels.
@@ -253,6 +287,7 @@ impl<'a> RecoveryLoop<'a> {
             atlases,
             textures,
             texture_pixels: std::cell::OnceCell::new(),
+            index_buffers: std::cell::OnceCell::new(),
             exposures: vec![1.0; 1 + extra.len()],
             residuals: Vec::new(),
             photo_scaled: std::cell::OnceCell::new(),
@@ -262,10 +297,39 @@ impl<'a> RecoveryLoop<'a> {
         r
     }
 
+    /// The pixels of group `g`'s image in each confirmed ideal mirror: per mirror, its usable
+    /// pixels that show `g` wholly ([`super::cache::shows_in_mirror`]).
+    fn mirror_view_pixels(&self, g: usize) -> Vec<(usize, Vec<usize>)> {
+        let ib = self.index_buffers();
+        let mirrors = self.states.iter().enumerate().filter(|(m, s)| {
+            *m != g
+                && s.status == Status::Confirmed
+                && matches!(s.level, Level::Specular | Level::PerfectSpecular)
+        });
+        mirrors
+            .filter_map(|(m, _)| {
+                let pixels: Vec<usize> = (0..self.mask.group.len())
+                    .filter(|&i| {
+                        self.mask.group[i] == m as i32
+                            && ib.mirror_group[i] == g as i32
+                            && super::cache::shows_in_mirror(self.scene, i, m, g)
+                    })
+                    .collect();
+                (!pixels.is_empty()).then_some((m, pixels))
+            })
+            .collect()
+    }
+
+    /// The scene's index buffers through the first photo's camera, made when first needed.
+    fn index_buffers(&self) -> &crate::render::aov::IndexBuffers {
+        self.index_buffers
+            .get_or_init(|| crate::render::aov::index_buffers(self.scene, &self.scene.camera))
+    }
+
     /// Per group, the pixels a texture of it is fitted from ([`texture_pixels`]).
     fn texture_pixels(&self) -> &[Vec<usize>] {
         self.texture_pixels
-            .get_or_init(|| texture_pixels(self.scene, &self.mask))
+            .get_or_init(|| texture_pixels(self.scene, &self.mask, self.index_buffers()))
     }
 
     /// How many groups each global iteration fits.
@@ -444,6 +508,7 @@ impl<'a> RecoveryLoop<'a> {
                 photo: self.photo_in_cache_units(),
             });
             let view_cache = |current: &Scene,
+                              primary: Primary,
                               (px, tiles, n_tiles): (&[usize], &[u32], usize),
                               photo: &Photo,
                               pseudo: Option<&PseudoTextures>,
@@ -469,6 +534,7 @@ impl<'a> RecoveryLoop<'a> {
                     current,
                     &pt,
                     g,
+                    primary,
                     px,
                     tiles,
                     n_tiles,
@@ -483,11 +549,13 @@ impl<'a> RecoveryLoop<'a> {
             };
             let mut cache = view_cache(
                 &self.current,
+                Primary::Camera,
                 (px, tiles, *n_tiles),
                 self.photo,
                 pseudo.as_ref(),
                 hash_seed(&[opts.seed, it as u64, g as u64]),
             );
+            let reads_photo = pseudo.is_some();
             // The photo in the recovered scene's units (x / 1 is x: one photo without a grey
             // card is unchanged to the bit).
             let e0 = self.exposures[0];
@@ -498,12 +566,68 @@ impl<'a> RecoveryLoop<'a> {
                 for (k, v) in self.extra.iter().enumerate() {
                     let seed = hash_seed(&[opts.seed, it as u64, g as u64, k as u64 + 1]);
                     let (px, tiles, n) = &v.pixel_lists[g];
-                    let c = view_cache(&v.current, (px, tiles, *n), v.photo, None, seed);
+                    let c = view_cache(
+                        &v.current,
+                        Primary::Camera,
+                        (px, tiles, *n),
+                        v.photo,
+                        None,
+                        seed,
+                    );
                     cache.append(c, self.exposures[k + 1]);
                 }
                 self.cache_builds += self.extra.len() as u32;
             }
-            self.cache_builds += 1;
+            // Issue 25: a textured group is also fitted from its image in the confirmed mirrors
+            // (one photo only, and not while §5.1 reads the photo for this group).
+            let mut via_builds = 0;
+            if textured && opts.mirror_views && self.extra.is_empty() && !reads_photo {
+                let w = self.scene.camera.width as usize;
+                let all = CacheOptions {
+                    max_pixels: usize::MAX,
+                    ..opts.cache.clone()
+                };
+                for (m, pixels) in self.mirror_view_pixels(g) {
+                    let (px, tiles, n) = choose_pixels(&pixels, w, &all);
+                    let seed = hash_seed(&[opts.seed, it as u64, g as u64, 0x6d69_7272, m as u64]);
+                    let mut c = view_cache(
+                        &self.current,
+                        Primary::Mirror(m),
+                        (&px, &tiles, n),
+                        self.photo,
+                        None,
+                        seed,
+                    );
+                    via_builds += 1;
+                    let rho_s = self.states[m].mirror_rho_s();
+                    for p in c.pixels.iter_mut() {
+                        p.photo = p.photo / e0 / rho_s;
+                    }
+                    let st = &self.states[g];
+                    let Some(model) = st
+                        .texture
+                        .as_ref()
+                        .and_then(|t| super::texture::textured_model(&c, t, &st.params, variant))
+                    else {
+                        continue;
+                    };
+                    let (scale, used) = mirror_scale(&c, &model);
+                    let event = Event::MirrorView {
+                        mirror: self.states[m].name.clone(),
+                        pixels: c.pixels.len(),
+                        scale: [scale.x, scale.y, scale.z],
+                        used,
+                    };
+                    log(&self.line(it, g, event, 0.0));
+                    if used {
+                        for p in c.pixels.iter_mut() {
+                            p.photo *= scale;
+                        }
+                        cache.append(c, 1.0);
+                    }
+                }
+            }
+            self.cache_builds += 1 + via_builds;
             let mut read = cache.pseudo.take().filter(|r| r.share >= pseudo::MIN_SHARE);
             let mut took = false;
             if let Some(r) = read.as_mut() {

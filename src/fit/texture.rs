@@ -220,6 +220,30 @@ pub fn uniform_model(
         .collect()
 }
 
+/// The radiance of `texture` (with its lobe `lobe` on top) per cached pixel; None if the cache
+/// has no texel rows.
+pub fn textured_model(
+    cache: &GroupCache,
+    texture: &TextureState,
+    lobe: &GroupParams,
+    variant: WardVariant,
+) -> Option<Vec<Rgb>> {
+    let rows = cache.texels.as_ref()?;
+    let (spec, _) = specular(cache, texture.base, lobe, variant);
+    let n = texture.texels.len();
+    if rows.rows.iter().any(|r| r.0 as usize >= n) {
+        return None;
+    }
+    Some(
+        (0..cache.pixels.len())
+            .map(|p| {
+                let [h0, h1] = model(rows, &texture.texels, p);
+                h0 + h1 + spec[p]
+            })
+            .collect(),
+    )
+}
+
 /// Fits level 7 on the cache: the `base` level's uniform lobe (none for diffuse), then the
 /// texture under it from `start` (the previous texture) or, on a climb, from the lobe fit's
 /// uniform ρd. The fit's ρd is the mean of the seen texels (what a report or an exporter that
