@@ -445,14 +445,7 @@ impl<'a> Ctx<'a> {
                 let f = self.string(p, "filename")?.ok_or_else(|| {
                     self.err(p, "a bitmap texture needs <string name=\"filename\">")
                 })?;
-                let float = matches!(
-                    Path::new(&f)
-                        .extension()
-                        .and_then(|e| e.to_str())
-                        .map(str::to_lowercase)
-                        .as_deref(),
-                    Some("exr" | "hdr" | "pfm")
-                );
+                let float = crate::io::image::is_float_format(Path::new(&f));
                 // A float image is linear in both renderers; raw changes 8/16-bit ones only.
                 if self.boolean(p, "raw")? && !float {
                     self.warn(
@@ -1233,7 +1226,7 @@ impl<'a> Ctx<'a> {
             .map_err(|e| self.err(n, format!("texture: {e}")))?;
         let (w, h) = (src.width, src.height);
         let image = match orient {
-            Orient::Same => unreachable!(),
+            Orient::Same => src,
             // matfit's row (1 − v)·H is Mitsuba's row v·H.
             Orient::FlipV => crate::io::image::Image {
                 width: w,

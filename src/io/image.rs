@@ -110,6 +110,12 @@ impl Image {
     }
 }
 
+/// Whether the file holds floating-point (linear) values by its extension: EXR, Radiance HDR
+/// and PFM, as matfit reads and writes them.
+pub fn is_float_format(path: &Path) -> bool {
+    matches!(extension(path).as_str(), "exr" | "hdr" | "pfm")
+}
+
 fn extension(path: &Path) -> String {
     path.extension()
         .and_then(|e| e.to_str())
