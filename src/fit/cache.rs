@@ -21,7 +21,7 @@ use crate::geometry::{offset_origin, Ray};
 use crate::math::PI;
 use crate::math::{Rgb, Sampler, Vec2, Vec3, INV_PI};
 use crate::render::incident::{indirect_radiance, IndirectRay};
-use crate::render::integrator::facing;
+use crate::render::integrator::{facing, mirror_ray};
 use crate::render::PathTracer;
 use crate::scene::atlas::Atlas;
 use crate::scene::Scene;
@@ -387,12 +387,7 @@ fn primary_hit(
             if group_of(&hit) != m {
                 return None;
             }
-            let (frame, ng) = facing(hit.frame, hit.ng, -ray.d);
-            let r = crate::math::reflect(-ray.d, frame.n);
-            if r.dot(ng) <= 0.0 {
-                return None;
-            }
-            let reflected = Ray::new(offset_origin(hit.p, ng, r), r);
+            let reflected = mirror_ray(&ray, &hit)?;
             let h = scene.intersect(&reflected, f32::INFINITY)?;
             (reflected, h)
         }
@@ -642,12 +637,9 @@ pub fn build(
                     let Some((ray, hit)) = primary_hit(scene, film, primary, None) else {
                         continue;
                     };
-                    let (frame, ng) = facing(hit.frame, hit.ng, -ray.d);
-                    let r = crate::math::reflect(-ray.d, frame.n);
-                    if r.dot(ng) <= 0.0 {
+                    let Some(reflected) = mirror_ray(&ray, &hit) else {
                         continue;
-                    }
-                    let reflected = Ray::new(offset_origin(hit.p, ng, r), r);
+                    };
                     let before = sm.clone();
                     // One intersection for the three uses (the moved scenes share the geometry).
                     let first = scene.intersect_hit(&reflected, f32::INFINITY);

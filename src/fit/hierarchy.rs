@@ -291,15 +291,6 @@ impl GroupState {
         matches!(self.status, Status::Analysing | Status::Confirmed)
     }
 
-    /// The ideal mirror's ρs at the group's level (level 2's is 1 by definition).
-    pub fn mirror_rho_s(&self) -> crate::math::Rgb {
-        if self.level == Level::PerfectSpecular {
-            crate::math::Rgb::ONE
-        } else {
-            self.params.rho_s
-        }
-    }
-
     /// What the group's cache must hold this iteration.
     pub fn cache_needs(&self, may_climb: bool) -> CacheNeeds {
         self.cache_needs_for(self.level, may_climb && self.status == Status::Analysing)

@@ -297,17 +297,19 @@ impl<'a> RecoveryLoop<'a> {
         r
     }
 
-    /// The pixels of group `g`'s image in each confirmed ideal mirror: per mirror, its usable
-    /// pixels that show `g` wholly ([`super::cache::shows_in_mirror`]).
-    fn mirror_view_pixels(&self, g: usize) -> Vec<(usize, Vec<usize>)> {
+    /// The pixels of group `g`'s image in each confirmed ideal mirror: per mirror, its ρs and
+    /// its usable pixels that show `g` wholly ([`super::cache::shows_in_mirror`]).
+    fn mirror_view_pixels(&self, g: usize) -> Vec<(usize, Rgb, Vec<usize>)> {
         let ib = self.index_buffers();
-        let mirrors = self.states.iter().enumerate().filter(|(m, s)| {
-            *m != g
-                && s.status == Status::Confirmed
-                && matches!(s.level, Level::Specular | Level::PerfectSpecular)
+        let mirrors = self.states.iter().enumerate().filter_map(|(m, s)| {
+            let confirmed = m != g && s.status == Status::Confirmed;
+            match s.params.material(s.level) {
+                crate::scene::Material::Mirror { rho_s } if confirmed => Some((m, rho_s)),
+                _ => None,
+            }
         });
         mirrors
-            .filter_map(|(m, _)| {
+            .filter_map(|(m, rho_s)| {
                 let pixels: Vec<usize> = (0..self.mask.group.len())
                     .filter(|&i| {
                         self.mask.group[i] == m as i32
@@ -315,7 +317,7 @@ impl<'a> RecoveryLoop<'a> {
                             && super::cache::shows_in_mirror(self.scene, i, m, g)
                     })
                     .collect();
-                (!pixels.is_empty()).then_some((m, pixels))
+                (!pixels.is_empty()).then_some((m, rho_s, pixels))
             })
             .collect()
     }
@@ -587,7 +589,7 @@ impl<'a> RecoveryLoop<'a> {
                     max_pixels: usize::MAX,
                     ..opts.cache.clone()
                 };
-                for (m, pixels) in self.mirror_view_pixels(g) {
+                for (m, rho_s, pixels) in self.mirror_view_pixels(g) {
                     let (px, tiles, n) = choose_pixels(&pixels, w, &all);
                     let seed = hash_seed(&[opts.seed, it as u64, g as u64, 0x6d69_7272, m as u64]);
                     let mut c = view_cache(
@@ -599,7 +601,6 @@ impl<'a> RecoveryLoop<'a> {
                         seed,
                     );
                     via_builds += 1;
-                    let rho_s = self.states[m].mirror_rho_s();
                     for p in c.pixels.iter_mut() {
                         p.photo = p.photo / e0 / rho_s;
                     }

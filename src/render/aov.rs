@@ -2,10 +2,9 @@
 //! object each pixel sees, and those it sees through a mirror reflection, §5.1 of the notes),
 //! and normals, depth and UVs for inspection.
 
-use super::integrator::facing;
-use crate::geometry::{offset_origin, Ray};
+use super::integrator::{facing, mirror_ray};
 use crate::io::image::Image;
-use crate::math::{reflect, Rgb, Vec2, Vec3};
+use crate::math::{Rgb, Vec2, Vec3};
 use crate::scene::{Camera, Scene};
 use rayon::prelude::*;
 
@@ -50,20 +49,15 @@ pub fn index_buffers(scene: &Scene, camera: &Camera) -> IndexBuffers {
             };
             let obj = hit.object as i32;
             let grp = scene.objects[hit.object as usize].group as i32;
-            let (frame, ng) = facing(hit.frame, hit.ng, -ray.d);
-            let r = reflect(-ray.d, frame.n);
-            let (mo, mg) = if r.dot(ng) > 0.0 {
-                match scene.intersect(&Ray::new(offset_origin(hit.p, ng, r), r), f32::INFINITY) {
+            let (mo, mg) =
+                match mirror_ray(&ray, &hit).and_then(|r| scene.intersect(&r, f32::INFINITY)) {
                     Some(m) => (
                         m.object as i32,
                         scene.objects[m.object as usize].group as i32,
                     ),
                     None => (-1, -1),
-                }
-            } else {
-                (-1, -1)
-            };
-            ([obj, grp, mo, mg], frame.n)
+                };
+            ([obj, grp, mo, mg], facing(hit.frame, hit.ng, -ray.d).0.n)
         })
         .collect();
     IndexBuffers {

@@ -109,6 +109,16 @@ pub fn bsdf_at(material: &Material, hit: &SurfaceHit, variant: WardVariant) -> (
     }
 }
 
+/// The ray an ideal mirror at `hit` reflects `ray` into (about the shading normal, on the
+/// viewer's side), from just off the surface; None where that direction goes below the
+/// geometric surface. What the index buffers' mirror ids and the fitter's mirror radiance trace.
+#[inline]
+pub fn mirror_ray(ray: &Ray, hit: &SurfaceHit) -> Option<Ray> {
+    let (frame, ng) = facing(hit.frame, hit.ng, -ray.d);
+    let r = crate::math::reflect(-ray.d, frame.n);
+    (r.dot(ng) > 0.0).then(|| Ray::new(offset_origin(hit.p, ng, r), r))
+}
+
 /// Flips a frame (and so the BSDF's hemisphere) to the side of `wo`; also flips the geometric
 /// normal it is paired with. Returns the frame and the geometric normal on the viewer's side.
 #[inline]
