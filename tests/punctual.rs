@@ -380,15 +380,7 @@ rotate_deg = [10, 40, 0]
     let (mut floor, mut n_floor, mut sky) = (Rgb::ZERO, 0, 0);
     for y in 0..18 {
         for x in 0..24 {
-            let hits = (0..16)
-                .filter(|k| {
-                    let film = Vec2::new(
-                        x as f32 + (k % 4) as f32 / 3.0,
-                        y as f32 + (k / 4) as f32 / 3.0,
-                    );
-                    sc.intersect(&sc.camera.ray(film), f32::INFINITY).is_some()
-                })
-                .count();
+            let hits = crate::common::film_hits(&sc, x, y);
             let got = img.get(x, y);
             if hits == 0 {
                 sky += 1;

@@ -22,6 +22,7 @@ mod recover;
 mod render_physics;
 mod resume;
 mod scene_errors;
+mod stray_light;
 mod texture;
 mod uncertainty;
 mod unseen;

@@ -507,6 +507,12 @@ pub struct FitArgs {
     /// the level factor applied to them).
     #[arg(long)]
     no_mirror_views: bool,
+    /// Fit a stray light with the materials: a constant environment lighting what every ray
+    /// leaving the scene sees, for captures whose shadows are not black (off by default: it
+    /// is one more unknown). The summary, results.json and recovered.toml's [stray_light]
+    /// give it.
+    #[arg(long)]
+    stray_light: bool,
     /// Fit every group as Lambertian (level 1) and never climb: a baseline to compare the
     /// hierarchy's models against.
     #[arg(long)]
@@ -535,6 +541,7 @@ impl FitArgs {
             first_pixels: self.first_pixels,
             pseudo_textures: !self.no_pseudo_textures,
             mirror_views: !self.no_mirror_views,
+            stray_light: self.stray_light,
             unseen: matfit::fit::unseen::UnseenOptions {
                 enabled: !self.white_unseen,
                 ..d.unseen.clone()
@@ -819,6 +826,9 @@ pub fn run(cmd: Command) -> Result<()> {
                         v.pixels
                     );
                 }
+            }
+            if let Some(s) = &rec.stray_light {
+                outln!("{}", s.describe());
             }
             if let Some(card) = opts
                 .grey_card

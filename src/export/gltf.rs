@@ -223,6 +223,13 @@ pub fn glb(scene: &Scene) -> Result<(Vec<u8>, Vec<String>), String> {
                 .into(),
         );
     }
+    if scene.stray_light.max_element() > 0.0 {
+        let [r, g, b] = scene.stray_light.to_array();
+        warnings.push(format!(
+            "the [stray_light] ({r}, {g}, {b}) is not written: core glTF has no constant \
+             environment (give the viewer a uniform sky of that radiance)"
+        ));
+    }
     if !lights.is_empty() {
         ext_used.push("KHR_lights_punctual".into());
         warnings.push(format!(

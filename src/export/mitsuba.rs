@@ -180,6 +180,14 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
     for l in &scene.punctual_lights {
         write_punctual(&mut xml, l, &mut report.warnings);
     }
+    if scene.stray_light.max_element() > 0.0 {
+        // Mitsuba's constant emitter is sampled too; the radiance it adds is the same.
+        let _ = writeln!(
+            xml,
+            "\n    <emitter type=\"constant\">\n        {}\n    </emitter>",
+            rgb("radiance", scene.stray_light)
+        );
+    }
     if let Some(e) = &scene.environment {
         // The map as matfit read it (linear EXR), so that Mitsuba reads the same radiance.
         let path = dir.join("environment.exr");

@@ -79,7 +79,7 @@ enum Weight {
         job: usize,
         emitted: Option<Rgb>,
         scale: f32,
-        /// The group the path's first segment lands on (`u32::MAX`: none).
+        /// The group the path's first segment lands on (`u32::MAX`: none, it left the scene).
         from: u32,
     },
 }
@@ -164,12 +164,18 @@ pub struct UnseenShares {
 pub const DERIVATIVE_STRIDE: usize = 2;
 
 /// An unseen group a cache build measures the derivative along: the path tracer of the scene
-/// with the group's ρd moved by `step` (per channel, nonzero).
+/// with the group's ρd moved by `step` (per channel, nonzero). Or the stray light
+/// (`group` = [`STRAY_LIGHT`]): the scene with it moved by `step`, which is also the change of
+/// what an indirect ray that leaves the scene at once sees (`escape`; zero for a group).
 pub struct UnseenProbe<'a> {
     pub group: usize,
     pub moved: &'a PathTracer<'a>,
     pub step: Rgb,
+    pub escape: Rgb,
 }
+
+/// `UnseenProbe::group` and `UnseenShares::groups` entry of the stray light.
+pub const STRAY_LIGHT: usize = usize::MAX;
 
 /// The textured form of D: a pixel's diffuse radiance is Σ_t ρ_t w_t over the texels its
 /// samples' primary hits read (bilinear weight × c / π), so for a texture ρ the pixel is
@@ -582,7 +588,14 @@ pub fn build(
                         first = from;
                         dc.fill(Rgb::ZERO);
                         for (d, (m, u)) in dc.iter_mut().zip(moved.iter().zip(unseen)) {
-                            *d = (m[job] - traced[job]) * scale / u.step;
+                            // Emission at the first hit is not in the traced radiance; of what
+                            // the probes move, only the stray light is (weight 1: not sampled).
+                            let escape = if from == u32::MAX {
+                                u.escape
+                            } else {
+                                Rgb::ZERO
+                            };
+                            *d = (m[job] - traced[job] + escape) * scale / u.step;
                         }
                         let mut li = traced[job];
                         if let Some(le) = emitted {
@@ -591,7 +604,11 @@ pub fn build(
                         li * scale
                     }
                 };
-                if !(c.is_finite()) || c.max_element() <= 0.0 {
+                // A sample that brings no light is kept while it has a derivative (a ray that
+                // leaves the scene before the stray light is lit).
+                if !(c.is_finite())
+                    || (c.max_element() <= 0.0 && dc.iter().all(|d| *d == Rgb::ZERO))
+                {
                     continue;
                 }
                 let lum = c.x + c.y + c.z;
@@ -1000,6 +1017,99 @@ irradiance = 2.0
         assert_eq!(
             c.stray as u32,
             4 * (opts.light_samples + opts.indirect_samples)
+        );
+    }
+
+    /// The mirror room's floor alone, grey: every indirect ray leaves the scene.
+    fn open_floor(stray: f32) -> Scene {
+        let text = MIRROR_ROOM
+            .split("[[object]]\nname = \"mirror\"")
+            .next()
+            .unwrap()
+            .replace("rho_d = 0.0", "rho_d = 0.5");
+        let light = MIRROR_ROOM.split("[[light]]").nth(1).unwrap();
+        let text = format!(
+            "{text}[[light]]{light}\n[stray_light]\nradiance = [{stray}, {stray}, {stray}]\n"
+        );
+        parse_scene(&text, std::path::Path::new("floor.toml")).unwrap()
+    }
+
+    #[test]
+    fn the_stray_light_derivative_of_an_open_floor_is_its_irradiance_over_pi() {
+        // Under a constant environment S every point of an open floor receives π S, so its D
+        // (irradiance / π) grows by exactly 1 per unit of S; the cache's derivative along the
+        // stray light is measured through its indirect rays alone (S is not light-sampled).
+        let scene = open_floor(0.0);
+        let lit = open_floor(0.25);
+        let floor = scene.group_index("floor").unwrap();
+        let ib = index_buffers(&scene, &scene.camera);
+        let w = scene.camera.width as usize;
+        let on_floor = |i: usize| ib.group.get(i) == Some(&(floor as i32));
+        // Pixels inside the floor's image (their whole footprint on it).
+        let pixels: Vec<usize> = (w..ib.group.len())
+            .filter(|&i| [i, i - 1, i + 1, i - w, i + w].into_iter().all(on_floor))
+            .step_by(7)
+            .collect();
+        let tiles = vec![0u32; pixels.len()];
+        let photo = vec![Rgb::ZERO; ib.group.len()];
+        let opts = CacheOptions::default();
+        let (moved, step) = super::super::unseen::moved_stray(&scene);
+        let (pt, pt_moved, pt_lit) = (
+            PathTracer::new(&scene),
+            PathTracer::new(&moved),
+            PathTracer::new(&lit),
+        );
+        let probe = [UnseenProbe {
+            group: STRAY_LIGHT,
+            moved: &pt_moved,
+            step,
+            escape: step,
+        }];
+        let build_in = |s: &Scene, pt: &PathTracer, probes: &[UnseenProbe]| {
+            build(
+                s,
+                pt,
+                floor,
+                Primary::Camera,
+                &pixels,
+                &tiles,
+                1,
+                &photo,
+                CacheNeeds::default(),
+                None,
+                probes,
+                None,
+                &opts,
+                3,
+            )
+        };
+        let c = build_in(&scene, &pt, &probe);
+        let c_lit = build_in(&lit, &pt_lit, &[]);
+        let u = c.unseen.as_ref().unwrap();
+        assert_eq!(u.groups, vec![STRAY_LIGHT]);
+        let (mut sum, mut n) = (Rgb::ZERO, 0);
+        for (i, p) in c.pixels.iter().enumerate() {
+            if !u.probed[i] {
+                continue;
+            }
+            let dd = 0.5 * (u.d_half[i][0] + u.d_half[i][1]);
+            // The same paths: the lit scene's D is this D plus 0.25 × the derivative.
+            let want = p.d + dd * 0.25;
+            let got = c_lit.pixels[i].d;
+            assert!(
+                (got - want).abs().max_element() < 1e-4 * want.max_element(),
+                "pixel {}: D {got} with S, {want} from the derivative ({} + 0.25 × {dd})",
+                p.pixel,
+                p.d
+            );
+            sum += dd;
+            n += 1;
+        }
+        let mean = sum / n as f32;
+        assert!(n > 50, "{n} probed pixels");
+        assert!(
+            (mean - Rgb::ONE).abs().max_element() < 1e-3,
+            "mean ∂D/∂S {mean} over {n} pixels, want 1"
         );
     }
 }

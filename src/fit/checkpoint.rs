@@ -31,6 +31,9 @@ pub struct Checkpoint {
     /// Each photo's fitted exposure factor (several photos only; `fit/views.rs`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub exposures: Vec<f32>,
+    /// The stray light's last estimate (`recover --stray-light`; None without it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stray_light: Option<super::unseen::StrayEstimate>,
 }
 
 pub const CHECKPOINT_VERSION: u32 = 2;

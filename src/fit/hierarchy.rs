@@ -207,6 +207,9 @@ pub enum Event {
         scale: [f32; 3],
         used: bool,
     },
+    /// The stray light's estimate after the iteration (`recover --stray-light`; its line's
+    /// group is "stray_light").
+    StrayLight(super::unseen::StrayEstimate),
 }
 
 impl GroupState {
@@ -584,6 +587,8 @@ impl GroupState {
                     self.last_step = None;
                     self.average = None;
                     self.status = Status::Analysing;
+                    // What was said of the level it left no longer holds.
+                    self.note = None;
                     break;
                 }
             }

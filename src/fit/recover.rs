@@ -88,6 +88,10 @@ pub struct RecoverOptions {
     /// (`recovery.rs`, `cache::Primary::Mirror`).
     #[serde(default = "yes")]
     pub mirror_views: bool,
+    /// Issue 23: fit a stray light (a constant environment, `Scene::stray_light`) with the
+    /// materials, as one more unknown of the unseen groups' joint fit (`unseen.rs`).
+    #[serde(default)]
+    pub stray_light: bool,
     /// Samples per pixel of the final render.
     pub final_spp: u32,
     pub seed: u64,
@@ -124,6 +128,7 @@ impl Default for RecoverOptions {
             first_pixels: 1500,
             pseudo_textures: true,
             mirror_views: true,
+            stray_light: false,
             final_spp: 64,
             seed: 0,
             progress: true,
@@ -164,6 +169,8 @@ pub struct Recovery {
     pub pixel_stats: Vec<GroupPixelStats>,
     /// The unseen groups' estimates after the last global iteration (empty without such groups).
     pub unseen: Vec<super::unseen::UnseenEstimate>,
+    /// The stray light's estimate after the last global iteration (`stray_light` on).
+    pub stray_light: Option<super::unseen::StrayEstimate>,
     /// The scene with the recovered materials.
     pub scene: Scene,
     pub synthetic: Image,

@@ -10,7 +10,7 @@
 //! a group's cache already sees the groups refitted before it in the same iteration: this
 //! converges in fewer iterations than updating all groups at the end (bench/README.md).
 
-use super::cache::{build, choose_pixels, CacheOptions, Primary, UnseenProbe};
+use super::cache::{build, choose_pixels, CacheOptions, Primary, UnseenProbe, STRAY_LIGHT};
 use super::checkpoint::{Checkpoint, CHECKPOINT_VERSION};
 use super::error::{block_tile, tiled_error, PixelTerms};
 use super::hierarchy::{Event, GroupState, Motion, Status};
@@ -30,6 +30,7 @@ use crate::render::PathTracer;
 use crate::scene::atlas::Atlas;
 use crate::scene::texture::{Mapping, Texture};
 use crate::scene::Scene;
+use std::borrow::Cow;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -73,6 +74,8 @@ pub struct RecoveryLoop<'a> {
     /// The unseen groups' recent estimates and the last ones (`unseen::update`).
     unseen_history: super::unseen::History,
     unseen: Vec<super::unseen::UnseenEstimate>,
+    /// The stray light's last estimate (`RecoverOptions::stray_light`).
+    stray: Option<super::unseen::StrayEstimate>,
     /// Per group, the atlas a texture of it would use (fitted groups only; `texture.rs`).
     atlases: Vec<Option<Arc<Atlas>>>,
     /// Per group at level 7, its current texture as the renderer reads it.
@@ -216,7 +219,19 @@ impl<'a> RecoveryLoop<'a> {
         r.iterations = c.next_iteration;
         r.converged = c.next_iteration >= opts.max_iterations;
         r.unseen_history = c.unseen_history.clone();
+        if let (Some(s), true) = (&c.stray_light, opts.stray_light) {
+            r.set_stray_light(Rgb::from_array(s.radiance));
+            r.stray = Some(s.clone());
+        }
         Ok(r)
+    }
+
+    /// Sets the stray light of the scene of every photo (one constant environment for all).
+    fn set_stray_light(&mut self, v: Rgb) {
+        self.current.stray_light = v;
+        for e in self.extra.iter_mut() {
+            e.current.stray_light = v;
+        }
     }
 
     fn with_states(
@@ -284,6 +299,7 @@ impl<'a> RecoveryLoop<'a> {
             pixel_lists: Vec::new(),
             unseen_history: Default::default(),
             unseen: Vec::new(),
+            stray: None,
             atlases,
             textures,
             texture_pixels: std::cell::OnceCell::new(),
@@ -448,10 +464,28 @@ impl<'a> RecoveryLoop<'a> {
         let climbers = schedule::climbers(&self.states, self.settled, &opts.hierarchy);
         let variant = self.scene.render.ward_variant;
         // Unseen groups whose light every cache tracks, and the seen groups' shares of it.
-        let tracked = if opts.unseen.enabled {
+        let mut tracked = if opts.unseen.enabled {
             super::unseen::unseen_groups(&self.states)
         } else {
             Vec::new()
+        };
+        // The stray light is tracked as one more unknown, last.
+        if opts.stray_light {
+            tracked.push(STRAY_LIGHT);
+        }
+        // While an open scene's stray light is not yet determined, no group tries level 7: a
+        // texture takes the stray light's shape texel by texel and would hide it for good (a
+        // textured group says nothing of it). Until half the iterations at most.
+        let hold_textures = opts.stray_light
+            && it < opts.max_iterations / 2
+            && self.stray.as_ref().is_none_or(|s| s.open && !s.estimated);
+        let hierarchy = if hold_textures {
+            let mut h = opts.hierarchy.clone();
+            h.thresholds.texture_error = f32::MAX;
+            h.thresholds.texture_detail = f32::MAX;
+            Cow::Owned(h)
+        } else {
+            Cow::Borrowed(&opts.hierarchy)
         };
         let mut shares = Vec::new();
         let mut sums = super::views::ExposureSums::new(self.exposures.len());
@@ -518,7 +552,10 @@ impl<'a> RecoveryLoop<'a> {
                 let pt = PathTracer::new(current);
                 let moved: Vec<(Scene, Rgb)> = tracked
                     .iter()
-                    .map(|&u| super::unseen::moved_scene(current, &self.states[u]))
+                    .map(|&u| match u {
+                        STRAY_LIGHT => super::unseen::moved_stray(current),
+                        u => super::unseen::moved_scene(current, &self.states[u]),
+                    })
                     .collect();
                 let moved_pt: Vec<PathTracer> =
                     moved.iter().map(|(s, _)| PathTracer::new(s)).collect();
@@ -530,6 +567,11 @@ impl<'a> RecoveryLoop<'a> {
                         group,
                         moved: pt,
                         step: *step,
+                        escape: if group == STRAY_LIGHT {
+                            *step
+                        } else {
+                            Rgb::ZERO
+                        },
                     })
                     .collect();
                 build(
@@ -643,7 +685,7 @@ impl<'a> RecoveryLoop<'a> {
                 &cache,
                 atlas,
                 variant,
-                &opts.hierarchy,
+                &hierarchy,
                 self.settled,
                 climbers.contains(&g),
             );
@@ -706,7 +748,11 @@ impl<'a> RecoveryLoop<'a> {
             }
         }
         // Unseen groups' ρd re-estimated against the refitted seen groups (issue 26).
-        let (estimates, unseen_moved) = super::unseen::update(
+        let super::unseen::Estimates {
+            groups: estimates,
+            stray,
+            moved: unseen_moved,
+        } = super::unseen::update(
             &mut self.current,
             &mut self.states,
             &shares,
@@ -716,6 +762,18 @@ impl<'a> RecoveryLoop<'a> {
             it + 1 >= opts.max_iterations,
         );
         self.unseen = estimates;
+        if let Some(s) = stray {
+            log(&LogLine {
+                iteration: it,
+                group: "stray_light".into(),
+                event: Event::StrayLight(s.clone()),
+                params: Default::default(),
+                seconds: 0.0,
+                elapsed: self.elapsed(),
+            });
+            self.set_stray_light(self.current.stray_light);
+            self.stray = Some(s);
+        }
         for v in self.extra.iter_mut() {
             apply(&mut v.current, &self.states, &self.textures);
         }
@@ -802,6 +860,7 @@ impl<'a> RecoveryLoop<'a> {
             log_bytes: 0,
             elapsed: self.elapsed(),
             unseen_history: self.unseen_history.clone(),
+            stray_light: self.stray.clone(),
             exposures: if self.extra.is_empty() && self.exposures[0] == 1.0 {
                 Vec::new()
             } else {
@@ -891,6 +950,7 @@ impl<'a> RecoveryLoop<'a> {
             groups: states,
             pixel_stats: self.mask.stats.clone(),
             unseen: self.unseen,
+            stray_light: self.stray,
             scene: self.current,
             synthetic,
             final_error,

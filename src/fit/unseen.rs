@@ -28,8 +28,14 @@
 //! [`UnseenOptions::max_sigma`] in a channel), the group gets a stated scene-derived default
 //! instead: the seen groups' area-weighted mean albedo (ρd + ρs). [`UnseenEstimate`] says which
 //! rule gave the value, how well it is determined and what the user can do about it.
+//!
+//! The stray light (`Scene::stray_light`, `recover --stray-light`, issue 23) is one more such
+//! unknown, tracked last as [`STRAY_LIGHT`]: the probe scene has it moved ([`moved_stray`]),
+//! and its δ is a radiance, not a reflectance (no upper bound; a channel never determined keeps
+//! its given value). Where no ray leaves the scene its column is empty, and the channel is
+//! solved without it, so a closed room's unseen groups come out as without the option.
 
-use super::cache::{GroupCache, Sample};
+use super::cache::{GroupCache, Sample, STRAY_LIGHT};
 use super::hierarchy::{GroupState, Status};
 use super::level::Level;
 use super::objective::Spec;
@@ -531,6 +537,15 @@ pub fn moved_scene(current: &Scene, u: &GroupState) -> (Scene, Rgb) {
     (moved, step)
 }
 
+/// The scene with its stray light moved by the step its cache derivative is measured along,
+/// and the step (1 per channel: the light is linear in the stray radiance, and paths do not
+/// depend on it, so any step gives the derivative).
+pub fn moved_stray(current: &Scene) -> (Scene, Rgb) {
+    let mut moved = current.clone();
+    moved.stray_light += Rgb::ONE;
+    (moved, Rgb::ONE)
+}
+
 /// The determined proposals of the last [`History::WINDOW`] global iterations, per unseen
 /// group and channel, for an honest 1σ: each iteration's fit is noisy (its own cache samples)
 /// and the seen groups move between iterations, so the reported σ is the larger of the
@@ -604,6 +619,56 @@ impl History {
     }
 }
 
+/// What [`update`] found: the unseen groups' estimates, the stray light's (when fitted), and
+/// the largest change of any of them (a ρd's, or the relative change of the seen light the
+/// stray light makes).
+#[derive(Clone, Debug, Default)]
+pub struct Estimates {
+    pub groups: Vec<UnseenEstimate>,
+    pub stray: Option<StrayEstimate>,
+    pub moved: f32,
+}
+
+/// The stray light's estimate (`recover --stray-light`): a constant environment's radiance,
+/// fitted like an unseen group's ρd from the light it adds to the seen groups' tiles (what it
+/// adds has its own shape: it fills shadows and is strongest where a surface sees open sky).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StrayEstimate {
+    /// W/(m² sr) per channel, in the scene's units.
+    pub radiance: [f32; 3],
+    /// 1σ per channel (−1: no estimate from the photo in that channel).
+    pub sigma: [f32; 3],
+    /// Whether every channel was determined (1σ below [`STRAY_MAX_SHARE`] of the seen light);
+    /// a channel that never was keeps its given value (0 unless the scene file gives one).
+    pub estimated: bool,
+    /// The share of the seen pixels' light it makes.
+    pub share: f32,
+    /// Whether any of its light reaches the seen tiles (false in a closed room).
+    #[serde(default)]
+    pub open: bool,
+}
+
+impl StrayEstimate {
+    /// One line for the log and the summary.
+    pub fn describe(&self) -> String {
+        let [r, g, b] = self.radiance;
+        let [sr, sg, sb] = self.sigma;
+        let how = if self.estimated {
+            format!("1σ ({sr:.1e}, {sg:.1e}, {sb:.1e})")
+        } else {
+            "not determined by the photo in some channel (kept as given there)".to_string()
+        };
+        format!(
+            "stray light ({r:.4}, {g:.4}, {b:.4}) W/(m² sr), {how}, {:.1}% of the seen light",
+            100.0 * self.share
+        )
+    }
+}
+
+/// The stray light is determined in a channel when its 1σ adds at most this share of the seen
+/// groups' light there.
+pub const STRAY_MAX_SHARE: f64 = 0.005;
+
 /// The largest running estimate: above 1 only so that noise around a white surface averages
 /// to 1 (see `History::state`).
 const RHO_MAX: f32 = 1.5;
@@ -624,30 +689,63 @@ pub fn update(
     opts: &UnseenOptions,
     history: &mut History,
     last: bool,
-) -> (Vec<UnseenEstimate>, f32) {
+) -> Estimates {
     let k = tracked.len();
-    if k == 0 || !opts.enabled {
-        return (Vec::new(), 0.0);
+    if k == 0 {
+        return Estimates::default();
     }
-    let rho0: Vec<Rgb> = tracked.iter().map(|&u| states[u].params.rho_d).collect();
+    let stray = |u: usize| u == STRAY_LIGHT;
+    let rho0: Vec<Rgb> = tracked
+        .iter()
+        .map(|&u| {
+            if stray(u) {
+                current.stray_light
+            } else {
+                states[u].params.rho_d
+            }
+        })
+        .collect();
+    // The bounds of the running estimate: a reflectance's, or a radiance's (any S ≥ 0).
+    let bounds = |u: usize| {
+        if stray(u) {
+            (0.0, f32::INFINITY)
+        } else {
+            (RHO_FLOOR, RHO_MAX)
+        }
+    };
     let shares_rho0 = &rho0;
     let mut proposal = rho0.clone();
     let mut sigma = vec![Rgb::splat(f32::INFINITY); k];
+    // Without the stray light's column, for a channel where it cannot be told apart (a closed
+    // room: no ray leaves it), so that the unseen groups are still estimated.
+    let stray_at = tracked.iter().position(|&u| stray(u));
+    let without: Option<Vec<GroupShares>> = stray_at.map(|j| drop_column(shares, j));
     for c in 0..3 {
-        let Some((delta, s)) = solve_channel(shares, k, c, Tiles::All) else {
+        let (set, cols, solved): (&[GroupShares], Vec<usize>, _) =
+            match (solve_channel(shares, k, c, Tiles::All), &without) {
+                (Some(r), _) => (shares, (0..k).collect(), Some(r)),
+                (None, Some(w)) => {
+                    let cols: Vec<usize> = (0..k).filter(|&j| Some(j) != stray_at).collect();
+                    let r = solve_channel(w, cols.len(), c, Tiles::All);
+                    (w, cols, r)
+                }
+                (None, None) => continue,
+            };
+        let Some((delta, s)) = solved else {
             continue;
         };
         let halves = [
-            solve_channel(shares, k, c, Tiles::Even),
-            solve_channel(shares, k, c, Tiles::Odd),
+            solve_channel(set, cols.len(), c, Tiles::Even),
+            solve_channel(set, cols.len(), c, Tiles::Odd),
         ];
-        for j in 0..k {
+        for (i, &j) in cols.iter().enumerate() {
             let split = match &halves {
-                [Some(a), Some(b)] => 0.5 * (a.0[j] - b.0[j]).abs(),
+                [Some(a), Some(b)] => 0.5 * (a.0[i] - b.0[i]).abs(),
                 _ => f64::INFINITY,
             };
-            proposal[j][c] = (rho0[j][c] as f64 + delta[j]).clamp(0.0, RHO_MAX as f64) as f32;
-            sigma[j][c] = s[j].max(split) as f32;
+            let hi = bounds(tracked[j]).1 as f64;
+            proposal[j][c] = (rho0[j][c] as f64 + delta[i]).clamp(0.0, hi) as f32;
+            sigma[j][c] = s[i].max(split) as f32;
         }
     }
     // d ln L / d ln ρ_u over the seen tiles: how much of their light follows u's ρd.
@@ -672,18 +770,33 @@ pub fn update(
         })
         .collect();
     let mean = scene_mean_albedo(current, states);
-    let mut est = Vec::new();
-    let mut moved = 0.0f32;
+    let mut out = Estimates::default();
     for (j, &u) in tracked.iter().enumerate() {
         // Per channel: a determined proposal moves ρd part of the way there (the model is
         // linear in ρd_u, the light is not: a path can bounce on u more than once); a channel
         // determined before but not now (the seen groups' fits moved, a level changed) stays;
-        // one never determined takes the scene's mean albedo.
+        // one never determined takes the scene's mean albedo (the stray light: stays as given).
+        let (lo, hi) = bounds(u);
+        // The largest 1σ that determines the value: for the stray light, the σ whose light is
+        // STRAY_MAX_SHARE of the seen light.
+        let limit = |c: usize| {
+            if stray(u) {
+                let unit = per_unit(shares, j, c);
+                if unit > 0.0 {
+                    (STRAY_MAX_SHARE / unit) as f32
+                } else {
+                    0.0
+                }
+            } else {
+                opts.max_sigma
+            }
+        };
         let mut value = rho0[j];
         let mut sigma_j = sigma[j];
         let mut estimated = true;
         for c in 0..3 {
-            let now = sigma[j][c] <= opts.max_sigma;
+            let max_sigma = limit(c);
+            let now = sigma[j][c] <= max_sigma;
             if now {
                 history.add(j, c, proposal[j][c], sigma[j][c]);
             }
@@ -691,32 +804,57 @@ pub fn update(
             // it moves it by its precision relative to a determined one's, (max_sigma / σ)², so
             // one lucky determined proposal cannot freeze a poorly determined channel. A
             // proposal at a bound of the solve is not an estimate.
-            let inside = proposal[j][c] > 0.0 && proposal[j][c] < RHO_MAX;
+            let inside = proposal[j][c] > 0.0 && proposal[j][c] < hi;
             let weight = if now {
                 1.0
             } else if inside && sigma[j][c].is_finite() && history.state(j, c).is_some() {
-                (opts.max_sigma / sigma[j][c]).powi(2)
+                (max_sigma / sigma[j][c]).powi(2)
             } else {
                 0.0
             };
             if weight > 0.0 && !last {
                 let step = history.step(j, c, opts.damping) * weight;
                 let from = history.state(j, c).unwrap_or(rho0[j][c]);
-                let to = (from + (proposal[j][c] - from) * step).clamp(RHO_FLOOR, RHO_MAX);
+                let to = (from + (proposal[j][c] - from) * step).clamp(lo, hi);
                 history.set_state(j, c, to);
-                value[c] = to.min(1.0);
+                value[c] = if stray(u) { to } else { to.min(1.0) };
             }
             match history.sigma(j, c) {
                 Some(s) => sigma_j[c] = if now { s } else { s.max(sigma[j][c].min(1.0)) },
                 None => {
-                    if !last {
+                    if !last && !stray(u) {
                         value[c] = mean[c];
                     }
                     estimated = false;
                 }
             }
         }
-        let value = value.max(Rgb::splat(RHO_FLOOR));
+        let value = value.max(Rgb::splat(lo));
+        tracing::debug!(
+            "unseen {u}: from {} proposed {} ± {}, now {value} (estimated: {estimated})",
+            rho0[j],
+            proposal[j],
+            sigma[j],
+        );
+        let sigma_out = sigma_j
+            .to_array()
+            .map(|s| if s.is_finite() { s } else { -1.0 });
+        if stray(u) {
+            // How far it moved: the change of the seen light it makes, relative.
+            let change = (0..3)
+                .map(|c| (value[c] - current.stray_light[c]).abs() * per_unit(shares, j, c) as f32)
+                .fold(0.0f32, f32::max);
+            out.moved = out.moved.max(change);
+            current.stray_light = value;
+            out.stray = Some(StrayEstimate {
+                radiance: value.to_array(),
+                sigma: sigma_out,
+                estimated,
+                share: influence[j],
+                open: (0..3).any(|c| per_unit(shares, j, c) > 0.0),
+            });
+            continue;
+        }
         let (rule, remedy) = if estimated {
             (
                 Rule::Estimated,
@@ -735,13 +873,9 @@ pub fn update(
                 ),
             )
         };
-        tracing::debug!(
-            "unseen group {u}: from {} proposed {} ± {}, now {value} ({rule:?})",
-            rho0[j],
-            proposal[j],
-            sigma[j],
-        );
-        moved = moved.max((value - states[u].params.rho_d).abs().max_element());
+        out.moved = out
+            .moved
+            .max((value - states[u].params.rho_d).abs().max_element());
         states[u].params.rho_d = value;
         for o in current.objects.iter_mut().filter(|o| o.group == u) {
             o.material = states[u].params.material(states[u].level);
@@ -750,16 +884,44 @@ pub fn update(
             group: u,
             rule,
             rho_d: value.to_array(),
-            sigma: sigma_j
-                .to_array()
-                .map(|s| if s.is_finite() { s } else { -1.0 }),
+            sigma: sigma_out,
             influence: influence[j],
             remedy,
         };
         states[u].note = Some(e.describe());
-        est.push(e);
+        out.groups.push(e);
     }
-    (est, moved)
+    out
+}
+
+/// `shares` without tracked parameter `j`'s derivatives.
+fn drop_column(shares: &[GroupShares], j: usize) -> Vec<GroupShares> {
+    let mut out = shares.to_vec();
+    for g in out.iter_mut() {
+        for t in g.tiles.iter_mut() {
+            t.du.remove(j);
+            t.su.remove(j);
+        }
+    }
+    out
+}
+
+/// Per unit of tracked parameter `j` in channel `c`, the share of the seen tiles' light it
+/// adds: Σ (ρd ∂D/∂x + ρs ∂S/∂x) / Σ (ρd D + ρs S).
+fn per_unit(shares: &[GroupShares], j: usize, c: usize) -> f64 {
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for g in shares {
+        let (rd, rs) = (g.rho_d[c] as f64, g.rho_s[c] as f64);
+        for t in &g.tiles {
+            num += rd * mean(&t.du[j], c) + rs * mean(&t.su[j], c);
+            den += rd * mean(&t.d, c) + rs * mean(&t.s, c);
+        }
+    }
+    if den > 0.0 {
+        num / den
+    } else {
+        0.0
+    }
 }
 
 #[cfg(test)]

@@ -48,8 +48,8 @@
 //!   `TYPE_N`.
 //! - **Lights.** `area` emitters' `radiance` (rgb, a constant or a sampled spectrum) → emission;
 //!   `directional` (irradiance), `point` and `spot` (intensity, cutoff_angle, beam_width) →
-//!   `[[light]]` of the same meaning; `envmap` (filename, scale, a rotation) → `[environment]`.
-//!   Every other emitter (constant, …) is an error: the
+//!   `[[light]]` of the same meaning; `envmap` (filename, scale, a rotation) → `[environment]`;
+//!   `constant` (radiance) → `[stray_light]`. Every other emitter is an error: the
 //!   lights are known inputs of a recovery, and one dropped would bias every group.
 //! - **BSDFs** (matfit's surfaces are two-sided: `twosided` is unwrapped, a one-sided BSDF is a
 //!   warning). Exact: `diffuse` (reflectance rgb / constant or sampled spectrum / bitmap texture →
@@ -80,7 +80,7 @@
 use super::ImportReport;
 use crate::scene::schema::{
     CameraSpec, Color, EnvironmentSpec, LightKind, LightSpec, MaterialSpec, ObjectSpec,
-    ProjectionKind, RenderSpec, SceneFile, ShapeKind, TransformSpec,
+    ProjectionKind, RenderSpec, SceneFile, ShapeKind, StrayLightSpec, TransformSpec,
 };
 use crate::scene::write::relative;
 use crate::scene::Distribution;
@@ -594,6 +594,7 @@ impl<'a> Ctx<'a> {
         let mut objects = Vec::new();
         let mut lights = Vec::new();
         let mut environment = None;
+        let mut stray_light = None;
         let mut names = HashSet::new();
         let mut shape_counts: HashMap<String, usize> = HashMap::new();
         for c in Self::children(root) {
@@ -631,6 +632,13 @@ impl<'a> Ctx<'a> {
                     }
                     environment = Some(Spanned::new(0..0, self.envmap(c)?));
                 }
+                "emitter" if self.attr(c, "type")?.as_deref() == Some("constant") => {
+                    if stray_light.is_some() {
+                        return Err(self.err(c, "a second constant emitter: matfit takes one"));
+                    }
+                    let r = f32s(self.rgb(c, "radiance", 1.0)?);
+                    stray_light = Some(Spanned::new(0..0, StrayLightSpec { radiance: r }));
+                }
                 "emitter" => {
                     let k = lights.len() + 1;
                     lights.push(self.emitter(c, k)?);
@@ -650,6 +658,7 @@ impl<'a> Ctx<'a> {
             objects,
             lights,
             environment,
+            stray_light,
             views: Vec::new(),
         })
     }

@@ -27,6 +27,8 @@ pub struct Lights {
     punctual: Vec<Punctual>,
     /// The environment, sampled once at every vertex besides the area light.
     environment: Option<Arc<Environment>>,
+    /// Stray light (`Scene::stray_light`): seen by rays leaving the scene, never sampled.
+    stray: Rgb,
     /// Directional lights of some angular size, each sampled once at every vertex.
     discs: Vec<Disc>,
     /// Cumulative selection probability, last entry 1.
@@ -125,6 +127,7 @@ impl Lights {
             tris,
             punctual,
             environment: scene.environment.clone(),
+            stray: scene.stray_light,
             discs,
             cdf,
             spans,
@@ -144,10 +147,15 @@ impl Lights {
         self.punctual.is_empty() && self.environment.is_none() && self.discs.is_empty()
     }
 
-    /// The radiance of every light at infinity seen along unit direction `d` (the environment
-    /// and the discs whose cone holds `d`), each with the density its own sampling has for `d`.
+    /// The radiance of every light at infinity seen along unit direction `d` (the environment,
+    /// the discs whose cone holds `d` and the stray light), each with the density its own
+    /// sampling has for `d` (0 for the stray light: only paths that leave the scene find it, so
+    /// MIS gives them its whole weight).
     #[inline]
     pub fn at_infinity(&self, d: Vec3, mut f: impl FnMut(Rgb, f32)) {
+        if self.stray.max_element() > 0.0 {
+            f(self.stray, 0.0);
+        }
         if let Some(e) = &self.environment {
             let (le, pl) = e.radiance_and_pdf(d);
             f(le, pl);

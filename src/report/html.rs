@@ -149,6 +149,19 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
             "<h2>Photos fitted together</h2>\n<p>One set of materials for every photo, each through its own view (camera and lights). k: the photo's fitted exposure factor (photo = k × the recovered scene's radiance; the factors' geometric mean is 1, so the materials' scale is the photos' consensus). Residual: Σ|photo/k − model| / Σ photo/k over the photo's cached pixels of the uniform groups, last iteration. The images above are the first photo's.</p>\n<table id=\"views\"><tr><th>view</th><th>photo</th><th>k</th><th>residual</th><th>pixels</th></tr>\n{views}</table>\n"
         );
     }
+    if let Some(s) = &res.stray_light {
+        let c = |v: [f32; 3]| format!("{:.4}, {:.4}, {:.4}", v[0], v[1], v[2]);
+        let sigma = if s.sigma.iter().all(|&x| x >= 0.0) {
+            c(s.sigma)
+        } else {
+            "not determined in some channel (kept as given)".into()
+        };
+        views += &format!(
+            "<h2>Stray light</h2>\n<p id=\"stray-light\">A constant environment of radiance ({}) W/(m² sr), 1σ ({sigma}), fitted with the materials: {:.1}% of the seen light. It lights what every ray leaving the scene would see; <code>recovered.toml</code> keeps it as <code>[stray_light]</code>.</p>\n",
+            c(s.radiance),
+            100.0 * s.share
+        );
+    }
     let mut convergence = String::new();
     for (g, svg) in plots {
         convergence += &format!(

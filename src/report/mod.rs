@@ -120,6 +120,9 @@ pub struct Results {
     /// Per photo, when several were fitted together: its fitted exposure factor and residual.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub views: Vec<crate::fit::recover::ViewFit>,
+    /// The fitted stray light (`recover --stray-light`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stray_light: Option<crate::fit::unseen::StrayEstimate>,
 }
 
 /// The material of group `g`'s first object in the recovered scene.
@@ -213,6 +216,7 @@ pub fn results(rec: &Recovery) -> Results {
         objective_evals: rec.objective_evals,
         ward_variant: rec.scene.render.ward_variant.name(),
         views: rec.views.clone(),
+        stray_light: rec.stray_light.clone(),
     }
 }
 

@@ -261,6 +261,7 @@ pub fn apply(scene: &mut SceneFile, edit: &Edit) -> Result<(), SceneError> {
             objects: f.add.clone(),
             lights: Vec::new(),
             environment: None,
+            stray_light: None,
             views: Vec::new(),
         };
         if f.add.is_empty() {

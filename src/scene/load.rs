@@ -368,6 +368,20 @@ pub(super) fn build_objects(file: SceneFile, text: &str, path: &Path) -> Result<
         }
     };
 
+    let stray_light = match &file.stray_light {
+        None => Rgb::ZERO,
+        Some(s) => {
+            let r = s.get_ref().radiance;
+            if !r.iter().all(|v| v.is_finite() && *v >= 0.0) {
+                return Err(cx.at(
+                    s.span().start,
+                    format!("[stray_light] radiance {r:?}: must be finite and not negative"),
+                ));
+            }
+            Rgb::from_array(r)
+        }
+    };
+
     let geometry = build_geometry(&mut objects, meshes);
     map_atlas_textures(&mut objects, &groups, &geometry, &file, &cx)?;
     let scene = Scene {
@@ -378,6 +392,7 @@ pub(super) fn build_objects(file: SceneFile, text: &str, path: &Path) -> Result<
         objects,
         punctual_lights,
         environment,
+        stray_light,
         geometry: Arc::new(geometry),
         source: file,
         views: Vec::new(),

@@ -182,6 +182,10 @@ pub struct Scene {
     pub punctual_lights: Vec<PunctualLight>,
     /// The light arriving from infinitely far away (`[environment]`), if any.
     pub environment: Option<Arc<environment::Environment>>,
+    /// Stray light (`[stray_light]`): the radiance every ray leaving the scene sees besides
+    /// the environment, the same in all directions; zero unless given or fitted
+    /// (`recover --stray-light`).
+    pub stray_light: Rgb,
     pub geometry: Arc<Geometry>,
     /// Groups' options and everything else of the source, for writing the scene back out.
     pub source: schema::SceneFile,
@@ -306,6 +310,7 @@ impl Scene {
     pub fn has_lights(&self) -> bool {
         !self.punctual_lights.is_empty()
             || self.environment.is_some()
+            || self.stray_light.max_element() > 0.0
             || self.objects.iter().any(Object::is_emitter)
     }
 

@@ -71,6 +71,9 @@
 //! file = "sky.exr"
 //! scale = 1.0
 //! rotate_deg = [0, 90, 0]       # about X, then Y, then Z
+//!
+//! [stray_light]                 # a constant environment: what every ray leaving the scene sees
+//! radiance = [0.02, 0.02, 0.02] # W/(m² sr) per channel; `recover --stray-light` fits it
 //! ```
 
 use crate::scene::Distribution;
@@ -91,6 +94,9 @@ pub struct SceneFile {
     pub lights: Vec<LightSpec>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub environment: Option<Spanned<EnvironmentSpec>>,
+    /// Light from outside the model that no light of the scene explains (`[stray_light]`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stray_light: Option<Spanned<StrayLightSpec>>,
     /// The photos' views when several photos are fitted together (`scene::view`).
     #[serde(default, rename = "view", skip_serializing_if = "Vec::is_empty")]
     pub views: Vec<Spanned<ViewSpec>>,
@@ -122,6 +128,14 @@ pub struct EnvironmentSpec {
     /// Rotation of the map into the scene, degrees about X, then Y, then Z (as a transform's).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rotate_deg: Option<[f32; 3]>,
+}
+
+/// Stray light (`Scene::stray_light`): a constant environment of this radiance, unoccluded
+/// everywhere a ray leaves the scene, lighting shadows that no modelled light reaches.
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct StrayLightSpec {
+    pub radiance: [f32; 3],
 }
 
 #[derive(Clone, Debug, Deserialize, Serialize, Default, PartialEq)]

@@ -126,6 +126,7 @@ pub(super) fn build_views(
                     objects: Vec::new(),
                     lights: Vec::new(),
                     environment: None,
+                    stray_light: None,
                     views: Vec::new(),
                 };
                 super::load::check_camera(&alone, "", path).map_err(|e| {

@@ -204,7 +204,38 @@ fn edit_source(scene: &Scene, text: &str, from_dir: &Path, to_dir: &Path) -> Opt
             }
         }
     }
+    // A fitted stray light replaces the file's (or is added after everything else).
+    let given = file.stray_light.as_ref().map(|s| s.get_ref().radiance);
+    let now = stray_light_spec(scene).map(|s| s.get_ref().radiance);
+    if given != now {
+        match now {
+            Some(r) => {
+                let mut t = toml_edit::Table::new();
+                let mut a = toml_edit::Array::new();
+                for v in r {
+                    a.push(v as f64);
+                }
+                t.insert("radiance", toml_edit::value(a));
+                doc.insert("stray_light", toml_edit::Item::Table(t));
+            }
+            None => {
+                doc.remove("stray_light");
+            }
+        }
+    }
     Some(doc.to_string())
+}
+
+/// The scene's stray light as written: None when there is none.
+fn stray_light_spec(scene: &Scene) -> Option<Spanned<super::schema::StrayLightSpec>> {
+    (scene.stray_light.max_element() > 0.0).then(|| {
+        Spanned::new(
+            0..0,
+            super::schema::StrayLightSpec {
+                radiance: scene.stray_light.to_array(),
+            },
+        )
+    })
 }
 
 /// The scene written from its schema form (comments and layout of the source are lost).
@@ -220,6 +251,7 @@ fn fresh_toml(scene: &Scene, from_dir: &Path, to_dir: &Path) -> String {
         }
         spec.material = Some(Spanned::new(0..0, m));
     }
+    file.stray_light = stray_light_spec(scene);
     // The render settings in force (including the Ward variant) are written explicitly.
     let r = &scene.render;
     file.render = Some(super::schema::RenderSpec {

@@ -65,6 +65,20 @@ pub fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     p
 }
 
+/// How many of a 4×4 grid of film points over pixel (x, y) (its corners included) hit the
+/// scene: 0 for a pixel that sees only what lies beyond, 16 for one wholly on a surface.
+pub fn film_hits(sc: &matfit::scene::Scene, x: usize, y: usize) -> usize {
+    (0..16)
+        .filter(|k| {
+            let film = matfit::math::Vec2::new(
+                x as f32 + (k % 4) as f32 / 3.0,
+                y as f32 + (k / 4) as f32 / 3.0,
+            );
+            sc.intersect(&sc.camera.ray(film), f32::INFINITY).is_some()
+        })
+        .count()
+}
+
 /// A small valid scene: a floor quad seen from above, lit by a quad light.
 pub const SMALL_SCENE: &str = r#"
 [camera]

@@ -1,0 +1,275 @@
+//! Stray light (issue 23): `[stray_light]`, a constant environment of radiance S that every ray
+//! leaving the scene sees, rendered against the analytic answer, carried through Mitsuba's
+//! `constant` emitter both ways, and fitted with the materials by `recover --stray-light` on an
+//! open room whose photo has it and whose model does not.
+
+use crate::common::{result_group, results, root, run, write};
+use matfit::math::Rgb;
+use matfit::render::film::{render, RenderOptions};
+use matfit::scene::load::parse_scene;
+use matfit::scene::{load_scene, Material};
+
+const S: [f32; 3] = [0.3, 0.6, 0.9];
+
+/// A grey-blue floor seen from above, open to the sky, lit by the stray light alone.
+const FLOOR: &str = r#"
+[render]
+max_depth = 2
+[camera]
+width = 24
+height = 18
+eye = [0.0, 1.0, 2.0]
+target = [0.0, 0.0, 0.0]
+fov_y_deg = 60.0
+[[object]]
+name = "floor"
+group = "floor"
+shape = "quad"
+corner = [-1.0, 0.0, 1.0]
+edge_u = [2.0, 0.0, 0.0]
+edge_v = [0.0, 0.0, -2.0]
+material = { type = "diffuse", rho_d = [0.2, 0.5, 0.8] }
+[stray_light]
+radiance = [0.3, 0.6, 0.9]
+"#;
+
+#[test]
+fn a_stray_light_lights_an_open_floor_to_rho_times_its_radiance() {
+    // An unoccluded Lambert floor under a constant environment S receives π S and reflects ρ S
+    // (a cosine-sampled bounce weighs every direction alike: no noise); rays that miss see S.
+    let dir = tempfile::tempdir().unwrap();
+    let sc = parse_scene(FLOOR, &dir.path().join("floor.toml")).unwrap();
+    let img = render(
+        &sc,
+        &sc.camera,
+        &RenderOptions {
+            spp: 16,
+            seed: 3,
+            progress: false,
+        },
+    );
+    let s = Rgb::from(S);
+    let want = Rgb::new(0.2, 0.5, 0.8) * s;
+    let (mut floor, mut sky) = (0, 0);
+    for y in 0..18 {
+        for x in 0..24 {
+            let hits = crate::common::film_hits(&sc, x, y);
+            let got = img.get(x, y);
+            if hits == 0 {
+                sky += 1;
+                assert!((got - s).abs().max_element() < 1e-5, "({x}, {y}): {got}");
+            } else if hits == 16 {
+                floor += 1;
+                assert!(
+                    ((got - want) / want).abs().max_element() < 1e-4,
+                    "({x}, {y}): {got} vs ρ S {want}"
+                );
+            }
+        }
+    }
+    assert!(sky > 20 && floor > 100, "{sky} sky, {floor} floor pixels");
+}
+
+#[test]
+fn a_stray_light_goes_to_mitsuba_as_a_constant_emitter_and_comes_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(dir.path(), "floor.toml", FLOOR);
+    let (code, out, err) = run(
+        &["export", "mitsuba", scene.to_str().unwrap(), "-o", "mi"],
+        dir.path(),
+    );
+    assert_eq!(code, 0, "{out}{err}");
+    let xml = std::fs::read_to_string(dir.path().join("mi/scene.xml")).unwrap();
+    assert!(
+        xml.contains("<emitter type=\"constant\">")
+            && xml.contains("<rgb name=\"radiance\" value=\"0.3, 0.6, 0.9\"/>"),
+        "{xml}"
+    );
+    let (code, out, err) = run(
+        &["import", "mitsuba", "mi/scene.xml", "-o", "back.toml"],
+        dir.path(),
+    );
+    assert_eq!(code, 0, "{out}{err}");
+    let back = load_scene(&dir.path().join("back.toml")).unwrap();
+    assert_eq!(back.stray_light, Rgb::from(S));
+}
+
+#[test]
+fn a_negative_stray_light_is_an_error_naming_its_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = FLOOR.replace("[0.3, 0.6, 0.9]", "[0.3, -0.6, 0.9]");
+    let scene = write(dir.path(), "floor.toml", &text);
+    let (code, _, err) = run(
+        &["render", scene.to_str().unwrap(), "-o", "x.exr"],
+        dir.path(),
+    );
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("[stray_light]")
+            && err.contains("not negative")
+            && err.contains("floor.toml:18:"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_stray_light_is_fitted_with_the_materials_through_the_binary() {
+    // scenes/sunroom (open-topped) at half size. The photo has a stray light of 8% of the
+    // seen light, which the model does not. Measured (2 cores): S (0.0504, 0.0502, 0.0603)
+    // ± 0.0016 for (0.05, 0.05, 0.06), every ρ within 0.002, the ball's α within 0.1%, 17 s.
+    // Without --stray-light: the floor 0.025 too bright, the back wall an anisotropic
+    // microfacet lobe, the left wall a Ward lobe (ε 7.6%), 49 s.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let text = std::fs::read_to_string(root().join("scenes/sunroom/scene.toml"))
+        .unwrap()
+        .replace("width = 256\n", "width = 128\n")
+        .replace("height = 192\n", "height = 96\n");
+    let truth = format!("{text}\n[stray_light]\nradiance = [0.05, 0.05, 0.06]\n");
+    let truth_path = write(d, "truth.toml", &truth);
+    let model = write(d, "model.toml", &text);
+    let (code, _, err) = run(
+        &[
+            "render",
+            truth_path.to_str().unwrap(),
+            "--spp",
+            "256",
+            "-o",
+            "photo.exr",
+        ],
+        d,
+    );
+    assert_eq!(code, 0, "{err}");
+    let (code, out, err) = run(
+        &[
+            "recover",
+            model.to_str().unwrap(),
+            "photo.exr",
+            "--stray-light",
+            "-o",
+            "out",
+        ],
+        d,
+    );
+    assert_eq!(code, 0, "{out}{err}");
+    assert!(out.contains("stray light (0.05"), "{out}");
+    let json = results(&d.join("out"));
+    let s = &json["stray_light"];
+    let want = [0.05, 0.05, 0.06];
+    for c in 0..3 {
+        let got = s["radiance"][c].as_f64().unwrap();
+        let sigma = s["sigma"][c].as_f64().unwrap();
+        assert!(
+            (got / want[c] - 1.0).abs() < 0.05 && sigma > 0.0 && sigma < 0.005,
+            "stray light {s}"
+        );
+    }
+    assert_eq!(s["estimated"], true, "{s}");
+    // Every group as without stray light in the photo: the level of its truth, ρ within 0.01.
+    let truth_scene = parse_scene(&truth, &truth_path).unwrap();
+    for o in &truth_scene.objects {
+        let g = result_group(&json, &o.name);
+        let rgb = |k: &str| crate::common::json_rgb(&g["params"][k]);
+        let close = |k: &str, want: Rgb| {
+            let v = rgb(k);
+            assert!(
+                (0..3).all(|c| (v[c] as f32 - want[c]).abs() < 0.01),
+                "{} {k}: {v:?} vs {want}",
+                o.name
+            );
+        };
+        match o.material {
+            Material::Diffuse { rho_d } => {
+                assert_eq!(g["level"], "diffuse", "{g}");
+                close("rho_d", rho_d);
+            }
+            Material::Ward {
+                rho_d,
+                rho_s,
+                alpha_x,
+                ..
+            } => {
+                assert_eq!(g["level"], "isotropic", "{g}");
+                close("rho_d", rho_d);
+                close("rho_s", rho_s);
+                let a = g["params"]["alpha_x"].as_f64().unwrap() as f32;
+                assert!((a / alpha_x - 1.0).abs() < 0.03, "α {a} vs {alpha_x}");
+            }
+            _ => unreachable!("sunroom has diffuse and Ward groups"),
+        }
+    }
+    // The recovered scene keeps the stray light.
+    let rec = load_scene(&d.join("out/recovered.toml")).unwrap();
+    let got = rec.stray_light;
+    assert!((got.x / 0.05 - 1.0).abs() < 0.05, "recovered.toml: {got}");
+}
+
+#[test]
+fn three_photos_of_a_glossy_ball_share_one_stray_light() {
+    // scenes/lightstage at 64×64: three photos, each under one distant light, all with the
+    // same stray light (10% of the seen light). A texture could take the stray light's shape
+    // texel by texel, so no group tries level 7 while it is undetermined: before that rule the
+    // ball went textured (ε 16%) and the stray light was never estimated. Measured at 96×96:
+    // S 0.0200 for 0.02, ρ exact, every photo's k within 1e-4 of 1, the recovered scene
+    // predicts a fourth light's photo within 0.1% (without --stray-light: k 0.97–1.04, the
+    // ball textured, the prediction 46% dark).
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let text = std::fs::read_to_string(root().join("scenes/lightstage/scene.toml"))
+        .unwrap()
+        .replace("width = 192", "width = 64")
+        .replace("height = 192", "height = 64");
+    let model = write(d, "model.toml", &text);
+    let truth = write(
+        d,
+        "truth.toml",
+        &format!("{text}\n[stray_light]\nradiance = [0.02, 0.02, 0.02]\n"),
+    );
+    for (view, name) in [("1", "a.exr"), ("10", "b.exr"), ("19", "c.exr")] {
+        let args = [
+            "render",
+            truth.to_str().unwrap(),
+            "--view",
+            view,
+            "--spp",
+            "64",
+            "-o",
+            name,
+        ];
+        let (code, _, err) = run(&args, d);
+        assert_eq!(code, 0, "{err}");
+    }
+    let (code, out, err) = run(
+        &[
+            "recover",
+            model.to_str().unwrap(),
+            "a.exr",
+            "b.exr",
+            "c.exr",
+            "--views",
+            "1,10,19",
+            "--no-register",
+            "--stray-light",
+            "-o",
+            "out",
+        ],
+        d,
+    );
+    assert_eq!(code, 0, "{out}{err}");
+    let json = results(&d.join("out"));
+    let s = &json["stray_light"];
+    for c in 0..3 {
+        let got = s["radiance"][c].as_f64().unwrap();
+        assert!((got / 0.02 - 1.0).abs() < 0.03, "stray light {s}");
+    }
+    let g = result_group(&json, "ball");
+    assert_eq!(g["level"], "isotropic", "{g}");
+    let rho_d = crate::common::json_rgb(&g["params"]["rho_d"]);
+    for (c, want) in [0.35, 0.2, 0.12].into_iter().enumerate() {
+        assert!((rho_d[c] - want).abs() < 0.01, "ρd {rho_d:?}");
+    }
+    for v in json["views"].as_array().unwrap() {
+        let k = v["exposure"].as_f64().unwrap();
+        assert!((k - 1.0).abs() < 0.01, "{v}");
+    }
+}
