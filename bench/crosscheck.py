@@ -21,6 +21,8 @@ Cases
                   Ward ball made diffuse, so that the check measures the punctual lights alone.
   sunroom-ortho   sunroom through an orthographic camera (width_m 2.4, from the same eye):
                   Mitsuba's `orthographic` sensor as the export writes it.
+  sunroom-stray   sunroom (ball made diffuse) with a [stray_light] of radiance (0.05, 0.05, 0.06):
+                  Mitsuba's `constant` emitter as the export writes it.
   skyroom         the same room lit by an HDR environment map alone (scenes/skyroom/sky.pfm:
                   sky, ground and a 3-degree sun), Ward ball made diffuse.
   poster-diffuse  scenes/poster (a textured poster, six textured book spines, a textured desk)
@@ -326,7 +328,7 @@ def main():
                     help="figure6 resolution (same vertical fov; the scene's own is 512x384)")
     ap.add_argument("--cases",
                     default="cornell,figure6-diffuse,figure6-mirror,figure6-ward,figure6-ggx,"
-                    "figure6-plastic,glossy,sunroom,sunroom-ortho,skyroom,poster-diffuse,poster")
+                    "figure6-plastic,glossy,sunroom,sunroom-ortho,sunroom-stray,skyroom,poster-diffuse,poster")
     ap.add_argument("--mapped-cases", default="figure6-ward,glossy,poster",
                     help="cases whose Ward groups measure the export's mapping error")
     ap.add_argument("--out", help="keep images here (default: a temporary folder)")
@@ -362,7 +364,8 @@ def main():
             xml_path, xml_text = CBOX, cornell_xml(args.spp)
             params = dict(res=256, max_depth=6)
         elif case.startswith("figure6-") or case.startswith("scene=") or case in (
-                "glossy", "sunroom", "sunroom-ortho", "skyroom", "poster", "poster-diffuse"):
+                "glossy", "sunroom", "sunroom-ortho", "sunroom-stray", "skyroom", "poster",
+                "poster-diffuse"):
             if case.startswith("scene="):
                 scene = os.path.abspath(case[len("scene="):])
             elif case in ("glossy", "poster"):
@@ -373,6 +376,10 @@ def main():
                 scene = ball_made_diffuse(case, d)
             elif case == "sunroom-ortho":
                 scene = ball_made_diffuse("sunroom", d, ortho=True)
+            elif case == "sunroom-stray":
+                scene = ball_made_diffuse("sunroom", d)
+                with open(scene, "a") as f:
+                    f.write("\n[stray_light]\nradiance = [0.05, 0.05, 0.06]\n")
             else:
                 floor = {"figure6-diffuse": '{ type = "diffuse", rho_d = 0.5 }',
                          "figure6-mirror": '{ type = "mirror", rho_s = 0.8 }',
