@@ -53,45 +53,43 @@ fn outputs(dir: &Path) -> (serde_json::Value, Vec<serde_json::Value>, String) {
     )
 }
 
-#[test]
-fn kill_9_then_resume_gives_the_uninterrupted_result() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    small_scene_and_photo(d);
+/// Runs `recover scene.toml photo.exr` with `fit` whole (into `whole/`), and again killed with
+/// SIGKILL as soon as it has written a checkpoint that contains `holding` and resumed (into
+/// `killed/`); asserts that both end with the same outputs.
+fn whole_equals_killed_and_resumed(d: &Path, fit: &[&str], holding: &str) {
     let mut args = vec!["recover", "scene.toml", "photo.exr", "-o", "whole"];
-    args.extend(FIT);
+    args.extend(fit);
     let (code, _, err) = run(&args, d);
     assert_eq!(code, 0, "{err}");
 
-    // The same run, killed as soon as its first checkpoint exists.
     let mut args = vec!["recover", "scene.toml", "photo.exr", "-o", "killed"];
-    args.extend(FIT);
+    args.extend(fit);
     let mut child = matfit().args(&args).current_dir(d).spawn().unwrap();
     let t = Instant::now();
-    while !d.join("killed/checkpoint.json").exists() && t.elapsed() < Duration::from_secs(120) {
+    let written = || {
+        std::fs::read_to_string(d.join("killed/checkpoint.json")).is_ok_and(|c| c.contains(holding))
+    };
+    while !written() && t.elapsed() < Duration::from_secs(120) {
         std::thread::sleep(Duration::from_millis(5));
     }
     child.kill().unwrap(); // SIGKILL on Unix
     child.wait().unwrap();
-    assert!(
-        d.join("killed/checkpoint.json").exists(),
-        "no checkpoint was written"
-    );
-    let mut args = vec![
-        "recover",
-        "scene.toml",
-        "photo.exr",
-        "-o",
-        "killed",
-        "--resume",
-    ];
-    args.extend(FIT);
+    assert!(written(), "no checkpoint holding {holding} was written");
+    args.push("--resume");
     let (code, _, err) = run(&args, d);
     assert_eq!(code, 0, "{err}");
     let (a, b) = (outputs(&d.join("whole")), outputs(&d.join("killed")));
     assert_eq!(a.0, b.0, "results.json differs");
     assert_eq!(a.1, b.1, "log.jsonl differs");
     assert_eq!(a.2, b.2, "recovered.toml differs");
+}
+
+#[test]
+fn kill_9_then_resume_gives_the_uninterrupted_result() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    small_scene_and_photo(d);
+    whole_equals_killed_and_resumed(d, &FIT, "");
 
     // A checkpoint only resumes its own run.
     let mut args = vec![
@@ -136,5 +134,45 @@ fn recover_results_are_identical_on_one_and_two_threads() {
     assert_eq!(
         std::fs::read(d.join("t1/synthetic.exr")).unwrap(),
         std::fs::read(d.join("t2/synthetic.exr")).unwrap()
+    );
+}
+
+#[test]
+fn a_resumed_run_keeps_its_stray_light() {
+    // The open sunroom at half size with a stray light in its photo, fitted with
+    // --stray-light: the checkpoint carries the estimate, so the resumed run ends the same.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let text = std::fs::read_to_string(root().join("scenes/sunroom/scene.toml"))
+        .unwrap()
+        .replace("width = 256\n", "width = 128\n")
+        .replace("height = 192\n", "height = 96\n");
+    std::fs::write(d.join("scene.toml"), &text).unwrap();
+    std::fs::write(
+        d.join("truth.toml"),
+        format!("{text}\n[stray_light]\nradiance = [0.05, 0.05, 0.06]\n"),
+    )
+    .unwrap();
+    let (code, _, err) = run(
+        &["render", "truth.toml", "-o", "photo.exr", "--spp", "64"],
+        d,
+    );
+    assert_eq!(code, 0, "{err}");
+    let fit = [
+        "--final-spp",
+        "4",
+        "--max-iterations",
+        "8",
+        "--seed",
+        "3",
+        "--stray-light",
+    ];
+    // Killed once the checkpoint holds a determined stray light.
+    whole_equals_killed_and_resumed(d, &fit, "\"estimated\":true");
+    let res = crate::common::results(&d.join("killed"));
+    assert!(
+        res["stray_light"]["estimated"] == true,
+        "{}",
+        res["stray_light"]
     );
 }
