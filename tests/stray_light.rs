@@ -3,7 +3,7 @@
 //! `constant` emitter both ways, and fitted with the materials by `recover --stray-light` on an
 //! open room whose photo has it and whose model does not.
 
-use crate::common::{result_group, results, root, run, write};
+use crate::common::{result_group, results, root, run, write, SMALL_SCENE};
 use matfit::math::Rgb;
 use matfit::render::film::{render, RenderOptions};
 use matfit::scene::load::parse_scene;
@@ -272,4 +272,27 @@ fn three_photos_of_a_glossy_ball_share_one_stray_light() {
         let k = v["exposure"].as_f64().unwrap();
         assert!((k - 1.0).abs() < 0.01, "{v}");
     }
+}
+
+#[test]
+fn a_recovery_of_an_open_scene_says_what_it_assumes_of_the_outside() {
+    // A floor under a lamp, open all round: without --stray-light the run warns, naming the
+    // option (and the summary repeats it); with it there is no such warning.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write(d, "scene.toml", SMALL_SCENE);
+    let (code, _, err) = run(&["render", "scene.toml", "--spp", "8", "-o", "p.exr"], d);
+    assert_eq!(code, 0, "{err}");
+    let quick = ["--max-iterations", "1", "--final-spp", "2"];
+    let mut args = vec!["recover", "scene.toml", "p.exr", "-o", "a"];
+    args.extend(quick);
+    let (code, out, err) = run(&args, d);
+    assert_eq!(code, 0, "{err}");
+    let said = |s: &str| s.contains("the scene is open: ") && s.contains("--stray-light fits it");
+    assert!(said(&err), "{out}\n{err}");
+    args.push("--stray-light");
+    args[4] = "b";
+    let (code, out, err) = run(&args, d);
+    assert_eq!(code, 0, "{err}");
+    assert!(!said(&err) && !said(&out), "{out}\n{err}");
 }

@@ -124,6 +124,10 @@ pub struct GroupCache {
     /// ray first landed on that group: how much this group is lit by each other one
     /// (`schedule::climbers`).
     pub light_from: Vec<f32>,
+    /// The cosine-weighted share of the pixels' hemisphere from which nothing of the scene is
+    /// seen (their indirect rays that leave it at once, mean over the pixels): what a stray
+    /// light would light.
+    pub open: f32,
     /// The mirror radiance with the groups still being analysed read from the photo (§5.1,
     /// `pseudo.rs`), when the build was asked for it.
     pub pseudo: Option<PseudoMirror>,
@@ -252,6 +256,7 @@ impl GroupCache {
             for (a, b) in self.light_from.iter_mut().zip(&other.light_from) {
                 *a = (*a * n0 + b * n1) / (n0 + n1);
             }
+            self.open = (self.open * n0 + other.open * n1) / (n0 + n1);
         }
         self.pseudo = None;
     }
@@ -462,6 +467,9 @@ pub fn build(
             // samples in their order (so the sums are the same to the bit as one by one).
             let mut entries: Vec<Entry> = Vec::new();
             let mut rays: Vec<IndirectRay> = Vec::new();
+            // Σ cos θ / (pdf n) over the indirect rays that leave the scene at once (× 1/π:
+            // the open share of the cosine-weighted hemisphere).
+            let mut open = 0.0f32;
             for (half, k) in (0..2usize).flat_map(|h| (0..hl + hi).map(move |k| (h, k))) {
                 let mut sampler = Sampler::new(seed ^ (0x9E37_79B9 * (half as u64 + 1)), p as u64);
                 sampler.start_sample(k);
@@ -536,6 +544,7 @@ pub fn build(
                             emitted = Some(o2.emission * w_b);
                         }
                     } else {
+                        open += wi.z / (pm * ni as f32);
                         pt.lights.at_infinity(wi_world, |le, pl| {
                             let w_b = ni as f32 * pm / (nl as f32 * pl + ni as f32 * pm);
                             *emitted.get_or_insert(Rgb::ZERO) += le * w_b;
@@ -713,7 +722,7 @@ pub fn build(
                 stray,
                 rows.map(merge_rows),
                 (shares.collect(), dcs, probed, dmirror),
-                (light_from, light_total),
+                (light_from, light_total, open * INV_PI),
                 read,
             )
         })
@@ -744,10 +753,11 @@ pub fn build(
         stray,
         [r0, r1],
         (shares, [t0, t1], probed, dm),
-        (from, total),
+        (from, total, open),
         (rh, rn, rg),
     ) in per_pixel
     {
+        cache.open += open;
         if let Some(r) = read_mirror.as_mut() {
             r.half.push(rh);
             read_samples += rn as u64;
@@ -791,6 +801,7 @@ pub fn build(
         cache.stray += stray;
     }
     cache.samples = samples.into();
+    cache.open /= cache.pixels.len().max(1) as f32;
     if let Some(mut r) = read_mirror {
         r.groups.sort_unstable();
         r.share = read_samples as f32 / (mirror_samples * cache.pixels.len() as u64).max(1) as f32;
@@ -806,15 +817,15 @@ pub fn build(
 
 /// A cached pixel as built: the pixel, its samples and texel rows per half, its stray rays, and
 /// its derivatives along the unseen groups (of D, and of each kept sample's weight per half) and
-/// whether it measured them, and the light its samples received by way of each group (and in
-/// all).
+/// whether it measured them, the light its samples received by way of each group (and in all)
+/// and its open share, and what it read from the photo for §5.1.
 type BuiltPixel = (
     CachePixel,
     [Vec<Sample>; 2],
     usize,
     [Vec<(u32, Rgb)>; 2],
     (Vec<[Rgb; 2]>, [Vec<Rgb>; 2], bool, Vec<[Rgb; 2]>),
-    (Vec<f32>, f32),
+    (Vec<f32>, f32, f32),
     ([Rgb; 2], u32, Vec<u32>),
 );
 
@@ -1087,6 +1098,8 @@ irradiance = 2.0
         let c_lit = build_in(&lit, &pt_lit, &[]);
         let u = c.unseen.as_ref().unwrap();
         assert_eq!(u.groups, vec![STRAY_LIGHT]);
+        // Every indirect ray leaves the scene: the open share is 1 (cosine sampling: exactly).
+        assert!((c.open - 1.0).abs() < 1e-3, "open share {}", c.open);
         let (mut sum, mut n) = (Rgb::ZERO, 0);
         for (i, p) in c.pixels.iter().enumerate() {
             if !u.probed[i] {

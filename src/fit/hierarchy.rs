@@ -127,6 +127,9 @@ pub struct GroupState {
     /// (`schedule::climbers`). Empty before its first cache.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub lit_by: Vec<f32>,
+    /// The open share of its pixels' hemisphere (`GroupCache::open` of its latest cache).
+    #[serde(default)]
+    pub open: f32,
     /// The 1σ of its parameters at its level, from its latest cache (`uncertainty.rs`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sigma: Option<GroupParams>,
@@ -230,6 +233,7 @@ impl GroupState {
             moves: Vec::new(),
             texture: None,
             lit_by: Vec::new(),
+            open: 0.0,
             sigma: None,
         }
     }

@@ -408,6 +408,7 @@ emission = 5.0
                 width: 0,
                 unseen: None,
                 light_from: Vec::new(),
+                open: 0.0,
                 pseudo: None,
                 views: Vec::new(),
             };

@@ -154,6 +154,10 @@ fn mirror_scale(cache: &super::cache::GroupCache, model: &[Rgb]) -> (Rgb, bool) 
     (scale, ok)
 }
 
+/// The open share of the seen surfaces' hemisphere (`GroupCache::open`, weighted by usable
+/// pixels) above which a recovery without a stray light says what it assumes.
+const OPEN_SCENE: f64 = 0.05;
+
 /// How far (as a factor) the photo's image of a group in a mirror may be from the model's for
 /// those pixels to be used ([`mirror_scale`]).
 pub const MIRROR_SCALE_LIMIT: f32 = 1.25;
@@ -700,6 +704,7 @@ impl<'a> RecoveryLoop<'a> {
             }
             shares.extend(super::unseen::shares(&cache, g, &self.states[g], variant));
             self.states[g].lit_by = cache.light_from.clone();
+            self.states[g].open = cache.open;
             let secs = tg.elapsed().as_secs_f64();
             for e in events {
                 if let Event::Fit { evals: n, .. } = e {
@@ -874,6 +879,24 @@ impl<'a> RecoveryLoop<'a> {
     pub fn finish(self) -> Recovery {
         let opts = self.opts;
         let tf = Instant::now();
+        // An open scene assumes that nothing but its lights shines in from outside: said where
+        // the user sees it, with the option that fits it instead.
+        let (mut open, mut n) = (0.0f64, 0.0f64);
+        for (s, st) in self.states.iter().zip(&self.mask.stats) {
+            if s.is_fitted() {
+                open += s.open as f64 * st.usable as f64;
+                n += st.usable as f64;
+            }
+        }
+        let open = if n > 0.0 { open / n } else { 0.0 };
+        if !opts.stray_light && self.current.environment.is_none() && open > OPEN_SCENE {
+            tracing::warn!(
+                "the scene is open: {:.0}% of what the seen surfaces face is no geometry, and \
+                 nothing is assumed to shine from there but the scene's lights; if the photo's \
+                 shadows hold light from outside the model, --stray-light fits it",
+                100.0 * open
+            );
+        }
         let half = (opts.final_spp / 2).max(1);
         let render_half = |seed: u64| {
             render(
