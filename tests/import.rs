@@ -518,10 +518,20 @@ fn bad_mitsuba_files_are_errors_naming_file_and_line() {
         "{e}"
     );
 
-    let xml = xml_with(d, "<emitter type=\"constant\"/>");
+    let xml = xml_with(d, "<emitter type=\"projector\"/>");
     let e = import_fails(&xml);
     assert!(
-        e.contains(":5: emitter type 'constant' cannot be imported"),
+        e.contains(":5: emitter type 'projector' cannot be imported"),
+        "{e}"
+    );
+
+    let xml = xml_with(
+        d,
+        "<emitter type=\"constant\"/>\n<emitter type=\"constant\"/>",
+    );
+    let e = import_fails(&xml);
+    assert!(
+        e.contains(":6: a second constant emitter: matfit takes one"),
         "{e}"
     );
 

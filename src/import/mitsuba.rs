@@ -721,8 +721,8 @@ impl<'a> Ctx<'a> {
                     n,
                     format!(
                         "emitter type '{ty}' cannot be imported: matfit's lights are emitting \
-                         surfaces (an area emitter inside a <shape>) and directional, point and \
-                         spot lights"
+                         surfaces (an area emitter inside a <shape>), directional, point and \
+                         spot lights, an envmap and a constant emitter (its stray light)"
                     ),
                 ))
             }
