@@ -143,16 +143,9 @@ fn a_resumed_run_keeps_its_stray_light() {
     // --stray-light: the checkpoint carries the estimate, so the resumed run ends the same.
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let text = std::fs::read_to_string(root().join("scenes/sunroom/scene.toml"))
-        .unwrap()
-        .replace("width = 256\n", "width = 128\n")
-        .replace("height = 192\n", "height = 96\n");
-    std::fs::write(d.join("scene.toml"), &text).unwrap();
-    std::fs::write(
-        d.join("truth.toml"),
-        format!("{text}\n[stray_light]\nradiance = [0.05, 0.05, 0.06]\n"),
-    )
-    .unwrap();
+    let (text, truth) = crate::stray_light::sunroom_with_stray_light();
+    std::fs::write(d.join("scene.toml"), text).unwrap();
+    std::fs::write(d.join("truth.toml"), truth).unwrap();
     let (code, _, err) = run(
         &["render", "truth.toml", "-o", "photo.exr", "--spp", "64"],
         d,

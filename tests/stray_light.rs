@@ -112,20 +112,25 @@ fn a_negative_stray_light_is_an_error_naming_its_line() {
     );
 }
 
-#[test]
-fn a_stray_light_is_fitted_with_the_materials_through_the_binary() {
-    // scenes/sunroom (open-topped) at half size. The photo has a stray light of 8% of the
-    // seen light, which the model does not. Measured (2 cores): S (0.0504, 0.0502, 0.0603)
-    // ± 0.0016 for (0.05, 0.05, 0.06), every ρ within 0.002, the ball's α within 0.1%, 17 s.
-    // Without --stray-light: the floor 0.025 too bright, the back wall an anisotropic
-    // microfacet lobe, the left wall a Ward lobe (ε 7.6%), 49 s.
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
+/// scenes/sunroom at half size (128×96) as a model, and as the truth with a stray light of
+/// (0.05, 0.05, 0.06) added.
+pub fn sunroom_with_stray_light() -> (String, String) {
     let text = std::fs::read_to_string(root().join("scenes/sunroom/scene.toml"))
         .unwrap()
         .replace("width = 256\n", "width = 128\n")
         .replace("height = 192\n", "height = 96\n");
     let truth = format!("{text}\n[stray_light]\nradiance = [0.05, 0.05, 0.06]\n");
+    (text, truth)
+}
+
+#[test]
+fn a_stray_light_is_fitted_with_the_materials_through_the_binary() {
+    // scenes/sunroom (open-topped) at half size. The photo has a stray light of 8% of the
+    // seen light, which the model does not; fitted with it, every group is as if there were
+    // none.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (text, truth) = sunroom_with_stray_light();
     let truth_path = write(d, "truth.toml", &truth);
     let model = write(d, "model.toml", &text);
     let (code, _, err) = run(
@@ -208,11 +213,8 @@ fn a_stray_light_is_fitted_with_the_materials_through_the_binary() {
 fn three_photos_of_a_glossy_ball_share_one_stray_light() {
     // scenes/lightstage at 64×64: three photos, each under one distant light, all with the
     // same stray light (10% of the seen light). A texture could take the stray light's shape
-    // texel by texel, so no group tries level 7 while it is undetermined: before that rule the
-    // ball went textured (ε 16%) and the stray light was never estimated. Measured at 96×96:
-    // S 0.0200 for 0.02, ρ exact, every photo's k within 1e-4 of 1, the recovered scene
-    // predicts a fourth light's photo within 0.1% (without --stray-light: k 0.97–1.04, the
-    // ball textured, the prediction 46% dark).
+    // texel by texel, so no group tries level 7 while it is undetermined, and the ball stays
+    // the Ward lobe it is.
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let text = std::fs::read_to_string(root().join("scenes/lightstage/scene.toml"))

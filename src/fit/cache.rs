@@ -170,12 +170,11 @@ pub const DERIVATIVE_STRIDE: usize = 2;
 /// An unseen group a cache build measures the derivative along: the path tracer of the scene
 /// with the group's ρd moved by `step` (per channel, nonzero). Or the stray light
 /// (`group` = [`STRAY_LIGHT`]): the scene with it moved by `step`, which is also the change of
-/// what an indirect ray that leaves the scene at once sees (`escape`; zero for a group).
+/// what an indirect ray that leaves the scene at once sees.
 pub struct UnseenProbe<'a> {
     pub group: usize,
     pub moved: &'a PathTracer<'a>,
     pub step: Rgb,
-    pub escape: Rgb,
 }
 
 /// `UnseenProbe::group` and `UnseenShares::groups` entry of the stray light.
@@ -599,8 +598,8 @@ pub fn build(
                         for (d, (m, u)) in dc.iter_mut().zip(moved.iter().zip(unseen)) {
                             // Emission at the first hit is not in the traced radiance; of what
                             // the probes move, only the stray light is (weight 1: not sampled).
-                            let escape = if from == u32::MAX {
-                                u.escape
+                            let escape = if from == u32::MAX && u.group == STRAY_LIGHT {
+                                u.step
                             } else {
                                 Rgb::ZERO
                             };
@@ -1074,7 +1073,6 @@ irradiance = 2.0
             group: STRAY_LIGHT,
             moved: &pt_moved,
             step,
-            escape: step,
         }];
         let build_in = |s: &Scene, pt: &PathTracer, probes: &[UnseenProbe]| {
             build(

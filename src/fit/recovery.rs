@@ -571,11 +571,6 @@ impl<'a> RecoveryLoop<'a> {
                         group,
                         moved: pt,
                         step: *step,
-                        escape: if group == STRAY_LIGHT {
-                            *step
-                        } else {
-                            Rgb::ZERO
-                        },
                     })
                     .collect();
                 build(

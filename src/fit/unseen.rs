@@ -777,18 +777,23 @@ pub fn update(
         // determined before but not now (the seen groups' fits moved, a level changed) stays;
         // one never determined takes the scene's mean albedo (the stray light: stays as given).
         let (lo, hi) = bounds(u);
+        // The stray light's share of the seen light per unit, per channel (zero for a group).
+        let unit: [f64; 3] = std::array::from_fn(|c| {
+            if stray(u) {
+                per_unit(shares, j, c)
+            } else {
+                0.0
+            }
+        });
         // The largest 1σ that determines the value: for the stray light, the σ whose light is
         // STRAY_MAX_SHARE of the seen light.
         let limit = |c: usize| {
-            if stray(u) {
-                let unit = per_unit(shares, j, c);
-                if unit > 0.0 {
-                    (STRAY_MAX_SHARE / unit) as f32
-                } else {
-                    0.0
-                }
-            } else {
+            if !stray(u) {
                 opts.max_sigma
+            } else if unit[c] > 0.0 {
+                (STRAY_MAX_SHARE / unit[c]) as f32
+            } else {
+                0.0
             }
         };
         let mut value = rho0[j];
@@ -842,7 +847,7 @@ pub fn update(
         if stray(u) {
             // How far it moved: the change of the seen light it makes, relative.
             let change = (0..3)
-                .map(|c| (value[c] - current.stray_light[c]).abs() * per_unit(shares, j, c) as f32)
+                .map(|c| (value[c] - current.stray_light[c]).abs() * unit[c] as f32)
                 .fold(0.0f32, f32::max);
             out.moved = out.moved.max(change);
             current.stray_light = value;
@@ -851,7 +856,7 @@ pub fn update(
                 sigma: sigma_out,
                 estimated,
                 share: influence[j],
-                open: (0..3).any(|c| per_unit(shares, j, c) > 0.0),
+                open: unit.iter().any(|&x| x > 0.0),
             });
             continue;
         }
