@@ -290,9 +290,10 @@ fn quarter(name: &str, variant: &str) -> (String, std::path::PathBuf) {
 #[test]
 fn eight_path_batches_give_the_one_path_integrators_pixels_to_the_bit() {
     // `film::render` traces eight paths at a time (`render::batch`), with Lambert, Ward and
-    // ideal-mirror vertices on SIMD lanes; `film::render_pixel` traces one path at a time. Every material kind (Lambert,
-    // mirror, Lambert + mirror, isotropic and anisotropic Ward, a texture) and both Ward
-    // normalisations, on the bundled scenes at a quarter of their resolution: the same pixels.
+    // ideal-mirror vertices on SIMD lanes; `film::render_pixel` traces one path at a time.
+    // Every material kind (Lambert, mirror, Lambert + mirror, isotropic and anisotropic Ward, a
+    // texture), both Ward normalisations, and area, directional, point and spot lights, on the
+    // bundled scenes at a quarter of their resolution: the same pixels.
     let dir = tempfile::tempdir().unwrap();
     let checker = image::RgbImage::from_fn(8, 8, |x, y| {
         if (x + y) % 2 == 0 {
@@ -311,12 +312,23 @@ fn eight_path_batches_give_the_one_path_integrators_pixels_to_the_bit() {
         dir.path().join("checker.png").display(),
         &cornell[end..]
     );
+    // Punctual lights: the sunroom's sun and spot alone, and glossy's area lights with a point
+    // light and a spot added (the area light first, then each punctual light, in order).
+    let (glossy, glossy_path) = quarter("glossy", "balanced");
+    let glossy_punctual = format!(
+        "{glossy}\n[[light]]\nname = \"bulb\"\ntype = \"point\"\nposition = [0.3, 2.0, -1.5]\n\
+         intensity = [2.0, 1.5, 1.0]\n\
+         [[light]]\nname = \"spot\"\ntype = \"spot\"\nposition = [-1.0, 2.5, -1.0]\n\
+         target = [0.0, 0.5, -3.5]\nintensity = [3.0, 3.0, 3.5]\ncutoff_deg = 30\n"
+    );
     // figure6 at 9 spp: a camera packet's slot then keeps its pixel's sampler from one packet
     // to the next (`render_pixels`), which 3 spp never does.
     for (name, text, spp) in [
         ("figure6", quarter("figure6", "ward1992"), 9),
         ("glossy", quarter("glossy", "balanced"), 3),
         ("cornell, textured", (textured, cornell_path), 3),
+        ("sunroom", quarter("sunroom", "ward1992"), 9),
+        ("glossy, punctual", (glossy_punctual, glossy_path), 3),
     ] {
         let sc = parse_scene(&text.0, &text.1).unwrap();
         let seed = 17;

@@ -8,6 +8,11 @@
 //! (`geometry::packet`), which walk the same nodes. Rays of different paths rarely share
 //! nodes, so their packets are slower (bench/README.md, "Design measurements").
 //!
+//! Next-event estimation samples the area lights on the eight lanes and evaluates every punctual
+//! light (directional, point, spot) on them too, each light's sample and shadow ray lane by
+//! lane; a scene with an environment or a disc light keeps the scalar route, whose samples for
+//! them draw sampler dimensions the lanes do not.
+//!
 //! Each lane runs the scalar integrator's state machine (`PathTracer::arrive`, `vertex`, then
 //! `scatter` or its eight-lane copy here for Lambert, Ward and mirror surfaces) and draws its
 //! random numbers from its own pixel's sampler in the same order, and the eight-lane
@@ -32,11 +37,11 @@
 
 use super::bsdf::{mirror, Bsdf, Lobes8, WardLobe};
 use super::integrator::{facing, PathState, PathTracer};
-use super::lights::Lights;
+use super::lights::{punctual_sample, LightSample, Lights};
 use crate::geometry::packet::LANES;
 use crate::geometry::{Hit, Ray};
 use crate::math::{warp, Frame, Rgb, Sampler, Vec2, Vec3, INV_PI, PI};
-use crate::scene::{Camera, Material, Object, WardVariant};
+use crate::scene::{Camera, Material, Object, Punctual, WardVariant};
 use wide::{f32x8, CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
 /// A path to trace: its state before its next segment (`st.ray`), that segment's hit if the
@@ -237,31 +242,31 @@ struct FlatWard {
 
 /// Whether a Lambert vertex of reflectance `rho_d`, seen at `wo_z` (the outgoing direction's
 /// cosine in the shading frame), goes to the eight-lane `SmoothLanes`: some reflectance, seen
-/// from above, in a scene with lights, all of them area lights (the lanes sample triangles).
-/// Otherwise `PathTracer::scatter` handles it alone.
+/// from above, in a scene with lights, all of them area or punctual lights
+/// (`Lights::eight_lane`). Otherwise `PathTracer::scatter` handles it alone.
 #[inline(always)]
 fn gathers(pt: &PathTracer, rho_d: Rgb, wo_z: f32) -> bool {
-    rho_d.max_element() > 0.0 && wo_z > 0.0 && !pt.lights.is_empty() && pt.lights.area_only()
+    rho_d.max_element() > 0.0 && wo_z > 0.0 && !pt.lights.is_empty() && pt.lights.eight_lane()
 }
 
 /// Whether a Ward vertex seen at `wo_z` goes to the eight lanes (`SmoothLanes::push_ward`):
-/// seen from above, in a scene with lights, all of them area lights.
+/// seen from above, in a scene with lights, all of them area or punctual lights.
 #[inline(always)]
 fn gathers_ward(pt: &PathTracer, wo_z: f32) -> bool {
-    wo_z > 0.0 && !pt.lights.is_empty() && pt.lights.area_only()
+    wo_z > 0.0 && !pt.lights.is_empty() && pt.lights.eight_lane()
 }
 
 /// Whether an ideal-mirror vertex (ρd zero, so no light sampling, and the mirror always
 /// chosen: `diffuse_prob` 0) seen at `wo_z` goes to the eight lanes
-/// (`SmoothLanes::push_mirror`): seen from above, in a scene with lights (the lanes read a
-/// light's row), all of them area lights.
+/// (`SmoothLanes::push_mirror`): seen from above, in a scene with lights, all of them area or
+/// punctual lights.
 #[inline(always)]
 fn gathers_mirror(pt: &PathTracer, rho_d: Rgb, rho_s: Rgb, wo_z: f32) -> bool {
     !(rho_d.max_element() > 0.0)
         && Bsdf::diffuse_prob(rho_d, rho_s) == 0.0
         && wo_z > 0.0
         && !pt.lights.is_empty()
-        && pt.lights.area_only()
+        && pt.lights.eight_lane()
 }
 
 /// The next camera packet's paths: eight samples of a pixel, their rays traced together.
@@ -373,8 +378,8 @@ struct SmoothLanes {
     n: usize,
     lane: [usize; LANES],
     rows: [Row; LANES],
-    /// The chosen light triangle (`Lights::row`). Lanes past `n` keep an earlier one, or 0:
-    /// `scatter` reads their rows too, which exist as `n` > 0 means the scene has lights.
+    /// The chosen light triangle (`Lights::row`), 0 without area lights. Lanes past `n` keep
+    /// an earlier one, or 0: `scatter` reads their rows too, when there are area lights.
     light: [usize; LANES],
     /// Bit j: lane j (of the `n`) is a Ward vertex, whose lobe is in `ward_rows[j]` (its ρd
     /// in `rows[j]`). Only read when some bit is set.
@@ -384,6 +389,10 @@ struct SmoothLanes {
     mirror: u32,
     ward_rows: [WardRow; LANES],
 }
+
+/// The Ward lanes' ρs, lobes, `Bsdf::diffuse_prob` and ωo (in the shading frame), as eight-lane
+/// registers.
+type WardLanes = ([f32x8; 3], Lobes8, f32x8, [f32x8; 3]);
 
 /// What a Ward vertex adds to its lane's `Row` (`ward_row::*` gives the layout).
 #[derive(Clone, Copy, Default)]
@@ -501,7 +510,11 @@ impl SmoothLanes {
         // lobe choice (unused), then the direction; roulette.
         let [uc, l0, l1, u_choice, b0, b1, u_rr] = lane.sampler.next_n::<7>();
         let roulette = u32::from(lane.st.segments >= pt.rr_depth);
-        self.light[j] = pt.lights.pick_index(uc);
+        self.light[j] = if pt.lights.has_area() {
+            pt.lights.pick_index(uc)
+        } else {
+            0
+        };
         let r = &mut self.rows[j];
         put(r, row::P, p);
         put(r, row::NG, ng);
@@ -543,6 +556,78 @@ impl SmoothLanes {
         r[ward_row::WO..ward_row::WO + 3].copy_from_slice(&wo.to_array());
     }
 
+    /// Adds what punctual light `light` sends through the `smooth` lanes' BSDFs to their
+    /// radiance `l`: `PathTracer::scatter`'s next-event estimation for one
+    /// `Lights::punctual_samples` sample (no MIS weight, pdf 1), its sample and shadow ray
+    /// lane by lane, the BSDF on eight lanes.
+    #[allow(clippy::too_many_arguments)]
+    fn add_punctual(
+        &self,
+        pt: &PathTracer,
+        light: &Punctual,
+        p: &[f32x8; 3],
+        ng: &[f32x8; 3],
+        fr: &[[f32x8; 3]; 3],
+        rho: &[f32x8; 3],
+        beta: &[f32x8; 3],
+        l: &mut [f32x8; 3],
+        smooth: f32x8,
+        ward: &Option<WardLanes>,
+    ) {
+        let zero = f32x8::ZERO;
+        let pa = p.map(|c| c.to_array());
+        let mut samples: [Option<LightSample>; LANES] = [None; LANES];
+        let (mut wi, mut li) = ([[0.0f32; LANES]; 3], [[0.0f32; LANES]; 3]);
+        let mut mask = smooth.move_mask() as u32;
+        while mask != 0 {
+            let j = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            let pj = Vec3::new(pa[0][j], pa[1][j], pa[2][j]);
+            if let Some(s) = punctual_sample(light, pj) {
+                for k in 0..3 {
+                    (wi[k][j], li[k][j]) = (s.wi[k], s.radiance[k]);
+                }
+                samples[j] = Some(s);
+            }
+        }
+        let have = lanes_of(
+            samples
+                .iter()
+                .enumerate()
+                .fold(0, |m, (j, s)| m | u32::from(s.is_some()) << j),
+        );
+        let wi = wi.map(f32x8::from);
+        let wi_local = [dot(&wi, &fr[0]), dot(&wi, &fr[1]), dot(&wi, &fr[2])];
+        let lit = have & wi_local[2].cmp_gt(zero) & dot(ng, &wi).cmp_gt(zero);
+        let mut f = rho.map(|c| c * f32x8::splat(INV_PI));
+        if let Some((rho_s, lobes, _, wo)) = ward {
+            let gauss = lobes.gaussian(wo, &wi_local);
+            let fw = Bsdf::ward_eval8(rho, rho_s, lobes, wo, &wi_local, gauss);
+            let wardm = lanes_of(self.ward);
+            for k in 0..3 {
+                f[k] = wardm.blend(fw[k], f[k]);
+            }
+        }
+        let nee = lit & max_element(&f).cmp_gt(zero);
+        let origin = offset_origin(p, ng, &wi).map(|c| c.to_array());
+        let mut visible = [0.0f32; LANES];
+        let mut mask = nee.move_mask() as u32;
+        while mask != 0 {
+            let j = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            let o = Vec3::new(origin[0][j], origin[1][j], origin[2][j]);
+            if let Some(s) = &samples[j] {
+                visible[j] = f32::from(u8::from(pt.lights.visible(pt.scene, o, s)));
+            }
+        }
+        let nee = nee & f32x8::from(visible).cmp_gt(zero);
+        // `scatter`'s β f Li (cos θi w / pdf) with w = pdf = 1.
+        let li = li.map(f32x8::from);
+        for k in 0..3 {
+            l[k] = nee.blend(l[k] + beta[k] * f[k] * li[k] * wi_local[2], l[k]);
+        }
+    }
+
     /// `PathTracer::scatter` for the gathered lanes: each lane's path continues with its next
     /// ray or ends (its radiance goes to `results`).
     fn scatter(
@@ -558,7 +643,6 @@ impl SmoothLanes {
         let (zero, one) = (f32x8::ZERO, f32x8::ONE);
         let live = lanes_of((1 << self.n) - 1);
         let x: [f32x8; 32] = transpose(std::array::from_fn(|j| &self.rows[j].0));
-        let light: [f32x8; 16] = transpose(std::array::from_fn(|j| pt.lights.row(self.light[j])));
         let p = vec(&x, row::P);
         let ng = vec(&x, row::NG);
         let fr = [0, 3, 6].map(|k| vec(&x, row::FRAME + k));
@@ -570,7 +654,7 @@ impl SmoothLanes {
         let (wardm, mirrorm) = (lanes_of(self.ward), lanes_of(self.mirror));
         let y: Option<[f32x8; 16]> = ((self.ward | self.mirror) != 0)
             .then(|| transpose(std::array::from_fn(|j| &self.ward_rows[j].0)));
-        let ward = y.filter(|_| self.ward != 0).map(|y| {
+        let ward: Option<WardLanes> = y.filter(|_| self.ward != 0).map(|y| {
             let lobes = Lobes8 {
                 alpha_x: y[ward_row::ALPHA_X],
                 alpha_y: y[ward_row::ALPHA_Y],
@@ -580,75 +664,85 @@ impl SmoothLanes {
             (vec(&y, ward_row::RHO_S), lobes, y[ward_row::PD], wo)
         });
 
-        // Next-event estimation (`Lights::sample`, then `scatter`'s checks).
-        let su = x[row::U_LIGHT].sqrt();
-        let b1 = one - su;
-        let b2 = x[row::U_LIGHT + 1] * su;
-        let b0 = one - b1 - b2;
-        let lv = [0, 3, 6].map(|k| vec(&light, Lights::V + k));
-        let q: [f32x8; 3] = std::array::from_fn(|k| lv[0][k] * b0 + lv[1][k] * b1 + lv[2][k] * b2);
-        let d: [f32x8; 3] = std::array::from_fn(|k| q[k] - p[k]);
-        let dist2 = dot(&d, &d);
-        let dist = dist2.sqrt();
-        let wi: [f32x8; 3] = d.map(|c| c / dist);
-        let cos_l = -dot(&vec(&light, Lights::N), &wi);
-        let light_ok = !cos_l.cmp_le(zero) & !dist.cmp_le(zero);
-        let light_pdf = light[Lights::PDF_AREA] * dist2 / cos_l;
-        let wi_local = [dot(&wi, &fr[0]), dot(&wi, &fr[1]), dot(&wi, &fr[2])];
-        let cos_g = dot(&ng, &wi);
-        let lit = live & !mirrorm & light_ok & wi_local[2].cmp_gt(zero) & cos_g.cmp_gt(zero);
-        let mut f = rho.map(|c| c * splat(INV_PI));
-        // The Ward lobes' exp(−E), for their value here and their density below.
-        let mut gauss = zero;
-        if let Some((rho_s, lobes, _, wo)) = &ward {
-            gauss = lobes.gaussian(wo, &wi_local);
-            let fw = Bsdf::ward_eval8(&rho, rho_s, lobes, wo, &wi_local, gauss);
-            for k in 0..3 {
-                f[k] = wardm.blend(fw[k], f[k]);
-            }
-        }
-        let mut nee = lit & max_element(&f).cmp_gt(zero);
-        // `Lights::visible`: the shadow ray from the offset origin to the light point.
-        let origin = offset_origin(&p, &ng, &wi);
-        let to_light: [f32x8; 3] = std::array::from_fn(|k| q[k] - origin[k]);
-        let len = dot(&to_light, &to_light).sqrt();
-        let eps = splat(2e-4) * (one + abs_max(&q));
-        nee &= len.cmp_gt(eps);
-        let dir = to_light.map(|c| c / len);
-        let t_max = len - eps;
-        let mut mask = nee.move_mask();
-        let mut visible = [0.0f32; LANES];
-        if mask != 0 {
-            let (o, dir, t_max) = (
-                origin.map(|c| c.to_array()),
-                dir.map(|c| c.to_array()),
-                t_max.to_array(),
-            );
-            while mask != 0 {
-                let j = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                let ray = Ray::new(
-                    Vec3::new(o[0][j], o[1][j], o[2][j]),
-                    Vec3::new(dir[0][j], dir[1][j], dir[2][j]),
-                );
-                if !pt.scene.occluded(&ray, t_max[j]) {
-                    visible[j] = 1.0;
+        // Next-event estimation, in `scatter`'s order: the area light (`Lights::sample`, then
+        // `scatter`'s checks), then every punctual light.
+        let smooth = live & !mirrorm;
+        if pt.lights.has_area() {
+            let light: [f32x8; 16] =
+                transpose(std::array::from_fn(|j| pt.lights.row(self.light[j])));
+            let su = x[row::U_LIGHT].sqrt();
+            let b1 = one - su;
+            let b2 = x[row::U_LIGHT + 1] * su;
+            let b0 = one - b1 - b2;
+            let lv = [0, 3, 6].map(|k| vec(&light, Lights::V + k));
+            let q: [f32x8; 3] =
+                std::array::from_fn(|k| lv[0][k] * b0 + lv[1][k] * b1 + lv[2][k] * b2);
+            let d: [f32x8; 3] = std::array::from_fn(|k| q[k] - p[k]);
+            let dist2 = dot(&d, &d);
+            let dist = dist2.sqrt();
+            let wi: [f32x8; 3] = d.map(|c| c / dist);
+            let cos_l = -dot(&vec(&light, Lights::N), &wi);
+            let light_ok = !cos_l.cmp_le(zero) & !dist.cmp_le(zero);
+            let light_pdf = light[Lights::PDF_AREA] * dist2 / cos_l;
+            let wi_local = [dot(&wi, &fr[0]), dot(&wi, &fr[1]), dot(&wi, &fr[2])];
+            let cos_g = dot(&ng, &wi);
+            let lit = smooth & light_ok & wi_local[2].cmp_gt(zero) & cos_g.cmp_gt(zero);
+            let mut f = rho.map(|c| c * splat(INV_PI));
+            // The Ward lobes' exp(−E), for their value here and their density below.
+            let mut gauss = zero;
+            if let Some((rho_s, lobes, _, wo)) = &ward {
+                gauss = lobes.gaussian(wo, &wi_local);
+                let fw = Bsdf::ward_eval8(&rho, rho_s, lobes, wo, &wi_local, gauss);
+                for k in 0..3 {
+                    f[k] = wardm.blend(fw[k], f[k]);
                 }
             }
+            let mut nee = lit & max_element(&f).cmp_gt(zero);
+            // `Lights::visible`: the shadow ray from the offset origin to the light point.
+            let origin = offset_origin(&p, &ng, &wi);
+            let to_light: [f32x8; 3] = std::array::from_fn(|k| q[k] - origin[k]);
+            let len = dot(&to_light, &to_light).sqrt();
+            let eps = splat(2e-4) * (one + abs_max(&q));
+            nee &= len.cmp_gt(eps);
+            let dir = to_light.map(|c| c / len);
+            let t_max = len - eps;
+            let mut mask = nee.move_mask();
+            let mut visible = [0.0f32; LANES];
+            if mask != 0 {
+                let (o, dir, t_max) = (
+                    origin.map(|c| c.to_array()),
+                    dir.map(|c| c.to_array()),
+                    t_max.to_array(),
+                );
+                while mask != 0 {
+                    let j = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    let ray = Ray::new(
+                        Vec3::new(o[0][j], o[1][j], o[2][j]),
+                        Vec3::new(dir[0][j], dir[1][j], dir[2][j]),
+                    );
+                    if !pt.scene.occluded(&ray, t_max[j]) {
+                        visible[j] = 1.0;
+                    }
+                }
+            }
+            let nee = nee & f32x8::from(visible).cmp_gt(zero);
+            // Lambert's pdf (wo is above the surface) or Ward's, and the power heuristic.
+            let mut bsdf_pdf = wi_local[2].max(zero) * splat(INV_PI);
+            if let Some((_, lobes, pd, wo)) = &ward {
+                let pw = Bsdf::ward_pdf8(*pd, lobes, wo, &wi_local, gauss);
+                bsdf_pdf = wardm.blend(pw, bsdf_pdf);
+            }
+            let (a, b) = (light_pdf * light_pdf, bsdf_pdf * bsdf_pdf);
+            let w = (a + b).cmp_eq(zero).blend(zero, a / (a + b));
+            let scale = wi_local[2] * w / light_pdf;
+            let le = vec(&light, Lights::LE);
+            for k in 0..3 {
+                l[k] = nee.blend(l[k] + beta[k] * f[k] * le[k] * scale, l[k]);
+            }
         }
-        let nee = nee & f32x8::from(visible).cmp_gt(zero);
-        // Lambert's pdf (wo is above the surface) or Ward's, and the power heuristic.
-        let mut bsdf_pdf = wi_local[2].max(zero) * splat(INV_PI);
-        if let Some((_, lobes, pd, wo)) = &ward {
-            let pw = Bsdf::ward_pdf8(*pd, lobes, wo, &wi_local, gauss);
-            bsdf_pdf = wardm.blend(pw, bsdf_pdf);
-        }
-        let (a, b) = (light_pdf * light_pdf, bsdf_pdf * bsdf_pdf);
-        let w = (a + b).cmp_eq(zero).blend(zero, a / (a + b));
-        let scale = wi_local[2] * w / light_pdf;
-        let le = vec(&light, Lights::LE);
-        for k in 0..3 {
-            l[k] = nee.blend(l[k] + beta[k] * f[k] * le[k] * scale, l[k]);
+        for light in pt.lights.punctual() {
+            self.add_punctual(pt, light, &p, &ng, &fr, &rho, &beta, &mut l, smooth, &ward);
         }
 
         // The cosine-weighted direction (`warp::cosine_hemisphere`).

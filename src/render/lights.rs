@@ -142,9 +142,21 @@ impl Lights {
             && self.discs.is_empty()
     }
 
-    /// Whether every light is an area light (the eight-lane path handles only those).
-    pub fn area_only(&self) -> bool {
-        self.punctual.is_empty() && self.environment.is_none() && self.discs.is_empty()
+    /// Whether the eight-lane path can sample these lights: area and punctual lights, but no
+    /// environment or disc, whose samples draw sampler dimensions between the area light's and
+    /// the BSDF's.
+    pub fn eight_lane(&self) -> bool {
+        self.environment.is_none() && self.discs.is_empty()
+    }
+
+    /// Whether there are area lights (`sample`, `pick_index` and `row` need one).
+    pub(super) fn has_area(&self) -> bool {
+        !self.tris.is_empty()
+    }
+
+    /// The punctual lights, in the order `punctual_samples` evaluates them.
+    pub(super) fn punctual(&self) -> &[Punctual] {
+        &self.punctual
     }
 
     /// The radiance of every light at infinity seen along unit direction `d` (the environment,
@@ -308,7 +320,7 @@ impl Lights {
 
 /// The light a punctual light sends to `p` (module comment); None where it sends none (outside
 /// a spot's cone, nothing at all).
-fn punctual_sample(light: &Punctual, p: Vec3) -> Option<LightSample> {
+pub(super) fn punctual_sample(light: &Punctual, p: Vec3) -> Option<LightSample> {
     let (wi, dist, li) = match *light {
         Punctual::Directional {
             direction,
