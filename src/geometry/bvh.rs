@@ -396,13 +396,13 @@ pub(super) fn closer(t: f32, prim: u32, best: &Option<Hit>) -> bool {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::super::triangle::intersect;
     use super::*;
     use crate::math::sampler::TestRng as Rng;
 
     /// Reference: test every triangle.
-    fn brute(tris: &[[Vec3; 3]], ray: &Ray, t_max: f32) -> Option<Hit> {
+    pub(crate) fn brute(tris: &[[Vec3; 3]], ray: &Ray, t_max: f32) -> Option<Hit> {
         let sh = RayShear::new(ray.d);
         let mut best: Option<Hit> = None;
         for (i, t) in tris.iter().enumerate() {
