@@ -298,3 +298,63 @@ fn a_recovery_of_an_open_scene_says_what_it_assumes_of_the_outside() {
     assert_eq!(code, 0, "{err}");
     assert!(!said(&err) && !said(&out), "{out}\n{err}");
 }
+
+#[test]
+fn inspect_measures_the_open_share_before_any_fit() {
+    // `matfit inspect` says how much of what the seen surfaces face is no geometry, and warns
+    // as a recovery would where the model lets no light in from there. A floor under the open
+    // sky: every ray from it leaves, 100% exactly; with its stray light the model accounts for
+    // that, without it the warning names the option. figure6, a closed room: 0%, no warning.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sun = "\n[[light]]\nname = \"sun\"\ntype = \"directional\"\n\
+               direction = [0.3, -1.0, -0.2]\nirradiance = [2.0, 2.0, 2.0]\n";
+    let lit = format!("{FLOOR}{sun}");
+    let open = format!("{}{sun}", FLOOR.split("[stray_light]").next().unwrap());
+    let figure6 = std::fs::read_to_string(root().join("scenes/figure6/scene.toml"))
+        .unwrap()
+        .replace("width = 512", "width = 64")
+        .replace("height = 384", "height = 48");
+    let warned =
+        |s: &str| s.contains("warning: the scene is open: ") && s.contains("--stray-light");
+    for (name, text, share, light, warns) in [
+        (
+            "lit",
+            lit.as_str(),
+            "100.0%",
+            "the stray light (0.3, 0.6, 0.9)",
+            false,
+        ),
+        ("open", open.as_str(), "100.0%", "none", true),
+        ("closed", figure6.as_str(), "0.0%", "none", false),
+    ] {
+        let scene = format!("{name}.toml");
+        write(d, &scene, text);
+        let photo = format!("{name}.exr");
+        let (code, _, err) = run(&["render", &scene, "--spp", "4", "-o", &photo], d);
+        assert_eq!(code, 0, "{err}");
+        let args = [
+            "inspect",
+            &scene,
+            &photo,
+            "--camera-is-calibrated",
+            "-o",
+            name,
+        ];
+        let (code, out, err) = run(&args, d);
+        assert_eq!(code, 0, "{err}");
+        let line = out
+            .lines()
+            .find(|l| l.starts_with("open share: "))
+            .unwrap_or("");
+        assert!(
+            line.starts_with(&format!("open share: {share} ")),
+            "{name}: {out}"
+        );
+        assert!(
+            line.ends_with(&format!("light from outside the model: {light}")),
+            "{name}: {line}"
+        );
+        assert_eq!(warned(&out), warns, "{name}: {out}");
+    }
+}

@@ -24,6 +24,7 @@ use super::schedule;
 use crate::io::image::Image;
 use crate::math::sampler::hash_seed;
 use crate::math::Rgb;
+use crate::photo::openness::{open_scene_warning, OPEN_SCENE};
 use crate::photo::{Photo, UsableMask};
 use crate::render::film::{render, RenderOptions};
 use crate::render::PathTracer;
@@ -153,10 +154,6 @@ fn mirror_scale(cache: &super::cache::GroupCache, model: &[Rgb]) -> (Rgb, bool) 
     });
     (scale, ok)
 }
-
-/// The open share of the seen surfaces' hemisphere (`GroupCache::open`, weighted by usable
-/// pixels) above which a recovery without a stray light says what it assumes.
-const OPEN_SCENE: f64 = 0.05;
 
 /// How far (as a factor) the photo's image of a group in a mirror may be from the model's for
 /// those pixels to be used ([`mirror_scale`]).
@@ -884,13 +881,9 @@ impl<'a> RecoveryLoop<'a> {
             }
         }
         let open = if n > 0.0 { open / n } else { 0.0 };
-        if !opts.stray_light && self.current.environment.is_none() && open > OPEN_SCENE {
-            tracing::warn!(
-                "the scene is open: {:.0}% of what the seen surfaces face is no geometry, and \
-                 nothing is assumed to shine from there but the scene's lights; if the photo's \
-                 shadows hold light from outside the model, --stray-light fits it",
-                100.0 * open
-            );
+        // `GroupCache::open`, weighted by usable pixels.
+        if !opts.stray_light && self.current.outside_light_is_none() && open > OPEN_SCENE {
+            tracing::warn!("{}", open_scene_warning(open));
         }
         let half = (opts.final_spp / 2).max(1);
         let render_half = |seed: u64| {

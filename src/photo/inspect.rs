@@ -11,7 +11,7 @@
 use crate::io::image::Image;
 use crate::math::Rgb;
 use crate::photo::mask::Reject;
-use crate::photo::{prepare, robust, PhotoArgs, PreparedPhoto};
+use crate::photo::{openness, prepare, robust, PhotoArgs, PreparedPhoto};
 use crate::render::aov::id_color;
 use crate::scene::Scene;
 use std::fmt::Write as _;
@@ -150,6 +150,26 @@ pub fn inspect(
                 "; below 0.1 px, not applied"
             }
         );
+    }
+    let open = openness::open_share(scene, &p.camera, &p.mask);
+    let _ = writeln!(
+        r,
+        "open share: {:.1}% of what the usable pixels' surfaces face (cosine-weighted) is no \
+         geometry; light from outside the model: {}",
+        100.0 * open,
+        if scene.environment.is_some() {
+            "the scene's environment".to_string()
+        } else if scene.stray_light.max_element() > 0.0 {
+            format!(
+                "the stray light ({}, {}, {})",
+                scene.stray_light.x, scene.stray_light.y, scene.stray_light.z
+            )
+        } else {
+            "none".into()
+        }
+    );
+    if scene.outside_light_is_none() && open > openness::OPEN_SCENE {
+        let _ = writeln!(r, "warning: {}", openness::open_scene_warning(open));
     }
     let _ = writeln!(
         r,

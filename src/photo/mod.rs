@@ -15,6 +15,7 @@ pub mod hdr;
 pub mod ignore;
 pub mod inspect;
 pub mod mask;
+pub mod openness;
 pub mod pose;
 pub mod register;
 pub mod response;

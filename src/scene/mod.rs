@@ -214,6 +214,12 @@ impl Scene {
         self.groups.iter().position(|g| g.name == name)
     }
 
+    /// Whether the model says no light comes from outside it: no environment and no stray
+    /// light, so a ray that leaves the scene brings nothing.
+    pub fn outside_light_is_none(&self) -> bool {
+        self.environment.is_none() && !(self.stray_light.max_element() > 0.0)
+    }
+
     /// What the camera sees through the centres of an `nx`×`ny` grid over its film: each camera
     /// ray that hits something, with its grid index (row-major) and its hit (a cheap survey of
     /// the view, not a render).
