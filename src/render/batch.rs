@@ -390,6 +390,27 @@ struct SmoothLanes {
     ward_rows: [WardRow; LANES],
 }
 
+/// The BSDF's value for ωi `wi_local` on each lane: Lambert's ρ/π, or `Bsdf::ward_eval8` on
+/// the Ward lanes (`wardm`); with the Ward lobes' exp(−E) for their density (0 without them).
+#[inline(always)]
+fn eval(
+    rho: &[f32x8; 3],
+    ward: &Option<WardLanes>,
+    wardm: f32x8,
+    wi_local: &[f32x8; 3],
+) -> ([f32x8; 3], f32x8) {
+    let mut f = rho.map(|c| c * f32x8::splat(INV_PI));
+    let mut gauss = f32x8::ZERO;
+    if let Some((rho_s, lobes, _, wo)) = ward {
+        gauss = lobes.gaussian(wo, wi_local);
+        let fw = Bsdf::ward_eval8(rho, rho_s, lobes, wo, wi_local, gauss);
+        for k in 0..3 {
+            f[k] = wardm.blend(fw[k], f[k]);
+        }
+    }
+    (f, gauss)
+}
+
 /// The Ward lanes' ρs, lobes, `Bsdf::diffuse_prob` and ωo (in the shading frame), as eight-lane
 /// registers.
 type WardLanes = ([f32x8; 3], Lobes8, f32x8, [f32x8; 3]);
@@ -573,6 +594,7 @@ impl SmoothLanes {
         l: &mut [f32x8; 3],
         smooth: f32x8,
         ward: &Option<WardLanes>,
+        wardm: f32x8,
     ) {
         let zero = f32x8::ZERO;
         let pa = p.map(|c| c.to_array());
@@ -599,15 +621,7 @@ impl SmoothLanes {
         let wi = wi.map(f32x8::from);
         let wi_local = [dot(&wi, &fr[0]), dot(&wi, &fr[1]), dot(&wi, &fr[2])];
         let lit = have & wi_local[2].cmp_gt(zero) & dot(ng, &wi).cmp_gt(zero);
-        let mut f = rho.map(|c| c * f32x8::splat(INV_PI));
-        if let Some((rho_s, lobes, _, wo)) = ward {
-            let gauss = lobes.gaussian(wo, &wi_local);
-            let fw = Bsdf::ward_eval8(rho, rho_s, lobes, wo, &wi_local, gauss);
-            let wardm = lanes_of(self.ward);
-            for k in 0..3 {
-                f[k] = wardm.blend(fw[k], f[k]);
-            }
-        }
+        let (f, _) = eval(rho, ward, wardm, &wi_local);
         let nee = lit & max_element(&f).cmp_gt(zero);
         let origin = offset_origin(p, ng, &wi).map(|c| c.to_array());
         let mut visible = [0.0f32; LANES];
@@ -687,16 +701,8 @@ impl SmoothLanes {
             let wi_local = [dot(&wi, &fr[0]), dot(&wi, &fr[1]), dot(&wi, &fr[2])];
             let cos_g = dot(&ng, &wi);
             let lit = smooth & light_ok & wi_local[2].cmp_gt(zero) & cos_g.cmp_gt(zero);
-            let mut f = rho.map(|c| c * splat(INV_PI));
-            // The Ward lobes' exp(−E), for their value here and their density below.
-            let mut gauss = zero;
-            if let Some((rho_s, lobes, _, wo)) = &ward {
-                gauss = lobes.gaussian(wo, &wi_local);
-                let fw = Bsdf::ward_eval8(&rho, rho_s, lobes, wo, &wi_local, gauss);
-                for k in 0..3 {
-                    f[k] = wardm.blend(fw[k], f[k]);
-                }
-            }
+            // The Ward lobes' exp(−E) serves their density below too.
+            let (f, gauss) = eval(&rho, &ward, wardm, &wi_local);
             let mut nee = lit & max_element(&f).cmp_gt(zero);
             // `Lights::visible`: the shadow ray from the offset origin to the light point.
             let origin = offset_origin(&p, &ng, &wi);
@@ -742,7 +748,9 @@ impl SmoothLanes {
             }
         }
         for light in pt.lights.punctual() {
-            self.add_punctual(pt, light, &p, &ng, &fr, &rho, &beta, &mut l, smooth, &ward);
+            self.add_punctual(
+                pt, light, &p, &ng, &fr, &rho, &beta, &mut l, smooth, &ward, wardm,
+            );
         }
 
         // The cosine-weighted direction (`warp::cosine_hemisphere`).
