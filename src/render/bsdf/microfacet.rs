@@ -26,7 +26,7 @@
 //! evaluates the isotropic lobe from the cache's precomputed half vectors with its derivative
 //! in ln α ([`ggx_at`], [`ggx_sums`]).
 
-use super::ward::{HalfVector, LobeSample};
+use super::ward::{lanes8, HalfVector, LobeSample};
 use crate::math::{exp_neg_poly, exp_neg_poly8, Rgb, Vec2, Vec3, PI};
 pub use crate::scene::Distribution;
 use wide::{f32x8, CmpGe, CmpGt};
@@ -282,13 +282,11 @@ pub fn aniso_sums(samples: &[LobeSample], p: &AnisoParams, derivatives: bool) ->
     let mut s = [zero; 3];
     let mut ds = [[zero; 3]; 3];
     let mut add = |chunk: &[LobeSample; 8]| {
-        let lanes = |f: &dyn Fn(&LobeSample) -> f32| {
-            f32x8::from(std::array::from_fn::<f32, 8, _>(|i| f(&chunk[i])))
-        };
-        let (hx, hy) = (lanes(&|x| x.half.hx), lanes(&|x| x.half.hy));
-        let (dx, dy) = (lanes(&|x| x.d[0]), lanes(&|x| x.d[1]));
-        let inv_hz2 = lanes(&|x| x.half.inv_hz2);
-        let n = lanes(&|x| x.half.norm[0]);
+        let r = lanes8(chunk);
+        let (hx, hy, inv_hz2, n) = (r[0], r[1], r[2], r[3]);
+        let c = [r[5], r[6], r[7]];
+        let tangent = |k: usize| f32x8::from(std::array::from_fn::<f32, 8, _>(|i| chunk[i].d[k]));
+        let (dx, dy) = (tangent(0), tangent(1));
         let valid = n.cmp_gt(zero);
         // Empty lanes get harmless values, and their c is zero or they are masked below.
         let n = valid.blend(n, splat(0.1));
@@ -338,7 +336,6 @@ pub fn aniso_sums(samples: &[LobeSample], p: &AnisoParams, derivatives: bool) ->
         let (gi, piu, piv, dgi) = masking(ix, iy, ci);
         let (go, pou, pov, dgo) = masking(ox, oy, co);
         let g = valid.blend(d * gi * go * splat(0.25) / prod, zero);
-        let c = [0, 1, 2].map(|ch| lanes(&|x| x.c[ch]));
         for ch in 0..3 {
             s[ch] += c[ch] * g;
         }

@@ -9,8 +9,10 @@ use crate::scene::WardVariant;
 /// What the Ward lobe needs of a pair of directions (ωo, ωi), in the unrotated local frame,
 /// that does not depend on the lobe's parameters: computed once per cached sample, so that the
 /// fit's many evaluations of the lobe (`ward_at`) divide nothing. A pair with either direction
-/// below the surface has `norm` 0.
-#[derive(Clone, Copy, Debug, Default)]
+/// below the surface has `norm` 0. Laid out as five floats in this order: [`super::LobeSample`]
+/// is read as rows of floats by the eight-lane sums.
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
 pub struct HalfVector {
     /// The unnormalised half vector h = ωi + ωo: its tangential components, and 1 / hz².
     pub hx: f32,

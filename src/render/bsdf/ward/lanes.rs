@@ -3,7 +3,7 @@
 //! eight lobes evaluated, their density and their sampling on eight lanes ([`Lobes8`]), for the
 //! renderer's eight-lane path loop.
 
-use super::half_vector::{ward_at, HalfVector, LobeParams};
+use super::half_vector::{HalfVector, LobeParams};
 use crate::math::{exp_neg_poly8, lanewise, Rgb, Vec3, PI};
 use wide::{f32x8, CmpGt};
 
@@ -108,11 +108,23 @@ impl Lobes8 {
 /// cache: incident radiance · cos θi · MIS weight / (pdf · N)), and the tangential components
 /// of ωi − ωo: with the half vector's they give each direction's own, which the anisotropic
 /// microfacet lobe's masking needs (`microfacet::aniso_sums`); zero below the surface.
-#[derive(Clone, Copy, Debug, Default)]
+/// `repr(C)`: ten floats, hx, hy, 1/hz², the two norms, c and d, which the sums read eight
+/// samples at a time as rows and transpose into lanes ([`LobeSample::row`]).
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
 pub struct LobeSample {
     pub half: HalfVector,
     pub c: Rgb,
     pub d: [f32; 2],
+}
+
+/// Rows of a [`LobeSample`] (indices into [`LobeSample::row`]).
+mod row {
+    pub const HX: usize = 0;
+    pub const HY: usize = 1;
+    pub const INV_HZ2: usize = 2;
+    pub const NORM: usize = 3;
+    pub const C: usize = 5;
 }
 
 impl LobeSample {
@@ -125,56 +137,110 @@ impl LobeSample {
         };
         LobeSample { half, c, d }
     }
+
+    /// The sample's ten floats in field order.
+    #[inline(always)]
+    pub fn row(&self) -> &[f32; 10] {
+        bytemuck::cast_ref(self)
+    }
+}
+
+/// Eight samples' first eight floats (hx, hy, 1/hz², both norms, c) as eight lanes each: eight
+/// row loads and a transpose, where gathering a field at a time took 56 single-float inserts.
+#[inline(always)]
+pub fn lanes8(chunk: &[LobeSample; 8]) -> [f32x8; 8] {
+    f32x8::transpose(std::array::from_fn(|i| {
+        let r = chunk[i].row();
+        f32x8::from([r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7]])
+    }))
+}
+
+/// [`LobeParams`] splat on eight lanes.
+struct Lanes8Params {
+    cos_t: f32x8,
+    sin_t: f32x8,
+    inv_ax2: f32x8,
+    inv_ay2: f32x8,
+    inv_axay: f32x8,
+    variant: usize,
+}
+
+/// c, g and, if asked, 2∂g per shape parameter of eight samples: [`ward_at`](super::ward_at)'s
+/// operations in its order, so each lane is its value to the bit.
+#[inline(always)]
+fn lobe8(
+    chunk: &[LobeSample; 8],
+    k: &Lanes8Params,
+    derivatives: bool,
+) -> ([f32x8; 3], f32x8, [f32x8; 3]) {
+    let splat = f32x8::splat;
+    let r = lanes8(chunk);
+    let (hx, hy, inv_hz2) = (r[row::HX], r[row::HY], r[row::INV_HZ2]);
+    let norm = r[row::NORM + k.variant];
+    let c = [r[row::C], r[row::C + 1], r[row::C + 2]];
+    let rx = hx * k.cos_t + hy * k.sin_t;
+    let ry = -hx * k.sin_t + hy * k.cos_t;
+    let a2 = rx * rx * k.inv_ax2 * inv_hz2;
+    let b2 = ry * ry * k.inv_ay2 * inv_hz2;
+    let g = exp_neg_poly8(a2 + b2) * k.inv_axay * norm;
+    let dg2 = if derivatives {
+        [
+            splat(2.0) * (g * (splat(2.0) * a2 - f32x8::ONE)),
+            splat(2.0) * (g * (splat(2.0) * b2 - f32x8::ONE)),
+            splat(2.0) * (-g * splat(2.0) * rx * ry * (k.inv_ax2 - k.inv_ay2) * inv_hz2),
+        ]
+    } else {
+        [f32x8::ZERO; 3]
+    };
+    (c, g, dg2)
 }
 
 /// Σ c·g over `samples` and, if asked, Σ c·2∂g/∂k for k = ln αx, ln αy, θ (zero otherwise):
-/// [`ward_at`] on eight samples at a time (AVX), the rest one by one. Both take the renderer's
-/// exp ([`crate::math::exp_neg_poly`] and its lanes, equal to the bit), so fitter and renderer
-/// evaluate one lobe.
+/// [`ward_at`](super::ward_at) on eight samples at a time (AVX), the tail too, its lanes then
+/// added one by one. Both take the renderer's exp ([`crate::math::exp_neg_poly`] and its lanes,
+/// equal to the bit), so fitter and renderer evaluate one lobe.
 pub fn lobe_sums(samples: &[LobeSample], p: &LobeParams, derivatives: bool) -> (Rgb, [Rgb; 3]) {
     let splat = f32x8::splat;
-    let (cos_t, sin_t) = (splat(p.cos_t), splat(p.sin_t));
-    let (inv_ax2, inv_ay2, inv_axay) = (splat(p.inv_ax2), splat(p.inv_ay2), splat(p.inv_axay));
+    let lp = Lanes8Params {
+        cos_t: splat(p.cos_t),
+        sin_t: splat(p.sin_t),
+        inv_ax2: splat(p.inv_ax2),
+        inv_ay2: splat(p.inv_ay2),
+        inv_axay: splat(p.inv_axay),
+        variant: p.variant,
+    };
+    let lobe = |chunk: &[LobeSample; 8]| lobe8(chunk, &lp, derivatives);
     let mut s = [f32x8::ZERO; 3];
     let mut ds = [[f32x8::ZERO; 3]; 3];
-    let mut chunks = samples.chunks_exact(8);
-    for chunk in &mut chunks {
-        let lanes = |f: &dyn Fn(&LobeSample) -> f32| {
-            f32x8::from(std::array::from_fn::<f32, 8, _>(|i| f(&chunk[i])))
-        };
-        let (hx, hy) = (lanes(&|x| x.half.hx), lanes(&|x| x.half.hy));
-        let inv_hz2 = lanes(&|x| x.half.inv_hz2);
-        let norm = lanes(&|x| x.half.norm[p.variant]);
-        let c = [lanes(&|x| x.c.x), lanes(&|x| x.c.y), lanes(&|x| x.c.z)];
-        let rx = hx * cos_t + hy * sin_t;
-        let ry = -hx * sin_t + hy * cos_t;
-        let a2 = rx * rx * inv_ax2 * inv_hz2;
-        let b2 = ry * ry * inv_ay2 * inv_hz2;
-        let g = exp_neg_poly8(a2 + b2) * inv_axay * norm;
+    let (chunks, tail) = samples.as_chunks::<8>();
+    for chunk in chunks {
+        let (c, g, dg2) = lobe(chunk);
         for ch in 0..3 {
             s[ch] += c[ch] * g;
         }
         if derivatives {
-            let dg = [
-                g * (splat(2.0) * a2 - f32x8::ONE),
-                g * (splat(2.0) * b2 - f32x8::ONE),
-                -g * splat(2.0) * rx * ry * (inv_ax2 - inv_ay2) * inv_hz2,
-            ];
             for k in 0..3 {
                 for ch in 0..3 {
-                    ds[k][ch] += c[ch] * (splat(2.0) * dg[k]);
+                    ds[k][ch] += c[ch] * dg2[k];
                 }
             }
         }
     }
     let sum = |v: &[f32x8; 3]| Rgb::from_array(v.map(|x| x.reduce_add()));
     let (mut s, mut ds) = (sum(&s), ds.map(|d| sum(&d)));
-    for smp in chunks.remainder() {
-        let (g, dg) = ward_at(&smp.half, p);
-        s += smp.c * g;
-        if derivatives {
-            for k in 0..3 {
-                ds[k] += smp.c * (2.0 * dg[k]);
+    // The tail on eight lanes too (zero samples after it), then added one by one in order, as
+    // `ward_at` one sample at a time would add it.
+    if !tail.is_empty() {
+        let mut pad = [LobeSample::default(); 8];
+        pad[..tail.len()].copy_from_slice(tail);
+        let (_, g, dg2) = lobe(&pad);
+        let (g, dg2) = (g.to_array(), dg2.map(|d| d.to_array()));
+        for (i, smp) in tail.iter().enumerate() {
+            s += smp.c * g[i];
+            if derivatives {
+                for k in 0..3 {
+                    ds[k] += smp.c * dg2[k][i];
+                }
             }
         }
     }
@@ -185,6 +251,7 @@ pub fn lobe_sums(samples: &[LobeSample], p: &LobeParams, derivatives: bool) -> (
 mod tests {
     use super::*;
     use crate::math::Vec2;
+    use crate::render::bsdf::ward::half_vector::ward_at;
     use crate::render::bsdf::{Bsdf, WardLobe};
     use crate::scene::WardVariant;
 
@@ -264,6 +331,48 @@ mod tests {
         assert!(above > lobe_samples / 2, "{above} of {lobe_samples}");
     }
 
+    /// Σ c·g and Σ c·2∂g of `samples` by `ward_at`, one sample at a time in order.
+    fn one_by_one(samples: &[LobeSample], p: &LobeParams) -> (Rgb, [Rgb; 3]) {
+        let (mut s, mut ds) = (Rgb::ZERO, [Rgb::ZERO; 3]);
+        for smp in samples {
+            let (g, dg) = ward_at(&smp.half, p);
+            s += smp.c * g;
+            for k in 0..3 {
+                ds[k] += smp.c * (2.0 * dg[k]);
+            }
+        }
+        (s, ds)
+    }
+
+    #[test]
+    fn lobe_sums_of_fewer_than_eight_samples_are_ward_at_summed_in_order() {
+        // A pixel's half ends in a tail of up to seven samples; the sums must add it exactly as
+        // `ward_at` one sample at a time does (every fit's numbers depend on it).
+        let mut rng = crate::math::sampler::TestRng(5);
+        let mut dir = || Vec3::new(rng.f32() - 0.5, rng.f32() - 0.5, rng.f32()).normalize();
+        for n in 1..8 {
+            let samples: Vec<LobeSample> = (0..n)
+                .map(|i| LobeSample::new(dir(), dir(), Rgb::new(0.3, 0.6, 0.9) * (1.0 + i as f32)))
+                .collect();
+            for variant in [WardVariant::Ward1992, WardVariant::Balanced] {
+                let p = LobeParams::new(0.11, 0.27, 0.4, variant);
+                let (s, ds) = lobe_sums(&samples, &p, true);
+                let (s1, ds1) = one_by_one(&samples, &p);
+                assert!(s1.max_element() > 0.0, "{n}");
+                assert_eq!(
+                    s.to_array().map(f32::to_bits),
+                    s1.to_array().map(f32::to_bits)
+                );
+                for k in 0..3 {
+                    assert_eq!(
+                        ds[k].to_array().map(f32::to_bits),
+                        ds1[k].to_array().map(f32::to_bits)
+                    );
+                }
+            }
+        }
+    }
+
     #[test]
     fn eight_lane_lobe_sums_match_the_one_sample_lobe() {
         let mut rng = crate::math::sampler::TestRng(21);
@@ -289,14 +398,7 @@ mod tests {
             ] {
                 let p = LobeParams::new(ax, ay, th, variant);
                 let (s, ds) = lobe_sums(&samples, &p, true);
-                let (mut s1, mut ds1) = (Rgb::ZERO, [Rgb::ZERO; 3]);
-                for smp in &samples {
-                    let (g, dg) = ward_at(&smp.half, &p);
-                    s1 += smp.c * g;
-                    for k in 0..3 {
-                        ds1[k] += smp.c * (2.0 * dg[k]);
-                    }
-                }
+                let (s1, ds1) = one_by_one(&samples, &p);
                 assert!(s1.max_element() > 0.0);
                 let tol = 1e-5
                     * (s1.abs().max_element()

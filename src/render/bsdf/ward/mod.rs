@@ -28,7 +28,7 @@ pub mod half_vector;
 pub mod lanes;
 
 pub use half_vector::{ward_at, HalfVector, LobeParams};
-pub use lanes::{lobe_sums, LobeSample, Lobes8};
+pub use lanes::{lanes8, lobe_sums, LobeSample, Lobes8};
 
 use crate::math::{exp_neg_poly, Vec2, Vec3, PI};
 use crate::scene::WardVariant;
