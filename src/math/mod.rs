@@ -68,6 +68,22 @@ pub fn exp_neg_poly8(x: wide::f32x8) -> wide::f32x8 {
     x.cmp_lt(splat(EXP_NEG_LIMIT)).blend(p * scale, f32x8::ZERO)
 }
 
+/// Eight rows of `N` floats (`N` a multiple of eight) as `N` eight-lane registers: element k of
+/// the result holds value k of every row. Row loads and in-register transposes, where reading a
+/// value at a time would insert single floats.
+#[inline(always)]
+pub fn transpose<const N: usize>(rows: [&[f32; N]; 8]) -> [wide::f32x8; N] {
+    use wide::f32x8;
+    let mut out = [f32x8::ZERO; N];
+    for (g, chunk) in out.chunks_exact_mut(8).enumerate() {
+        let t = f32x8::transpose(std::array::from_fn(|j| {
+            f32x8::from(rows[j].as_chunks::<8>().0[g])
+        }));
+        chunk.copy_from_slice(&t);
+    }
+    out
+}
+
 /// Below this `exp_neg_poly` computes, from it on it gives 0 (2⁻¹²⁶ is the smallest scale).
 const EXP_NEG_LIMIT: f32 = 87.0;
 /// 1.5 · 2²³: adding it rounds to an integer, which its low mantissa bits then hold.

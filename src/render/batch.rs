@@ -40,7 +40,7 @@ use super::integrator::{facing, PathState, PathTracer};
 use super::lights::{punctual_sample, LightSample, Lights};
 use crate::geometry::packet::LANES;
 use crate::geometry::{Hit, Ray};
-use crate::math::{warp, Frame, Rgb, Sampler, Vec2, Vec3, INV_PI, PI};
+use crate::math::{transpose, warp, Frame, Rgb, Sampler, Vec2, Vec3, INV_PI, PI};
 use crate::scene::{Camera, Material, Object, Punctual, WardVariant};
 use wide::{f32x8, CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
@@ -457,20 +457,6 @@ mod row {
     pub const ROULETTE: usize = 29;
     /// The BSDF's lobe choice (Ward vertices only).
     pub const U_CHOICE: usize = 30;
-}
-
-/// Rows of eight lanes as eight-lane registers: element k of the result is value k of every
-/// lane's row (`N` groups of eight values).
-#[inline(always)]
-fn transpose<const N: usize>(rows: [&[f32; N]; LANES]) -> [f32x8; N] {
-    let mut out = [f32x8::ZERO; N];
-    for (g, chunk) in out.chunks_exact_mut(8).enumerate() {
-        let t = f32x8::transpose(std::array::from_fn(|j| {
-            f32x8::from(rows[j].as_chunks::<8>().0[g])
-        }));
-        chunk.copy_from_slice(&t);
-    }
-    out
 }
 
 fn put(row: &mut Row, at: usize, v: Vec3) {

@@ -26,6 +26,7 @@
 //! evaluates the isotropic lobe from the cache's precomputed half vectors with its derivative
 //! in ln α ([`ggx_at`], [`ggx_sums`]).
 
+use super::ward::lanes::row;
 use super::ward::{lanes8, HalfVector, LobeSample};
 use crate::math::{exp_neg_poly, exp_neg_poly8, Rgb, Vec2, Vec3, PI};
 pub use crate::scene::Distribution;
@@ -283,8 +284,8 @@ pub fn aniso_sums(samples: &[LobeSample], p: &AnisoParams, derivatives: bool) ->
     let mut ds = [[zero; 3]; 3];
     let mut add = |chunk: &[LobeSample; 8]| {
         let r = lanes8(chunk);
-        let (hx, hy, inv_hz2, n) = (r[0], r[1], r[2], r[3]);
-        let c = [r[5], r[6], r[7]];
+        let (hx, hy, inv_hz2, n) = (r[row::HX], r[row::HY], r[row::INV_HZ2], r[row::NORM]);
+        let c = [r[row::C], r[row::C + 1], r[row::C + 2]];
         let tangent = |k: usize| f32x8::from(std::array::from_fn::<f32, 8, _>(|i| chunk[i].d[k]));
         let (dx, dy) = (tangent(0), tangent(1));
         let valid = n.cmp_gt(zero);

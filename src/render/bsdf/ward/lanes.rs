@@ -118,8 +118,8 @@ pub struct LobeSample {
     pub d: [f32; 2],
 }
 
-/// Rows of a [`LobeSample`] (indices into [`LobeSample::row`]).
-mod row {
+/// Rows of a [`LobeSample`] (indices into [`LobeSample::row`] and [`lanes8`]).
+pub(crate) mod row {
     pub const HX: usize = 0;
     pub const HY: usize = 1;
     pub const INV_HZ2: usize = 2;
@@ -145,13 +145,12 @@ impl LobeSample {
     }
 }
 
-/// Eight samples' first eight floats (hx, hy, 1/hz², both norms, c) as eight lanes each: eight
-/// row loads and a transpose, where gathering a field at a time took 56 single-float inserts.
+/// Eight samples' first eight floats (hx, hy, 1/hz², both norms, c) as eight lanes each, indexed
+/// by [`row`]: the samples are stored as rows, the sums want lanes.
 #[inline(always)]
 pub fn lanes8(chunk: &[LobeSample; 8]) -> [f32x8; 8] {
-    f32x8::transpose(std::array::from_fn(|i| {
-        let r = chunk[i].row();
-        f32x8::from([r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7]])
+    crate::math::transpose(std::array::from_fn(|i| {
+        chunk[i].row().first_chunk::<8>().expect("ten floats")
     }))
 }
 
