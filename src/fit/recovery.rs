@@ -749,8 +749,6 @@ impl<'a> RecoveryLoop<'a> {
             groups: estimates,
             stray,
             moved: unseen_moved,
-            drift: unseen_drift,
-            values: unseen_values,
         } = super::unseen::update(
             &mut self.current,
             &mut self.states,
@@ -810,20 +808,12 @@ impl<'a> RecoveryLoop<'a> {
                 s.average = None;
                 s.moves.clear();
             }
-            self.unseen_history.anchor(&unseen_values);
-        } else if unseen_drift > 2.0 * opts.tolerance {
-            // So did fits made before the unseen groups' ρd (or the stray light) drifted, since
-            // the averages started, by more than twice the tolerance in the seen light. (From
-            // where they started, not from the last iteration: the estimate's own noise from one
-            // iteration to the next does not restart them, a slow drift does.)
+        } else if unseen_moved > 2.0 * opts.tolerance {
+            // So did fits made before an unseen group's ρd moved by more than its noise.
             for s in self.states.iter_mut() {
                 s.average = None;
             }
-            self.unseen_history.anchor(&unseen_values);
         }
-        tracing::debug!(
-            "iteration {it}: moved {moved:.4} (unseen {unseen_moved:.4}, drift {unseen_drift:.4})"
-        );
         self.settled = schedule::settled(level_changed, &motions);
         let all_confirmed = self.states.iter().all(|s| {
             s.status != Status::Analysing
