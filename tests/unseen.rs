@@ -123,8 +123,8 @@ fn an_unseen_ceiling_is_estimated_and_the_seen_groups_come_out_right() {
 fn figure6s_white_ceiling_is_estimated_white() {
     // figure6's hidden ceiling is white (ρd 1), in a closed room lit from the ceiling: the most
     // sensitive case, every group's light comes mostly by way of the ceiling. Half size,
-    // 256-spp photo. Measured: ceiling (0.998, 0.982, 1.0) ± (0.042, 0.066, 0.034); seen
-    // groups within 0.015 (the blocks, 0.784 for 0.77 and 0.775 for 0.76; with the white
+    // 256-spp photo. Measured: ceiling (0.975, 0.969, 0.990) ± (0.026, 0.045, 0.244); seen
+    // groups within 0.018 (the blocks, 0.785 for 0.77 and 0.778 for 0.76; with the white
     // default, which is the truth here, within 0.012).
     let scene = scaled("scenes/figure6/scene.toml", 0.5);
     let photo = photo_of(&scene);
@@ -148,6 +148,13 @@ fn figure6s_white_ceiling_is_estimated_white() {
         .groups
         .iter()
         .all(|g| g.status != matfit::fit::hierarchy::Status::Analysing));
+    // The estimate's noise from one iteration to the next (0.01–0.03 in ρd, under 1% of the
+    // seen light through an influence near 0.2) is not news for the seen groups: their averages
+    // go on, and the run stops before the iteration limit (measured: 14 of 16; before, every
+    // such move restarted the averages and the run always took all 16).
+    let limit = RecoverOptions::default().max_iterations;
+    eprintln!("{} global iterations of at most {limit}", rec.iterations);
+    assert!(rec.iterations < limit, "{report}");
 }
 
 #[test]

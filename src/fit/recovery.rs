@@ -744,11 +744,19 @@ impl<'a> RecoveryLoop<'a> {
                 Err(e) => tracing::warn!("{e}; the exposure stays as calibrated before the fit"),
             }
         }
-        // Unseen groups' ρd re-estimated against the refitted seen groups (issue 26).
+        // Unseen groups' ρd re-estimated against the refitted seen groups (issue 26), except in
+        // the last `min_average` iterations (once as many have moved them): the fits made there
+        // all see the same values, so the averages that end the run hold `min_average` fits even
+        // if the estimate moved late, not only the last one.
+        let n = opts.max_iterations;
+        let m = opts.min_average;
+        let frozen = it + 1 >= n || (it + m >= n && it >= m);
         let super::unseen::Estimates {
             groups: estimates,
             stray,
             moved: unseen_moved,
+            drift: unseen_drift,
+            values: unseen_values,
         } = super::unseen::update(
             &mut self.current,
             &mut self.states,
@@ -756,7 +764,7 @@ impl<'a> RecoveryLoop<'a> {
             &tracked,
             &opts.unseen,
             &mut self.unseen_history,
-            it + 1 >= opts.max_iterations,
+            frozen,
         );
         self.unseen = estimates;
         if let Some(s) = stray {
@@ -808,12 +816,20 @@ impl<'a> RecoveryLoop<'a> {
                 s.average = None;
                 s.moves.clear();
             }
-        } else if unseen_moved > 2.0 * opts.tolerance {
-            // So did fits made before an unseen group's ρd moved by more than its noise.
+            self.unseen_history.anchor(&unseen_values);
+        } else if unseen_drift > 2.0 * opts.tolerance {
+            // So did fits made before the unseen groups' ρd (or the stray light) drifted, since
+            // the averages started, by more than twice the tolerance in the seen light. (From
+            // where they started, not from the last iteration: the estimate's own noise from one
+            // iteration to the next does not restart them, a slow drift does.)
             for s in self.states.iter_mut() {
                 s.average = None;
             }
+            self.unseen_history.anchor(&unseen_values);
         }
+        tracing::debug!(
+            "iteration {it}: moved {moved:.4} (unseen {unseen_moved:.4}, drift {unseen_drift:.4})"
+        );
         self.settled = schedule::settled(level_changed, &motions);
         let all_confirmed = self.states.iter().all(|s| {
             s.status != Status::Analysing

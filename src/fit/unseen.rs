@@ -563,6 +563,10 @@ pub struct History {
     /// below it.
     #[serde(default)]
     state: Vec<[Option<f32>; 3]>,
+    /// Per unseen group (and the stray light): its value when the seen groups' averages last
+    /// started afresh ([`History::anchor`]); [`update`] measures its drift from there.
+    #[serde(default)]
+    anchor: Vec<[f32; 3]>,
 }
 
 impl History {
@@ -604,6 +608,12 @@ impl History {
         self.state[j][c] = Some(v);
     }
 
+    /// Marks `values` (per tracked unknown, as [`Estimates::values`]) as the ones the seen groups'
+    /// averages start from: fits made before saw other values.
+    pub fn anchor(&mut self, values: &[Rgb]) {
+        self.anchor = values.iter().map(|v| v.to_array()).collect();
+    }
+
     /// The σ to report for group `j` in channel `c`; None before its first determined proposal.
     fn sigma(&self, j: usize, c: usize) -> Option<f32> {
         let r = self.runs.get(j).map(|r| &r[c]).filter(|r| !r.is_empty())?;
@@ -620,13 +630,20 @@ impl History {
 }
 
 /// What [`update`] found: the unseen groups' estimates, the stray light's (when fitted), and
-/// the largest change of any of them (a ρd's, or the relative change of the seen light the
-/// stray light makes).
+/// how far they moved. A move is measured by the relative change of the seen light it makes
+/// (for a group, its influence times the relative change of its ρd), so that a change that is
+/// noise to the seen groups' fits does not count as news for them.
 #[derive(Clone, Debug, Default)]
 pub struct Estimates {
     pub groups: Vec<UnseenEstimate>,
     pub stray: Option<StrayEstimate>,
+    /// The largest move in this iteration.
     pub moved: f32,
+    /// The largest move since [`History::anchor`] was last called: how stale the seen groups'
+    /// averaged fits are.
+    pub drift: f32,
+    /// Every tracked unknown's value now (ρd, or the stray light's radiance), in order.
+    pub values: Vec<Rgb>,
 }
 
 /// The stray light's estimate (`recover --stray-light`): a constant environment's radiance,
@@ -679,8 +696,9 @@ const RHO_FLOOR: f32 = 0.01;
 
 /// Re-estimates every unseen group's ρd from the seen groups' `shares` (one per seen group
 /// whose model [`shares`] reads, from this iteration's caches), updates `states` and `current`,
-/// and returns the estimates and the largest change of any unseen ρd. In the `last` global
-/// iteration nothing moves: the seen groups were fitted with the values as they are.
+/// and returns the estimates and how far they moved ([`Estimates`]). When `frozen` nothing
+/// moves (the proposals still count towards the σ): in the last global iterations the seen
+/// groups' averages are made with the values as they are.
 pub fn update(
     current: &mut Scene,
     states: &mut [GroupState],
@@ -688,7 +706,7 @@ pub fn update(
     tracked: &[usize],
     opts: &UnseenOptions,
     history: &mut History,
-    last: bool,
+    frozen: bool,
 ) -> Estimates {
     let k = tracked.len();
     if k == 0 {
@@ -705,6 +723,11 @@ pub fn update(
             }
         })
         .collect();
+    // Until the seen groups' averages first start afresh, drift is measured from the values
+    // the first iteration's fits saw.
+    for v in rho0.iter().skip(history.anchor.len()) {
+        history.anchor.push(v.to_array());
+    }
     // The bounds of the running estimate: a reflectance's, or a radiance's (any S ≥ 0).
     let bounds = |u: usize| {
         if stray(u) {
@@ -817,7 +840,7 @@ pub fn update(
             } else {
                 0.0
             };
-            if weight > 0.0 && !last {
+            if weight > 0.0 && !frozen {
                 let step = history.step(j, c, opts.damping) * weight;
                 let from = history.state(j, c).unwrap_or(rho0[j][c]);
                 let to = (from + (proposal[j][c] - from) * step).clamp(lo, hi);
@@ -827,7 +850,7 @@ pub fn update(
             match history.sigma(j, c) {
                 Some(s) => sigma_j[c] = if now { s } else { s.max(sigma[j][c].min(1.0)) },
                 None => {
-                    if !last && !stray(u) {
+                    if !frozen && !stray(u) {
                         value[c] = mean[c];
                     }
                     estimated = false;
@@ -844,12 +867,28 @@ pub fn update(
         let sigma_out = sigma_j
             .to_array()
             .map(|s| if s.is_finite() { s } else { -1.0 });
+        // The relative change of the seen light that moving from `from` to `value` makes.
+        let seen_change = |from: Rgb| {
+            (0..3)
+                .map(|c| {
+                    let d = (value[c] - from[c]).abs();
+                    if stray(u) {
+                        d * unit[c] as f32
+                    } else {
+                        influence[j] * d / from[c].max(RHO_FLOOR)
+                    }
+                })
+                .fold(0.0f32, f32::max)
+        };
+        let before = rho0[j];
+        let anchor = history
+            .anchor
+            .get(j)
+            .map_or(before, |&a| Rgb::from_array(a));
+        out.moved = out.moved.max(seen_change(before));
+        out.drift = out.drift.max(seen_change(anchor));
+        out.values.push(value);
         if stray(u) {
-            // How far it moved: the change of the seen light it makes, relative.
-            let change = (0..3)
-                .map(|c| (value[c] - current.stray_light[c]).abs() * unit[c] as f32)
-                .fold(0.0f32, f32::max);
-            out.moved = out.moved.max(change);
             current.stray_light = value;
             out.stray = Some(StrayEstimate {
                 radiance: value.to_array(),
@@ -878,9 +917,6 @@ pub fn update(
                 ),
             )
         };
-        out.moved = out
-            .moved
-            .max((value - states[u].params.rho_d).abs().max_element());
         states[u].params.rho_d = value;
         for o in current.objects.iter_mut().filter(|o| o.group == u) {
             o.material = states[u].params.material(states[u].level);
