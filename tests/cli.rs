@@ -407,7 +407,7 @@ fn demo_table_is_aligned_for_long_names_and_explains_the_ratio() {
     for l in [row, next] {
         assert_eq!(l.find('('), Some(col), "column moved:\n{head}\n{l}");
     }
-    assert!(out.contains("(recovery time / final render time"), "{out}");
+    assert!(out.contains("(fitting time / final render time"), "{out}");
 }
 
 #[test]

@@ -181,6 +181,8 @@ pub struct Recovery {
     pub cache_builds: u32,
     pub objective_evals: u64,
     pub total_s: f64,
+    /// The fitting's share of `total_s`: everything before the final render.
+    pub fit_s: f64,
     pub final_render_s: f64,
     /// Per photo (the first included) when several were fitted together; else empty.
     pub views: Vec<ViewFit>,

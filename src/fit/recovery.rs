@@ -887,6 +887,7 @@ impl<'a> RecoveryLoop<'a> {
     pub fn finish(self) -> Recovery {
         let opts = self.opts;
         let tf = Instant::now();
+        let fit_s = tf.duration_since(self.t0).as_secs_f64();
         // An open scene assumes that nothing but its lights shines in from outside: said where
         // the user sees it, with the option that fits it instead.
         let (mut open, mut n) = (0.0f64, 0.0f64);
@@ -986,6 +987,7 @@ impl<'a> RecoveryLoop<'a> {
             cache_builds: self.cache_builds,
             objective_evals: self.evals,
             total_s,
+            fit_s,
             final_render_s,
             views,
             exposure_factor: e0,

@@ -232,7 +232,7 @@ table{{border-collapse:collapse}} td,th{{border:1px solid #ccc;padding:4px 8px;f
 {views}
 {convergence}
 {textures}
-<p>{} global iterations, {} cache builds, {} objective evaluations; total {:.1} s, final render {:.1} s; Ward variant {}.</p>
+<p>{} global iterations, {} cache builds, {} objective evaluations; total {:.1} s: fitting {:.1} s, final render {:.1} s; Ward variant {}.</p>
 {inputs}
 <p>ε: Σ|synthetic − photo| / Σ photo over the group's usable pixels and channels, final render; noise floor: the same between two independent halves of its samples. A note's <i>fit ε</i> (a fraction) is the same metric on the fitter's cache at its last fit, what the hierarchy decided on (results.json <code>fit_error</code>).</p>
 <p>The log of every decision is <a href="log.jsonl">log.jsonl</a>; the recovered scene is <a href="recovered.toml">recovered.toml</a>.</p>
@@ -255,6 +255,7 @@ window.addEventListener('load', () => {{
         res.cache_builds,
         res.objective_evals,
         res.timing.total_s,
+        res.timing.fit_s,
         res.timing.final_render_s,
         res.ward_variant
     )

@@ -76,6 +76,8 @@ pub struct TextureResult {
 #[derive(Serialize)]
 pub struct Timing {
     pub total_s: f64,
+    /// Everything before the final render (the inverse problem's cost).
+    pub fit_s: f64,
     pub final_render_s: f64,
 }
 
@@ -209,6 +211,7 @@ pub fn results(rec: &Recovery) -> Results {
         groups,
         timing: Timing {
             total_s: rec.total_s,
+            fit_s: rec.fit_s,
             final_render_s: rec.final_render_s,
         },
         iterations: rec.iterations,
