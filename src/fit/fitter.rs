@@ -275,6 +275,20 @@ pub fn fit_level(
     fit_level_among(cache, level, start, variant, &DISTRIBUTIONS)
 }
 
+/// [`fit_level`] for a group already fitted at `level` on earlier caches, from its answer
+/// there: the anisotropic levels race their starts (each descends a quarter of the way) and
+/// descend only the winner the rest of the way, where the first fits descend every start to
+/// the end (a group's optimum moves little from one global iteration's cache to the next; the
+/// losing starts were most of the evaluations). The other levels fit as [`fit_level`].
+pub fn refit_level(
+    cache: &GroupCache,
+    level: Level,
+    start: &GroupParams,
+    variant: WardVariant,
+) -> LevelFit {
+    fit_level_from(cache, level, start, variant, &DISTRIBUTIONS, true)
+}
+
 /// The distributions level 8 tries.
 const DISTRIBUTIONS: [Distribution; 2] = [Distribution::Ggx, Distribution::Beckmann];
 
@@ -285,6 +299,18 @@ fn fit_level_among(
     start: &GroupParams,
     variant: WardVariant,
     distributions: &[Distribution],
+) -> LevelFit {
+    fit_level_from(cache, level, start, variant, distributions, false)
+}
+
+/// [`fit_level_among`]; `warm`: the anisotropic levels race their starts ([`refit_level`]).
+fn fit_level_from(
+    cache: &GroupCache,
+    level: Level,
+    start: &GroupParams,
+    variant: WardVariant,
+    distributions: &[Distribution],
+    warm: bool,
 ) -> LevelFit {
     let alpha = param("alpha_x");
     let (ln_lo, ln_hi) = alpha.solver_bounds();
@@ -457,9 +483,22 @@ fn fit_level_among(
                 starts.push([(a * r).ln(), (a / r).ln(), th]);
                 starts.push([(a / r).ln(), (a * r).ln(), th]);
             }
+            let cap = if pool { 30 } else { 60 };
+            let descend = |s: [f64; 3], distribution: Distribution, max_evals: u32| {
+                levenberg_marquardt(
+                    s,
+                    |x| {
+                        let shape = |x: &[f64; 3]| lobe(x, distribution);
+                        linearise(cache, variant, x, shape, |d| [d[0], d[1], d[2]], pool)
+                    },
+                    |x| [x[0].clamp(ln_lo, ln_hi), x[1].clamp(ln_lo, ln_hi), x[2]],
+                    max_evals,
+                )
+            };
             let mut evals = 0;
             let mut best: Option<(Spec, f64)> = None;
             let mut best_x = starts[0];
+            let mut best_d = distributions[0];
             for (k, &distribution) in distributions.iter().enumerate() {
                 // The second distribution starts from the first one's optimum and the warm start
                 // only (the shapes agree to within their difference of tails).
@@ -468,20 +507,21 @@ fn fit_level_among(
                     _ => vec![best_x, starts[0]],
                 };
                 for s in from {
-                    let (x, cost, n) = levenberg_marquardt(
-                        s,
-                        |x| {
-                            let shape = |x: &[f64; 3]| lobe(x, distribution);
-                            linearise(cache, variant, x, shape, |d| [d[0], d[1], d[2]], pool)
-                        },
-                        |x| [x[0].clamp(ln_lo, ln_hi), x[1].clamp(ln_lo, ln_hi), x[2]],
-                        if pool { 30 } else { 60 },
-                    );
+                    let (x, cost, n) = descend(s, distribution, if warm { cap / 4 } else { cap });
                     evals += n;
                     if best.is_none_or(|b| cost < b.1) {
                         best = Some((lobe(&x, distribution), cost));
                         best_x = x;
+                        best_d = distribution;
                     }
+                }
+            }
+            if warm {
+                // The race's winner, descended the rest of the way.
+                let (x, cost, n) = descend(best_x, best_d, cap);
+                evals += n;
+                if best.is_none_or(|b| cost < b.1) {
+                    best = Some((lobe(&x, best_d), cost));
                 }
             }
             let spec = best.expect("a start").0;
@@ -571,6 +611,41 @@ mod tests {
             assert!(embed(DiffuseSpecular, &GroupParams::default(), Isotropic).is_none());
             assert!(embed(Anisotropic, &GroupParams::default(), Isotropic).is_none());
         }
+    }
+
+    /// The next global iteration's cache, refitted from this one's anisotropic answer (the
+    /// starts raced), finds what the full search from every start finds there, for under two
+    /// thirds of its evaluations over three photos (the race saves most where the starts
+    /// descend slowly). (The warm start alone does not: on seed 1 it descends into
+    /// another optimum, ε 0.081 against 0.065, the Ward lobe's fit of a GGX photo being loose.)
+    #[test]
+    fn a_refit_from_the_last_answer_finds_the_full_searchs_optimum() {
+        let v = WardVariant::Ward1992;
+        let (mut refits, mut fulls) = (0, 0);
+        for seed in [1, 2, 3] {
+            let first = fit_level(
+                &ggx_cache(seed),
+                Level::Anisotropic,
+                &GroupParams::default(),
+                v,
+            );
+            let next = ggx_cache(seed + 10);
+            let full = fit_level(&next, Level::Anisotropic, &first.params, v);
+            let refit = refit_level(&next, Level::Anisotropic, &first.params, v);
+            eprintln!(
+                "seed {seed}: {} evaluations, full {}",
+                refit.evals, full.evals
+            );
+            assert!(
+                refit.error <= full.error * 1.002,
+                "seed {seed}: refit ε {} full {}",
+                refit.error,
+                full.error
+            );
+            refits += refit.evals;
+            fulls += full.evals;
+        }
+        assert!(refits * 3 < fulls * 2, "{refits} evaluations, full {fulls}");
     }
 
     /// A photo of Lambert + the renderer's isotropic GGX lobe (a rough perfect conductor, as

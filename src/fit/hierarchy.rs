@@ -25,7 +25,7 @@
 //! Every fit and every level tried becomes an [`Event`] for the log.
 
 use super::cache::{CacheNeeds, GroupCache};
-use super::fitter::{assess, fit_level, fit_level_above, LevelFit};
+use super::fitter::{assess, fit_level, fit_level_above, refit_level, LevelFit};
 use super::level::{Level, Thresholds};
 use super::params::GroupParams;
 use super::texture::{coherent_detail, fit_textured, uniform_model, TextureState};
@@ -355,7 +355,13 @@ impl GroupState {
                 }
             }
         }
-        (fit_level(cache, self.level, &self.params, variant), None)
+        // After two fits at its level that descended every start, a race of the starts.
+        let fit = if self.iterations_at_level >= 2 {
+            refit_level(cache, self.level, &self.params, variant)
+        } else {
+            fit_level(cache, self.level, &self.params, variant)
+        };
+        (fit, None)
     }
 
     /// Takes a newly solved texture: once the group is confirmed, into the running mean of the
