@@ -150,8 +150,7 @@ fn figure6s_white_ceiling_is_estimated_white() {
         .all(|g| g.status != matfit::fit::hierarchy::Status::Analysing));
     // The estimate's noise from one iteration to the next (0.01–0.03 in ρd, under 1% of the
     // seen light through an influence near 0.2) is not news for the seen groups: their averages
-    // go on, and the run stops before the iteration limit (measured: 14 of 16; before, every
-    // such move restarted the averages and the run always took all 16).
+    // go on, and the run stops before the iteration limit (measured: 14 of 16).
     let limit = RecoverOptions::default().max_iterations;
     eprintln!("{} global iterations of at most {limit}", rec.iterations);
     assert!(rec.iterations < limit, "{report}");

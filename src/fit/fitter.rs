@@ -279,7 +279,9 @@ pub fn fit_level(
 /// there: the anisotropic levels race their starts (each descends a quarter of the way) and
 /// descend only the winner the rest of the way, where the first fits descend every start to
 /// the end (a group's optimum moves little from one global iteration's cache to the next; the
-/// losing starts were most of the evaluations). The other levels fit as [`fit_level`].
+/// losing starts were most of the evaluations). The warm start alone is not enough: where
+/// Ward fits the photo loosely it can descend into another optimum. The other levels fit as
+/// [`fit_level`].
 pub fn refit_level(
     cache: &GroupCache,
     level: Level,
@@ -616,8 +618,7 @@ mod tests {
     /// The next global iteration's cache, refitted from this one's anisotropic answer (the
     /// starts raced), finds what the full search from every start finds there, for under two
     /// thirds of its evaluations over three photos (the race saves most where the starts
-    /// descend slowly). (The warm start alone does not: on seed 1 it descends into
-    /// another optimum, ε 0.081 against 0.065, the Ward lobe's fit of a GGX photo being loose.)
+    /// descend slowly).
     #[test]
     fn a_refit_from_the_last_answer_finds_the_full_searchs_optimum() {
         let v = WardVariant::Ward1992;

@@ -809,21 +809,18 @@ impl<'a> RecoveryLoop<'a> {
             .iter()
             .zip(&levels_before)
             .any(|(s, l)| s.level != *l);
-        if level_changed {
-            // Fits made before a group changed its model saw a different scene: start every
-            // group's average, and the record of how its parameters converge, afresh.
+        // Fits made before a group changed its model saw a different scene; so did fits made
+        // before the unseen groups' ρd (or the stray light) drifted, since the averages started,
+        // by more than twice the tolerance in the seen light. (From where they started, not from
+        // the last iteration: the estimate's own noise from one iteration to the next does not
+        // restart them, a slow drift does.) Either starts every group's average afresh; a new
+        // model also the record of how its parameters converge.
+        if level_changed || unseen_drift > 2.0 * opts.tolerance {
             for s in self.states.iter_mut() {
                 s.average = None;
-                s.moves.clear();
-            }
-            self.unseen_history.anchor(&unseen_values);
-        } else if unseen_drift > 2.0 * opts.tolerance {
-            // So did fits made before the unseen groups' ρd (or the stray light) drifted, since
-            // the averages started, by more than twice the tolerance in the seen light. (From
-            // where they started, not from the last iteration: the estimate's own noise from one
-            // iteration to the next does not restart them, a slow drift does.)
-            for s in self.states.iter_mut() {
-                s.average = None;
+                if level_changed {
+                    s.moves.clear();
+                }
             }
             self.unseen_history.anchor(&unseen_values);
         }
