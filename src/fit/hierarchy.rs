@@ -18,7 +18,8 @@
 //!   half of the samples alone: |gain₀ − gain₁| / 2; and it must lower the cross-half
 //!   least-squares cost too, which Monte Carlo noise does not inflate (so a near-mirror Ward
 //!   lobe cannot beat the mirror model merely by being evaluated with less noise). Climbing
-//!   stops at the first kept level below its threshold.
+//!   stops at the first kept level below its threshold; levels 8 and 10, which reshape a lobe,
+//!   are skipped while no specular level has been kept.
 //!        kept a higher level ──► move to it (Analysing; confirmed when its refit passes)
 //!        none earned its place ──► Confirmed at ℓ, the simplest level with the lowest error
 //! ```
@@ -636,7 +637,10 @@ impl GroupState {
         let mut level = self.level;
         let mut texture = None;
         while let Some(next) = level.next() {
-            if (next.is_microfacet() || next == Level::Plastic) && !opts.microfacet {
+            // Levels 8 and 10 reshape a lobe: a group on which no specular level earned its
+            // place has none to reshape (a wall whose ε is its noise would only fit the noise).
+            let no_lobe = next.is_microfacet() && best.level == Level::Diffuse;
+            if ((next.is_microfacet() || next == Level::Plastic) && !opts.microfacet) || no_lobe {
                 level = next;
                 continue;
             }
@@ -843,6 +847,32 @@ mod tests {
         assert!(f1.error < f0.error);
         let (ok, held) = GroupState::predicts(&c, &f0, &f1, v);
         assert!(!ok && held[1] > held[0], "{held:?}");
+    }
+
+    /// A Lambert surface seen with few samples (ε well above the diffuse threshold, all of it
+    /// noise) climbs through the mirror, Ward and plastic levels, but not through 8 and 10: with
+    /// no lobe kept there is none to reshape.
+    #[test]
+    fn a_group_with_no_lobe_skips_the_levels_that_reshape_one() {
+        let c = synthetic_cache(480, 4, 24, 11, |_, s| 0.5 * diffuse(s));
+        let mut st = GroupState::new("wall", Status::Analysing, GroupParams::default());
+        st.iterations_at_level = 2;
+        let opts = HierarchyOptions::default();
+        let events = st.step(&c, None, WardVariant::Ward1992, &opts, true, true);
+        let tried: Vec<Level> = events
+            .iter()
+            .filter_map(|e| match e {
+                Event::Tried { level, .. } => Some(*level),
+                _ => None,
+            })
+            .collect();
+        assert!(st.error > opts.thresholds.diffuse, "{events:?}");
+        assert_eq!(st.level, Level::Diffuse, "{events:?}");
+        assert!(
+            tried.contains(&Level::Anisotropic) && tried.contains(&Level::Plastic),
+            "{tried:?}"
+        );
+        assert!(!tried.iter().any(|l| l.is_microfacet()), "{tried:?}");
     }
 
     /// Parameters that keep moving by the same amount (a lobe the photo does not determine)
