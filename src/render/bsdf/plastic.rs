@@ -27,6 +27,7 @@
 
 use super::microfacet::MicrofacetLobe;
 use crate::math::{Rgb, Vec3, PI};
+use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 
@@ -67,19 +68,23 @@ pub struct Coat {
 
 impl Coat {
     fn new(alpha: f32, eta: f32) -> Coat {
-        let lobe = MicrofacetLobe::ggx(alpha, alpha);
+        let q = Quadrature::new(MicrofacetLobe::ggx(alpha, alpha));
         let mu = |i: usize| (i as f32 / (RES - 1) as f32).max(1e-6);
-        let transmittance = std::array::from_fn(|i| transmitted(&lobe, eta, mu(i)));
+        // Each table entry is its own integral, one task each (the sum keeps its order).
+        let table = |f: &(dyn Fn(usize) -> f32 + Sync)| -> Vec<f32> {
+            (0..RES).into_par_iter().map(f).collect()
+        };
+        let transmittance = table(&|i| q.transmitted(eta, mu(i)));
         let internal = 2.0
-            * (0..RES)
-                .map(|i| albedo(&lobe, 1.0 / eta, mu(i)) * mu(i))
+            * table(&|i| q.albedo(1.0 / eta, mu(i)) * mu(i))
+                .iter()
                 .sum::<f32>()
             / RES as f32;
         Coat {
-            lobe,
+            lobe: q.lobe,
             eta,
             f0: fresnel_dielectric(1.0, eta),
-            transmittance,
+            transmittance: transmittance.try_into().expect("RES entries"),
             diffuse_scale: 1.0 / (PI * eta * eta * (1.0 - internal)),
         }
     }
@@ -88,12 +93,18 @@ impl Coat {
     /// run (a BSDF is a plain value that refers to it; a recovery makes a few per group).
     pub fn get(alpha: f32, eta: f32) -> &'static Coat {
         static COATS: OnceLock<Mutex<HashMap<(u32, u32), &'static Coat>>> = OnceLock::new();
-        let mut map = COATS
-            .get_or_init(Default::default)
-            .lock()
-            .unwrap_or_else(|e| e.into_inner());
-        map.entry((alpha.to_bits(), eta.to_bits()))
-            .or_insert_with(|| Box::leak(Box::new(Coat::new(alpha, eta))))
+        let coats = COATS.get_or_init(Default::default);
+        let lock = || coats.lock().unwrap_or_else(|e| e.into_inner());
+        let key = (alpha.to_bits(), eta.to_bits());
+        if let Some(&c) = lock().get(&key) {
+            return c;
+        }
+        // Built unlocked: the build runs on the thread pool, whose tasks may want a coat too.
+        // Two threads building the same coat build the same one; the first is kept.
+        let coat = Coat::new(alpha, eta);
+        lock()
+            .entry(key)
+            .or_insert_with(|| Box::leak(Box::new(coat)))
     }
 
     /// t(μ), linearly interpolated in the table as Mitsuba does.
@@ -138,60 +149,78 @@ pub fn plastic_sums(samples: &[super::ward::LobeSample], coat: &Coat) -> (Rgb, R
     (s, d)
 }
 
-/// t(μ) of the module comment: with ĥ drawn from D cos θh, the visible normals' density is
-/// G1(ωi) (ωi·ĥ) D / μ, so t = E[(1 − F) G1(ωt) G1(ωi) (ωi·ĥ) / (μ cos θh)], ωt the refraction
-/// of ωi through ĥ (into the coat, 1/η).
-fn transmitted(lobe: &MicrofacetLobe, eta: f32, mu: f32) -> f32 {
-    grid_mean(lobe, mu, |wi, h, d, g1| {
-        let f = fresnel_dielectric(d, eta);
-        if f >= 1.0 {
-            return 0.0;
-        }
-        let inv = 1.0 / eta;
-        let cos_t = (1.0 - inv * inv * (1.0 - d * d)).max(0.0).sqrt();
-        let wt = h * (d * inv - cos_t) - wi * inv;
-        (1.0 - f) * g1(wt) * g1(wi) * d / (mu * h.z)
-    })
+/// The quadrature of the coat's integrals: a 128 × 64 midpoint grid of the GGX sampling
+/// variables, ĥ distributed as D cos θh. The normals do not depend on the incidence, so they
+/// are computed once per coat rather than once per table entry.
+struct Quadrature {
+    lobe: MicrofacetLobe,
+    normals: Vec<Vec3>,
 }
 
-/// The mean of `term(ωi, ĥ, ωi·ĥ, G1)` over a 128 × 64 midpoint grid of the GGX sampling
-/// variables (ĥ distributed as D cos θh), ωi at incidence μ; terms where ωi·ĥ ≤ 0 are 0.
-fn grid_mean(
-    lobe: &MicrofacetLobe,
-    mu: f32,
-    term: impl Fn(Vec3, Vec3, f32, &dyn Fn(Vec3) -> f32) -> f32,
-) -> f32 {
-    let wi = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
-    let (n1, n2) = (128, 64);
-    let a = lobe.alpha_x;
-    let g1 = |w: Vec3| lobe.g1(w);
-    let mut sum = 0.0f64;
-    for i in 0..n1 {
-        let u1 = (i as f32 + 0.5) / n1 as f32;
-        let r = a * (u1 / (1.0 - u1)).sqrt();
-        for j in 0..n2 {
-            let (s, c) = (2.0 * PI * (j as f32 + 0.5) / n2 as f32).sin_cos();
-            let h = Vec3::new(r * c, r * s, 1.0).normalize();
-            let d = wi.dot(h);
-            if d > 0.0 {
-                sum += term(wi, h, d, &g1) as f64;
+impl Quadrature {
+    fn new(lobe: MicrofacetLobe) -> Quadrature {
+        let (n1, n2) = (128, 64);
+        let a = lobe.alpha_x;
+        let mut normals = Vec::with_capacity(n1 * n2);
+        for i in 0..n1 {
+            let u1 = (i as f32 + 0.5) / n1 as f32;
+            let r = a * (u1 / (1.0 - u1)).sqrt();
+            for j in 0..n2 {
+                let (s, c) = (2.0 * PI * (j as f32 + 0.5) / n2 as f32).sin_cos();
+                normals.push(Vec3::new(r * c, r * s, 1.0).normalize());
             }
         }
+        Quadrature { lobe, normals }
     }
-    (sum / (n1 * n2) as f64) as f32
-}
 
-/// R_η(μ): the directional albedo of the coat's reflection at incidence μ (specular
-/// reflectance 1). With ĥ drawn from D cos θh (pdf_h), ωo its reflection, dωo = 4 (ωo·ĥ) dωh:
-/// R = E[F G1(ωi) G1(ωo) (ωi·ĥ) / (μ cos θh)].
-fn albedo(lobe: &MicrofacetLobe, eta: f32, mu: f32) -> f32 {
-    grid_mean(lobe, mu, |wi, h, d, g1| {
-        let wo = 2.0 * d * h - wi;
-        if wo.z <= 0.0 {
-            return 0.0;
+    /// The mean of `term(ωi, ĥ, ωi·ĥ, G1(ωi), G1)` over the grid, ωi at incidence μ; terms
+    /// where ωi·ĥ ≤ 0 are 0.
+    fn mean(
+        &self,
+        mu: f32,
+        term: impl Fn(Vec3, Vec3, f32, f32, &dyn Fn(Vec3) -> f32) -> f32,
+    ) -> f32 {
+        let wi = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
+        let g1 = |w: Vec3| self.lobe.g1(w);
+        let g1_wi = g1(wi);
+        let mut sum = 0.0f64;
+        for &h in &self.normals {
+            let d = wi.dot(h);
+            if d > 0.0 {
+                sum += term(wi, h, d, g1_wi, &g1) as f64;
+            }
         }
-        fresnel_dielectric(d, eta) * g1(wi) * g1(wo) * d / (mu * h.z)
-    })
+        (sum / self.normals.len() as f64) as f32
+    }
+
+    /// t(μ) of the module comment: with ĥ drawn from D cos θh, the visible normals' density
+    /// is G1(ωi) (ωi·ĥ) D / μ, so t = E[(1 − F) G1(ωt) G1(ωi) (ωi·ĥ) / (μ cos θh)], ωt the
+    /// refraction of ωi through ĥ (into the coat, 1/η).
+    fn transmitted(&self, eta: f32, mu: f32) -> f32 {
+        self.mean(mu, |wi, h, d, g1_wi, g1| {
+            let f = fresnel_dielectric(d, eta);
+            if f >= 1.0 {
+                return 0.0;
+            }
+            let inv = 1.0 / eta;
+            let cos_t = (1.0 - inv * inv * (1.0 - d * d)).max(0.0).sqrt();
+            let wt = h * (d * inv - cos_t) - wi * inv;
+            (1.0 - f) * g1(wt) * g1_wi * d / (mu * h.z)
+        })
+    }
+
+    /// R_η(μ): the directional albedo of the coat's reflection at incidence μ (specular
+    /// reflectance 1). With ĥ drawn from D cos θh (pdf_h), ωo its reflection,
+    /// dωo = 4 (ωo·ĥ) dωh: R = E[F G1(ωi) G1(ωo) (ωi·ĥ) / (μ cos θh)].
+    fn albedo(&self, eta: f32, mu: f32) -> f32 {
+        self.mean(mu, |wi, h, d, g1_wi, g1| {
+            let wo = 2.0 * d * h - wi;
+            if wo.z <= 0.0 {
+                return 0.0;
+            }
+            fresnel_dielectric(d, eta) * g1_wi * g1(wo) * d / (mu * h.z)
+        })
+    }
 }
 
 #[cfg(test)]
@@ -235,7 +264,7 @@ mod tests {
                 }
                 let (r, all) = (r / n as f64, all / n as f64);
                 let t = coat.transmittance(mu) as f64;
-                let table_r = albedo(&coat.lobe, eta, mu) as f64;
+                let table_r = Quadrature::new(coat.lobe).albedo(eta, mu) as f64;
                 assert!(
                     (table_r - r).abs() < 0.01,
                     "α {alpha} μ {mu}: quadrature R {table_r} vs sampled {r}"
