@@ -90,7 +90,7 @@ impl Coat {
     }
 
     /// The coat of roughness `alpha` and index `eta`, computed once per pair and kept for the
-    /// run (a BSDF is a plain value that refers to it; a recovery makes a few per group).
+    /// run (a BSDF is a plain value that refers to it; a level-9 fit makes one per trial α).
     pub fn get(alpha: f32, eta: f32) -> &'static Coat {
         static COATS: OnceLock<Mutex<HashMap<(u32, u32), &'static Coat>>> = OnceLock::new();
         let coats = COATS.get_or_init(Default::default);
