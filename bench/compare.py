@@ -21,6 +21,9 @@ Mitsuba's meaning). Mitsuba loads the XML written by `matfit export mitsuba`. Bo
      throughput; RMSE against the reference over all pixels except the light and a 2-pixel band
      around it (whose anti-aliasing noise, 30 vs 0.5, would otherwise dominate). The
      reference's own noise is removed: RMSE^2 = mean|x - ref|^2 - mean|A - B|^2 / 4.
+   - a big mesh (issue 24): scenes/office-large, all diffuse (its generator's --diffuse), at
+     BIG's size (1.2M triangles, 46 groups): equal-spp throughput of matfit and Mitsuba llvm
+     (warm), loading time, matfit's peak RSS, and the two images' group means.
 2. Inverse rendering from the reference image, every visible non-emitting group starting from
    grey 0.5, true values known: the maximum absolute error over every channel of every visible
    group against time.
@@ -53,6 +56,7 @@ import platform
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 import tomllib
 
@@ -90,6 +94,11 @@ MODES = {
         pilot=8.0, long_min=8.0, long_max=24.0,
         recover_args=["--white-unseen", "--final-spp", "16"],
     ),
+}
+# The big mesh (issue 24): scenes/office-large made all diffuse by its generator, at this size.
+BIG = {
+    "full": dict(res=(480, 270), spp=16, triangles=1.2e6),
+    "quick": dict(res=(240, 135), spp=4, triangles=1.2e6),
 }
 EQ_RUNS = 3  # equal-spp timings: runs of each renderer, interleaved, median quoted
 CHUNK = 256  # largest spp per Mitsuba llvm render call (memory: pixels x spp lanes)
@@ -368,6 +377,84 @@ def forward(mf, ms, cfg, d, scene, xml, ids, light_id, group_names):
     return res, ref
 
 
+def run_rss(cmd, env=None):
+    """Runs `cmd` like `run`; also returns its resource usage (os.wait4: ru_maxrss is its peak
+    resident set size in KiB)."""
+    with tempfile.TemporaryFile("w+") as fo, tempfile.TemporaryFile("w+") as fe:
+        p = subprocess.Popen(cmd, stdout=fo, stderr=fe, text=True, env=env)
+        _, status, ru = os.wait4(p.pid, 0)
+        p.returncode = os.waitstatus_to_exitcode(status)
+        fo.seek(0)
+        fe.seek(0)
+        out, err = fo.read(), fe.read()
+    if p.returncode != 0:
+        sys.exit(f"compare.py: {' '.join(cmd)} failed ({p.returncode}):\n{out}{err}")
+    return subprocess.CompletedProcess(cmd, 0, out, err), ru
+
+
+def forward_big(mf, ms, big, d):
+    """Equal-spp throughput on office-large, all diffuse (BIG): matfit against Mitsuba llvm
+    (warm), EQ_RUNS each taking turns, medians; loading (matfit: process wall time minus
+    render time, i.e. PLY reading and the BVH build; Mitsuba: load_file); per-group means of
+    the two renderers' images against the noise between two Mitsuba renders."""
+    w, h = big["res"]
+    spp = big["spp"]
+    px = w * h
+    os.makedirs(d, exist_ok=True)
+    log(f"forward, big mesh: office-large (diffuse), {w}×{h}, {spp} spp ...")
+    r = run([sys.executable, os.path.join(ROOT, "scenes", "office-large", "make_scene.py"),
+             "--out", d, "--width", str(w), "--height", str(h), "--diffuse",
+             "--triangles", f"{big['triangles']:g}"])
+    triangles = int(r.stdout.split(" groups, ")[1].split()[0])
+    scene = os.path.join(d, "scene.toml")
+    r = run([mf.exe, "export", "mitsuba", scene, "-o", os.path.join(d, "mitsuba")])
+    warned = [l for l in r.stderr.splitlines() if l.strip() and not l.startswith("note:")]
+    if warned:
+        sys.exit("compare.py: matfit export warned:\n" + "\n".join(warned))
+    xml = os.path.join(d, "mitsuba", "scene.xml")
+    run(mf.cmd("render", scene, "--aov", "group", "-o", os.path.join(d, "ids.pfm")))
+    ids = np.rint(cc.read_pfm(os.path.join(d, "ids.pfm"))[..., 0]).astype(int)
+    names = cc.group_names(mf.exe, scene)
+    _, t_load = ms.scene("llvm_ad_rgb", xml)
+    first = ms.render("llvm_ad_rgb", xml, spp, seed=1)
+    env = dict(os.environ, MATFIT_LOG="info")
+    mruns, warm, rss = [], [], []
+    out = os.path.join(d, "matfit.pfm")
+    for k in range(EQ_RUNS):
+        t0 = time.perf_counter()
+        r, ru = run_rss(mf.cmd("render", scene, "-o", out, "--spp", str(spp), "--seed", "1"),
+                        env=env)
+        wall = time.perf_counter() - t0
+        t = next(float(l.split("rendered in")[1].split()[0])
+                 for l in r.stderr.splitlines() if "rendered in" in l)
+        mruns.append((t, wall))
+        rss.append(ru.ru_maxrss / 1024.0)
+        warm.append(ms.render("llvm_ad_rgb", xml, spp, seed=2 + k))
+    mimg = cc.read_pfm(out).astype(np.float64)
+    mt = float(np.median([t for t, _ in mruns]))
+    mwall = float(np.median([x for _, x in mruns]))
+    wt = float(np.median([x[1] for x in warm]))
+    # Agreement: group means (eroded masks, >= 400 px) of matfit's image and the mean of
+    # Mitsuba's warm renders; the noise is the largest such difference between two of Mitsuba's.
+    mits = np.mean([x[0] for x in warm], axis=0)
+    worst, noise, groups = 0.0, 0.0, 0
+    for g, mask in cc.eroded_masks(ids).items():
+        if mask.sum() < 400 or names[g].startswith("light"):
+            continue
+        groups += 1
+        a, b = mimg[mask].mean(0), mits[mask].mean(0)
+        worst = max(worst, float(np.abs(cc.rel_diff(a, b)).max()))
+        n = cc.rel_diff(warm[0][0][mask].mean(0), warm[1][0][mask].mean(0))
+        noise = max(noise, float(np.abs(n).max()))
+    return dict(
+        res=[w, h], spp=spp, triangles=triangles, groups=len(names),
+        matfit=dict(seconds=mt, wall=mwall, load=mwall - mt, samples_per_s=px * spp / mt,
+                    rss_mb=max(rss)),
+        mitsuba=dict(seconds=wt, first_call=first[1], load=t_load,
+                     samples_per_s=px * spp / wt),
+        agreement=dict(groups=groups, worst=worst, mitsuba_noise=noise))
+
+
 # ----------------------------------------------------------------------------------------------
 # 2. inverse
 
@@ -630,6 +717,29 @@ def markdown(meta, fw, inv, cross, cfg, svg_name):
           f"{', '.join(f'{x:+.2%}' for x in g['rel_mitsuba'])} |")
     A("")
 
+    if "big" in fw:
+        b = fw["big"]
+        bw, bh = b["res"]
+        m, x = b["matfit"], b["mitsuba"]
+        A(f"**On a big mesh**: scenes/office-large made all diffuse (`make_scene.py --diffuse`), "
+          f"{b['triangles']:,} triangles, {b['groups']} groups, {bw}×{bh}, {b['spp']} spp, "
+          f"max_depth 8 (equal spp; medians of {EQ_RUNS} runs each, taking turns). Loading is "
+          f"matfit's process wall time minus its render time (reading the PLY meshes, building "
+          f"the BVH) and Mitsuba's `load_file`.\n")
+        A("| renderer | loading | render time | samples/s | peak RSS | |")
+        A("|---|---:|---:|---:|---:|---|")
+        A(f"| matfit | {m['load']:.2f} s | {m['seconds']:.2f} s | "
+          f"{m['samples_per_s'] / 1e6:.2f} M | {m['rss_mb']:.0f} MB | process |")
+        A(f"| Mitsuba llvm_ad_rgb, warm | {x['load']:.2f} s | {x['seconds']:.2f} s | "
+          f"{x['samples_per_s'] / 1e6:.2f} M | | first call {x['first_call']:.2f} s |")
+        A("")
+        ag = b["agreement"]
+        A(f"matfit / Mitsuba throughput: **{m['samples_per_s'] / x['samples_per_s']:.2f}×**. "
+          f"Group means (masks eroded by 2 px, the {ag['groups']} groups with ≥ 400 such "
+          f"pixels) of matfit's image against Mitsuba's {EQ_RUNS} renders averaged: largest "
+          f"|rel. diff| {ag['worst']:.2%}; between two of Mitsuba's own renders "
+          f"{ag['mitsuba_noise']:.2%} (the noise at {b['spp']} spp).\n")
+
     A("## 2. Inverse rendering\n")
     A(f"Photo: the reference image above. Unknowns: ρd (RGB) of the {len(inv['groups'])} "
       f"visible groups ({', '.join(inv['groups'])}), all starting from 0.5; the unseen "
@@ -744,6 +854,8 @@ def measure(args, cfg, out):
 
     # 1. forward
     fw, ref = forward(mf, ms, cfg, dd, scene, xml, ids, light_id, names)
+    fw["big"] = forward_big(mf, ms, BIG["quick" if args.quick else "full"],
+                            os.path.join(out, "office"))
     json.dump(fw, open(os.path.join(out, "forward.json"), "w"), indent=1)
     photo = os.path.join(dd, "reference.exr")
 
@@ -875,6 +987,13 @@ def report(out, md_path, provisional=None):
                  f"**{'met' if ok else 'not met'}** — {mf_sps / ll_sps:.2f}×"
                  + ("" if ok else f"; matfit must become {1.3 * ll_sps / mf_sps:.2f}× faster")
                  + ".")
+    if "big" in fw:
+        b = fw["big"]
+        r = b["matfit"]["samples_per_s"] / b["mitsuba"]["samples_per_s"]
+        goals.append(f"The same on the big mesh (office-large, diffuse, {b['triangles']:,} "
+                     f"triangles): **{'met' if r >= 1.3 else 'not met'}** — {r:.2f}×"
+                     + ("" if r >= 1.3 else f"; matfit must become {1.3 / r:.2f}× faster")
+                     + ".")
     if ratio is not None:
         goals.append(f"Inverse time to 0.01 ≥ 20× shorter than Mitsuba's: "
                      f"**{'met' if ratio >= 20 else 'not met'}** — {ratio:.1f}×"
