@@ -869,31 +869,23 @@ mod tests {
         assert!(!ok && held[1] > held[0], "{held:?}");
     }
 
-    /// One step of a diffuse group that has settled at its level and may climb and move, on
-    /// `c` with the default options: the group after it, its events and the levels it tried.
-    fn climb(c: &GroupCache) -> (GroupState, Vec<Event>, Vec<Level>) {
-        let mut st = GroupState::new("g", Status::Analysing, GroupParams::default());
-        st.iterations_at_level = 2;
-        let opts = HierarchyOptions::default();
-        let events = st.step(c, None, WardVariant::Ward1992, &opts, true, true);
-        let tried = events
-            .iter()
-            .filter_map(|e| match e {
-                Event::Tried { level, .. } => Some(*level),
-                _ => None,
-            })
-            .collect();
-        (st, events, tried)
-    }
-
     /// A Lambert surface seen with few samples (ε well above the diffuse threshold, all of it
     /// noise) climbs through the mirror, Ward and plastic levels, but not through 8 and 10: with
     /// no lobe kept there is none to reshape.
     #[test]
     fn a_group_with_no_lobe_skips_the_levels_that_reshape_one() {
         let c = synthetic_cache(480, 4, 24, 11, |_, s| 0.5 * diffuse(s));
+        let mut st = GroupState::new("wall", Status::Analysing, GroupParams::default());
+        st.iterations_at_level = 2;
         let opts = HierarchyOptions::default();
-        let (st, events, tried) = climb(&c);
+        let events = st.step(&c, None, WardVariant::Ward1992, &opts, true, true);
+        let tried: Vec<Level> = events
+            .iter()
+            .filter_map(|e| match e {
+                Event::Tried { level, .. } => Some(*level),
+                _ => None,
+            })
+            .collect();
         assert!(st.error > opts.thresholds.diffuse, "{events:?}");
         assert_eq!(st.level, Level::Diffuse, "{events:?}");
         assert!(
@@ -908,6 +900,7 @@ mod tests {
     /// below its threshold did not try the levels above it, and the group goes on analysing.
     #[test]
     fn a_move_is_confirmed_only_when_every_level_above_was_tried() {
+        let v = WardVariant::Ward1992;
         let opts = HierarchyOptions::default();
         let glossy = |samples: usize, seed: u64| {
             synthetic_cache(480, samples, 24, seed, |_, s: &[(Vec3, Vec3, Rgb)]| {
@@ -917,6 +910,19 @@ mod tests {
                     .fold(Rgb::ZERO, |a, b| a + b);
                 0.5 * diffuse(s) + 0.3 * lobe
             })
+        };
+        let climb = |c: &GroupCache| {
+            let mut st = GroupState::new("block", Status::Analysing, GroupParams::default());
+            st.iterations_at_level = 2;
+            let events = st.step(c, None, v, &opts, true, true);
+            let tried: Vec<Level> = events
+                .iter()
+                .filter_map(|e| match e {
+                    Event::Tried { level, .. } => Some(*level),
+                    _ => None,
+                })
+                .collect();
+            (st, events, tried)
         };
         // Few samples: the Ward level's ε stays above its threshold on the noise.
         let (st, events, tried) = climb(&glossy(32, 11));
