@@ -809,15 +809,13 @@ impl<'a> RecoveryLoop<'a> {
             .iter()
             .zip(&levels_before)
             .any(|(s, l)| s.level != *l);
-        let settled = schedule::settled(level_changed, &motions);
-        // Fits made before the scene settled saw a different scene: one in which a group
-        // changed its model, or still converged towards it. So did fits made before the unseen
-        // groups' ρd (or the stray light) drifted, since the averages started, by more than
-        // twice the tolerance in the seen light. (From where they started, not from the last
-        // iteration: the estimate's own noise from one iteration to the next does not restart
-        // them, a slow drift does.) Either starts every group's average afresh; a new model also
-        // the record of how its parameters converge.
-        if !settled || unseen_drift > 2.0 * opts.tolerance {
+        // Fits made before a group changed its model saw a different scene; so did fits made
+        // before the unseen groups' ρd (or the stray light) drifted, since the averages started,
+        // by more than twice the tolerance in the seen light. (From where they started, not from
+        // the last iteration: the estimate's own noise from one iteration to the next does not
+        // restart them, a slow drift does.) Either starts every group's average afresh; a new
+        // model also the record of how its parameters converge.
+        if level_changed || unseen_drift > 2.0 * opts.tolerance {
             for s in self.states.iter_mut() {
                 s.average = None;
                 if level_changed {
@@ -829,7 +827,7 @@ impl<'a> RecoveryLoop<'a> {
         tracing::debug!(
             "iteration {it}: moved {moved:.4} (unseen {unseen_moved:.4}, drift {unseen_drift:.4})"
         );
-        self.settled = settled;
+        self.settled = schedule::settled(level_changed, &motions);
         let all_confirmed = self.states.iter().all(|s| {
             s.status != Status::Analysing
                 && (s.status != Status::Confirmed
