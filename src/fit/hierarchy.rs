@@ -636,6 +636,8 @@ impl GroupState {
         let mut tried = vec![fit];
         let mut level = self.level;
         let mut texture = None;
+        // Whether every level above the one kept was tried (or ruled out) on this cache.
+        let mut exhausted = true;
         while let Some(next) = level.next() {
             // Levels 8 and 10 reshape a lobe: a group on which no specular level earned its
             // place has none to reshape (a wall whose ε is its noise would only fit the noise).
@@ -723,6 +725,7 @@ impl GroupState {
             if kept {
                 best = f.clone();
                 if f.error < opts.thresholds.of(next) {
+                    exhausted = level.next().is_none();
                     break;
                 }
             }
@@ -745,6 +748,25 @@ impl GroupState {
             self.iterations_at_level = 0;
             self.moves.clear();
             self.last_step = None;
+            // Every level above was tried on this cache, in a settled scene, and none earned
+            // its place: a second climb once the move has settled would try the same levels
+            // against nearly the same light. (A texture still converges texel by texel; a
+            // confirmed mirror lends its ρs to the textures it shows, so its ρs must settle
+            // first.)
+            if exhausted && !matches!(self.level, Level::Textured | Level::Specular) {
+                self.status = Status::Confirmed;
+                self.note = Some(format!(
+                    "no level above {} lowered the error by a clear margin in the climb that moved it there; kept with fit ε {:.4} above its threshold {:.4}",
+                    self.level.name(),
+                    self.error,
+                    opts.thresholds.of(self.level)
+                ));
+                events.push(Event::Confirmed {
+                    level: self.level,
+                    error: self.error,
+                    below_threshold: false,
+                });
+            }
         } else {
             self.status = Status::Confirmed;
             self.waiting = 0;
@@ -873,6 +895,54 @@ mod tests {
             "{tried:?}"
         );
         assert!(!tried.iter().any(|l| l.is_microfacet()), "{tried:?}");
+    }
+
+    /// A climb that tried every level above the one it moved to (none earned its place) ends
+    /// the analysis there: the group is confirmed in the same step. One that stopped at a level
+    /// below its threshold did not try the levels above it, and the group goes on analysing.
+    #[test]
+    fn a_move_is_confirmed_only_when_every_level_above_was_tried() {
+        let v = WardVariant::Ward1992;
+        let opts = HierarchyOptions::default();
+        let glossy = |samples: usize, seed: u64| {
+            synthetic_cache(480, samples, 24, seed, |_, s: &[(Vec3, Vec3, Rgb)]| {
+                let lobe: Rgb = s
+                    .iter()
+                    .map(|&(wo, wi, c)| c * ward(wo, wi, 0.2))
+                    .fold(Rgb::ZERO, |a, b| a + b);
+                0.5 * diffuse(s) + 0.3 * lobe
+            })
+        };
+        let climb = |c: &GroupCache| {
+            let mut st = GroupState::new("block", Status::Analysing, GroupParams::default());
+            st.iterations_at_level = 2;
+            let events = st.step(c, None, v, &opts, true, true);
+            let tried: Vec<Level> = events
+                .iter()
+                .filter_map(|e| match e {
+                    Event::Tried { level, .. } => Some(*level),
+                    _ => None,
+                })
+                .collect();
+            (st, events, tried)
+        };
+        // Few samples: the Ward level's ε stays above its threshold on the noise.
+        let (st, events, tried) = climb(&glossy(32, 11));
+        assert!(st.level.is_ward(), "{events:?}");
+        assert!(st.error >= opts.thresholds.of(st.level), "{events:?}");
+        assert!(tried.contains(&Level::Plastic), "{tried:?}");
+        assert_eq!(st.status, Status::Confirmed, "{events:?}");
+        let moved = events.iter().position(|e| matches!(e, Event::Moved { .. }));
+        let confirmed = events
+            .iter()
+            .position(|e| matches!(e, Event::Confirmed { .. }));
+        assert!(moved.is_some() && confirmed > moved, "{events:?}");
+        // Many: the first Ward level meets its threshold and the climb stops there.
+        let (st, events, tried) = climb(&glossy(384, 7));
+        assert_eq!(st.level, Level::Isotropic, "{events:?}");
+        assert!(st.error < opts.thresholds.of(st.level), "{events:?}");
+        assert!(!tried.contains(&Level::Plastic), "{tried:?}");
+        assert_eq!(st.status, Status::Analysing, "{events:?}");
     }
 
     /// Parameters that keep moving by the same amount (a lobe the photo does not determine)
