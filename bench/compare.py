@@ -407,14 +407,7 @@ def forward_big(mf, ms, big, d):
              "--triangles", f"{big['triangles']:g}"])
     triangles = int(r.stdout.split(" groups, ")[1].split()[0])
     scene = os.path.join(d, "scene.toml")
-    r = run([mf.exe, "export", "mitsuba", scene, "-o", os.path.join(d, "mitsuba")])
-    warned = [l for l in r.stderr.splitlines() if l.strip() and not l.startswith("note:")]
-    if warned:
-        sys.exit("compare.py: matfit export warned:\n" + "\n".join(warned))
-    xml = os.path.join(d, "mitsuba", "scene.xml")
-    run(mf.cmd("render", scene, "--aov", "group", "-o", os.path.join(d, "ids.pfm")))
-    ids = np.rint(cc.read_pfm(os.path.join(d, "ids.pfm"))[..., 0]).astype(int)
-    names = cc.group_names(mf.exe, scene)
+    xml, ids, names = export_case(mf, d, scene)
     _, t_load = ms.scene("llvm_ad_rgb", xml)
     first = ms.render("llvm_ad_rgb", xml, spp, seed=1)
     env = dict(os.environ, MATFIT_LOG="info")
@@ -794,9 +787,9 @@ def markdown(meta, fw, inv, cross, cfg, svg_name):
 # ----------------------------------------------------------------------------------------------
 
 
-def prepare_case(mf, d, floor, res):
-    os.makedirs(d, exist_ok=True)
-    scene = cc.figure6_variant(d, floor, *res)
+def export_case(mf, d, scene):
+    """Exports SCENE to Mitsuba under D (stopping on any approximation the exporter warns of)
+    and renders its group ids: (the XML's path, per-pixel group ids, group names)."""
     xml_dir = os.path.join(d, "mitsuba")
     r = run([mf.exe, "export", "mitsuba", scene, "-o", xml_dir])
     # "note:" lines (e.g. writing over an earlier run's export) are not approximations.
@@ -805,8 +798,14 @@ def prepare_case(mf, d, floor, res):
         sys.exit("compare.py: matfit export warned:\n" + "\n".join(warned))
     run(mf.cmd("render", scene, "--aov", "group", "-o", os.path.join(d, "ids.pfm")))
     ids = np.rint(cc.read_pfm(os.path.join(d, "ids.pfm"))[..., 0]).astype(int)
-    names = cc.group_names(mf.exe, scene)
-    return scene, os.path.join(xml_dir, "scene.xml"), ids, names
+    return os.path.join(xml_dir, "scene.xml"), ids, cc.group_names(mf.exe, scene)
+
+
+def prepare_case(mf, d, floor, res):
+    os.makedirs(d, exist_ok=True)
+    scene = cc.figure6_variant(d, floor, *res)
+    xml, ids, names = export_case(mf, d, scene)
+    return scene, xml, ids, names
 
 
 def visible_groups(ids, names, truth):
