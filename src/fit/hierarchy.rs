@@ -465,6 +465,13 @@ impl GroupState {
         motion
     }
 
+    /// Whether its average of confirmed fits starts afresh after an iteration whose move was
+    /// `motion` (just recorded): while it still converges and has never been steady at its
+    /// level (a group confirmed at its move), its fits lie on the way to its value.
+    pub fn restarts_its_average(&self, motion: Motion, settle: f32) -> bool {
+        motion == Motion::Converging && self.moves.iter().all(|&m| m >= settle)
+    }
+
     /// Ends the analysis of a group the run left undecided (the iterations ran out): it is
     /// confirmed at its current level, the best one it kept, and the event says why it had not
     /// decided. `None` if the group was not analysing.
@@ -943,6 +950,37 @@ mod tests {
         assert!(st.error < opts.thresholds.of(st.level), "{events:?}");
         assert!(!tried.contains(&Level::Plastic), "{tried:?}");
         assert_eq!(st.status, Status::Analysing, "{events:?}");
+    }
+
+    /// A group that has converged ever since it reached its level restarts its average each
+    /// iteration it still converges; once steady there, a later converging move does not
+    /// restart it (the scene-wide restarts are `recovery.rs`'s), nor does jitter.
+    #[test]
+    fn only_a_group_still_reaching_its_level_restarts_its_average() {
+        let settle = 0.03;
+        let mut st = GroupState::new("floor", Status::Confirmed, GroupParams::default());
+        let m = st.record_move(0.2, settle);
+        assert_eq!(m, Motion::Converging);
+        assert!(st.restarts_its_average(m, settle));
+        let m = st.record_move(0.1, settle);
+        assert!(st.restarts_its_average(m, settle));
+        let m = st.record_move(0.01, settle);
+        assert_eq!(m, Motion::Steady);
+        assert!(!st.restarts_its_average(m, settle));
+        // Steady once at its level: a converging move later is the scene's, not its own.
+        for moved in [0.5, 0.4] {
+            st.record_move(moved, settle);
+        }
+        let m = st.record_move(0.2, settle);
+        assert_eq!(m, Motion::Converging);
+        assert!(!st.restarts_its_average(m, settle));
+        let mut st = GroupState::new("wall", Status::Confirmed, GroupParams::default());
+        for moved in [0.1, 0.09] {
+            st.record_move(moved, settle);
+        }
+        let m = st.record_move(0.08, settle);
+        assert_eq!(m, Motion::Jittering);
+        assert!(!st.restarts_its_average(m, settle));
     }
 
     /// Parameters that keep moving by the same amount (a lobe the photo does not determine)

@@ -796,14 +796,14 @@ impl<'a> RecoveryLoop<'a> {
             .flatten()
             .fold(unseen_moved.max(exposure_moved), |a, &b| a.max(b));
         let mut motions = Vec::new();
-        let mut converging = vec![false; self.states.len()];
+        let mut restarts = vec![false; self.states.len()];
         for (g, m) in moves.iter().enumerate() {
             let Some(m) = *m else { continue };
             let motion = self.states[g].record_move(m, opts.settle);
             if motion == Motion::Jittering {
                 log(&self.line(it, g, Event::Jitter { moved: m }, 0.0));
             }
-            converging[g] = motion == Motion::Converging;
+            restarts[g] = self.states[g].restarts_its_average(motion, opts.settle);
             motions.push(motion);
         }
         let level_changed = self
@@ -830,8 +830,8 @@ impl<'a> RecoveryLoop<'a> {
             }
             self.unseen_history.anchor(&unseen_values);
         } else {
-            for (s, &c) in self.states.iter_mut().zip(&converging) {
-                if c && s.moves.iter().all(|&m| m >= opts.settle) {
+            for (s, &r) in self.states.iter_mut().zip(&restarts) {
+                if r {
                     s.average = None;
                 }
             }
