@@ -952,6 +952,33 @@ mod tests {
         assert_eq!(st.status, Status::Analysing, "{events:?}");
     }
 
+    /// A mirror is not confirmed at its move, even by a climb that tried every level above:
+    /// a confirmed mirror lends its ρs to the textures it shows, so the ρs must settle first.
+    #[test]
+    fn a_mirror_is_not_confirmed_at_its_move() {
+        let v = WardVariant::Ward1992;
+        let opts = HierarchyOptions::default();
+        // ρs 0.8 with ±15% of tile-to-tile scatter no lobe explains: ε stays above the
+        // specular threshold, and no level above lowers it.
+        let cache = synthetic_cache(480, 32, 24, 5, |p: &CachePixel, _| {
+            p.mirror * (0.8 * (1.0 + 0.15 * (p.tile as f32 * 12.9898).sin()))
+        });
+        let mut st = GroupState::new("mirror", Status::Analysing, GroupParams::default());
+        st.iterations_at_level = 2;
+        let events = st.step(&cache, None, v, &opts, true, true);
+        assert_eq!(st.level, Level::Specular, "{events:?}");
+        assert!(st.error >= opts.thresholds.of(st.level), "{events:?}");
+        let tried: Vec<Level> = events
+            .iter()
+            .filter_map(|e| match e {
+                Event::Tried { level, .. } => Some(*level),
+                _ => None,
+            })
+            .collect();
+        assert!(tried.contains(&Level::Plastic), "{tried:?}");
+        assert_eq!(st.status, Status::Analysing, "{events:?}");
+    }
+
     /// A group that has converged ever since it reached its level restarts its average each
     /// iteration it still converges; once steady there, a later converging move does not
     /// restart it (the scene-wide restarts are `recovery.rs`'s), nor does jitter.
