@@ -800,6 +800,26 @@ mod tests {
     use crate::fit::cache::{synthetic_cache, synthetic_diffuse as diffuse, CachePixel};
     use crate::math::{Rgb, Vec3};
 
+    /// A group analysing at level 1, settled there (two iterations), stepped once on `c` with
+    /// its turn to climb: its state, the events and the levels its climb tried.
+    fn climb(
+        name: &str,
+        c: &GroupCache,
+        opts: &HierarchyOptions,
+    ) -> (GroupState, Vec<Event>, Vec<Level>) {
+        let mut st = GroupState::new(name, Status::Analysing, GroupParams::default());
+        st.iterations_at_level = 2;
+        let events = st.step(c, None, WardVariant::Ward1992, opts, true, true);
+        let tried = events
+            .iter()
+            .filter_map(|e| match e {
+                Event::Tried { level, .. } => Some(*level),
+                _ => None,
+            })
+            .collect();
+        (st, events, tried)
+    }
+
     /// Ward lobe per unit ρs for the synthetic photos (the renderer's own lobe).
     fn ward(wo: Vec3, wi: Vec3, a: f32) -> f32 {
         let lobe = crate::render::bsdf::WardLobe {
@@ -858,9 +878,7 @@ mod tests {
             f0.error,
             f1.error
         );
-        let mut st = GroupState::new("sphere", Status::Analysing, GroupParams::default());
-        st.iterations_at_level = 2;
-        let events = st.step(&c, None, v, &opts, true, true);
+        let (st, events, _) = climb("sphere", &c, &opts);
         assert_eq!(st.level, Level::Isotropic, "{events:?}");
         assert!(events.iter().any(|e| matches!(
             e,
@@ -884,17 +902,8 @@ mod tests {
     #[test]
     fn a_group_with_no_lobe_skips_the_levels_that_reshape_one() {
         let c = synthetic_cache(480, 4, 24, 11, |_, s| 0.5 * diffuse(s));
-        let mut st = GroupState::new("wall", Status::Analysing, GroupParams::default());
-        st.iterations_at_level = 2;
         let opts = HierarchyOptions::default();
-        let events = st.step(&c, None, WardVariant::Ward1992, &opts, true, true);
-        let tried: Vec<Level> = events
-            .iter()
-            .filter_map(|e| match e {
-                Event::Tried { level, .. } => Some(*level),
-                _ => None,
-            })
-            .collect();
+        let (st, events, tried) = climb("wall", &c, &opts);
         assert!(st.error > opts.thresholds.diffuse, "{events:?}");
         assert_eq!(st.level, Level::Diffuse, "{events:?}");
         assert!(
@@ -909,7 +918,6 @@ mod tests {
     /// below its threshold did not try the levels above it, and the group goes on analysing.
     #[test]
     fn a_move_is_confirmed_only_when_every_level_above_was_tried() {
-        let v = WardVariant::Ward1992;
         let opts = HierarchyOptions::default();
         let glossy = |samples: usize, seed: u64| {
             synthetic_cache(480, samples, 24, seed, |_, s: &[(Vec3, Vec3, Rgb)]| {
@@ -920,21 +928,8 @@ mod tests {
                 0.5 * diffuse(s) + 0.3 * lobe
             })
         };
-        let climb = |c: &GroupCache| {
-            let mut st = GroupState::new("block", Status::Analysing, GroupParams::default());
-            st.iterations_at_level = 2;
-            let events = st.step(c, None, v, &opts, true, true);
-            let tried: Vec<Level> = events
-                .iter()
-                .filter_map(|e| match e {
-                    Event::Tried { level, .. } => Some(*level),
-                    _ => None,
-                })
-                .collect();
-            (st, events, tried)
-        };
         // Few samples: the Ward level's ε stays above its threshold on the noise.
-        let (st, events, tried) = climb(&glossy(32, 11));
+        let (st, events, tried) = climb("block", &glossy(32, 11), &opts);
         assert!(st.level.is_ward(), "{events:?}");
         assert!(st.error >= opts.thresholds.of(st.level), "{events:?}");
         assert!(tried.contains(&Level::Plastic), "{tried:?}");
@@ -945,7 +940,7 @@ mod tests {
             .position(|e| matches!(e, Event::Confirmed { .. }));
         assert!(moved.is_some() && confirmed > moved, "{events:?}");
         // Many: the first Ward level meets its threshold and the climb stops there.
-        let (st, events, tried) = climb(&glossy(384, 7));
+        let (st, events, tried) = climb("block", &glossy(384, 7), &opts);
         assert_eq!(st.level, Level::Isotropic, "{events:?}");
         assert!(st.error < opts.thresholds.of(st.level), "{events:?}");
         assert!(!tried.contains(&Level::Plastic), "{tried:?}");
@@ -956,25 +951,15 @@ mod tests {
     /// a confirmed mirror lends its ρs to the textures it shows, so the ρs must settle first.
     #[test]
     fn a_mirror_is_not_confirmed_at_its_move() {
-        let v = WardVariant::Ward1992;
         let opts = HierarchyOptions::default();
         // ρs 0.8 with ±15% of tile-to-tile scatter no lobe explains: ε stays above the
         // specular threshold, and no level above lowers it.
         let cache = synthetic_cache(480, 32, 24, 5, |p: &CachePixel, _| {
             p.mirror * (0.8 * (1.0 + 0.15 * (p.tile as f32 * 12.9898).sin()))
         });
-        let mut st = GroupState::new("mirror", Status::Analysing, GroupParams::default());
-        st.iterations_at_level = 2;
-        let events = st.step(&cache, None, v, &opts, true, true);
+        let (st, events, tried) = climb("mirror", &cache, &opts);
         assert_eq!(st.level, Level::Specular, "{events:?}");
         assert!(st.error >= opts.thresholds.of(st.level), "{events:?}");
-        let tried: Vec<Level> = events
-            .iter()
-            .filter_map(|e| match e {
-                Event::Tried { level, .. } => Some(*level),
-                _ => None,
-            })
-            .collect();
         assert!(tried.contains(&Level::Plastic), "{tried:?}");
         assert_eq!(st.status, Status::Analysing, "{events:?}");
     }

@@ -796,14 +796,16 @@ impl<'a> RecoveryLoop<'a> {
             .flatten()
             .fold(unseen_moved.max(exposure_moved), |a, &b| a.max(b));
         let mut motions = Vec::new();
-        let mut restarts = vec![false; self.states.len()];
         for (g, m) in moves.iter().enumerate() {
             let Some(m) = *m else { continue };
             let motion = self.states[g].record_move(m, opts.settle);
             if motion == Motion::Jittering {
                 log(&self.line(it, g, Event::Jitter { moved: m }, 0.0));
             }
-            restarts[g] = self.states[g].restarts_its_average(motion, opts.settle);
+            // Only its own: the light it sends the others barely changes on the way.
+            if self.states[g].restarts_its_average(motion, opts.settle) {
+                self.states[g].average = None;
+            }
             motions.push(motion);
         }
         let level_changed = self
@@ -811,16 +813,12 @@ impl<'a> RecoveryLoop<'a> {
             .iter()
             .zip(&levels_before)
             .any(|(s, l)| s.level != *l);
-        let settled = schedule::settled(level_changed, &motions);
         // Fits made before a group changed its model saw a different scene; so did fits made
         // before the unseen groups' ρd (or the stray light) drifted, since the averages started,
         // by more than twice the tolerance in the seen light. (From where they started, not from
         // the last iteration: the estimate's own noise from one iteration to the next does not
         // restart them, a slow drift does.) Either starts every group's average afresh; a new
-        // model also the record of how its parameters converge. A group that has converged at its
-        // level since it reached it, never steady there (one confirmed at its move), restarts
-        // only its own average: its earlier fits lie on the way to its value, while the light
-        // it sends the others barely changes.
+        // model also the record of how its parameters converge.
         if level_changed || unseen_drift > 2.0 * opts.tolerance {
             for s in self.states.iter_mut() {
                 s.average = None;
@@ -829,17 +827,11 @@ impl<'a> RecoveryLoop<'a> {
                 }
             }
             self.unseen_history.anchor(&unseen_values);
-        } else {
-            for (s, &r) in self.states.iter_mut().zip(&restarts) {
-                if r {
-                    s.average = None;
-                }
-            }
         }
         tracing::debug!(
             "iteration {it}: moved {moved:.4} (unseen {unseen_moved:.4}, drift {unseen_drift:.4})"
         );
-        self.settled = settled;
+        self.settled = schedule::settled(level_changed, &motions);
         let all_confirmed = self.states.iter().all(|s| {
             s.status != Status::Analysing
                 && (s.status != Status::Confirmed
