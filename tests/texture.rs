@@ -346,8 +346,8 @@ fn poster_scene(scale: f32, spp: u32) -> Figures {
 /// Σ|Δ|/Σ 6.0%, mean within 0.2% (cut from the photo: 19.9 dB, 19.5%, mean off by 10–21%);
 /// desk 44.9 dB, 1.4%, mean within 1.1%, varnish ρs 0.108 (true 0.1), α 0.086 (true 0.08);
 /// books 26.1 dB (cut 23.3), mean +2.2 to +2.8%; renders of the recovered scene from the
-/// photo's viewpoint, a new one and under a moved lamp within 1.1% per group but the desk from
-/// the new viewpoint (−2.0%: its α).
+/// photo's viewpoint, a new one and under a moved lamp within 1.0% per group (the desk from the
+/// new viewpoint −0.99%).
 #[test]
 fn poster_scene_textures_are_recovered_as_reflectance() {
     let f = poster_scene(0.5, 256);
@@ -413,11 +413,13 @@ fn poster_scene_textures_are_recovered_as_reflectance() {
         "{:?}",
         desk.params
     );
-    // Renders of the recovered scene against the truth's, per group.
+    // Renders of the recovered scene against the truth's, per group. The new view sees a
+    // quarter of the desk that the photo does not (its near edge, below the photo's frame):
+    // those texels are the fill's guess, fading to the desk's mean (2.0% dark with pull–push
+    // alone).
     for which in [&f.same, &f.view, &f.lit] {
         for (g, e) in which {
-            let tol = if g == "desk" { 0.03 } else { 0.02 };
-            assert!(e.abs() < tol, "{g}: {e}");
+            assert!(e.abs() < 0.02, "{g}: {e}");
         }
     }
 }
