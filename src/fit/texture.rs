@@ -73,7 +73,17 @@ impl TextureState {
 
     /// Mean of the seen texels.
     pub fn mean(&self) -> Rgb {
-        seen_mean(&self.texels, &self.seen)
+        let (sum, n) = self
+            .texels
+            .iter()
+            .zip(&self.seen)
+            .filter(|x| *x.1)
+            .fold((Rgb::ZERO, 0usize), |(a, n), (t, _)| (a + *t, n + 1));
+        if n == 0 {
+            Rgb::ZERO
+        } else {
+            sum / n as f32
+        }
     }
 }
 
@@ -211,20 +221,6 @@ pub fn uniform_model(
         .collect()
 }
 
-/// The mean of the seen texels (zero if none is).
-fn seen_mean(texels: &[Rgb], seen: &[bool]) -> Rgb {
-    let (sum, n) = texels
-        .iter()
-        .zip(seen)
-        .filter(|x| *x.1)
-        .fold((Rgb::ZERO, 0usize), |(a, n), (t, _)| (a + *t, n + 1));
-    if n == 0 {
-        Rgb::ZERO
-    } else {
-        sum / n as f32
-    }
-}
-
 /// The radiance of `texture` (with its lobe `lobe` on top) per cached pixel; None if the cache
 /// has no texel rows.
 pub fn textured_model(
@@ -286,11 +282,11 @@ pub fn fit_textured(
         // One alternation: the lobe refitted on what the texture leaves (the photo minus the
         // texture's diffuse radiance: its ρd comes out near zero), then the texture under it.
         // The uniform fit's lobe absorbs part of the texture's contrast; this one does not.
-        // Under the highlight the texture is the one around it (`texture_around_highlight`):
-        // texels solved from the highlight's own pixels would hand the refit back the lobe
-        // they were solved under. Unless that lobe explains the highlight's residual, the
-        // residual is the guessed texels' error, not a highlight: the lobe is then refitted on
-        // the whole texture, as the texture absorbs whatever lobe it was solved under.
+        // The refit's texture is solved without the highlight's pixels
+        // (`texture_without_highlight`): texels solved from them would hand the refit back the
+        // lobe they were solved under. Unless the refitted lobe explains the highlight's
+        // residual, that residual is the unsolved texels' error, not a highlight, and the lobe
+        // is refitted on the whole texture instead.
         // The pixels copied, the samples shared; the texel rows are not needed for a lobe.
         let residual = |texels: &[Rgb]| {
             let mut rest = GroupCache {
@@ -307,10 +303,10 @@ pub fn fit_textured(
             }
             rest
         };
-        let (under, hot) = texture_around_highlight(cache, rows, &spec, &texels, atlas);
-        let around = residual(&under);
-        let mut f = fit_level(&around, base, &lobe, variant);
-        let share = explained_share(&around, &hot, base, &f.params, variant);
+        let (without, hot) = texture_without_highlight(cache, rows, &spec, &texels, atlas);
+        let rest = residual(&without);
+        let mut f = fit_level(&rest, base, &lobe, variant);
+        let share = explained_share(&rest, &hot, base, &f.params, variant);
         if !(share >= HIGHLIGHT_EXPLAINED) {
             evals += f.evals;
             f = fit_level(&residual(&texels), base, &lobe, variant);
@@ -366,24 +362,28 @@ pub fn fit_textured(
 /// the "highlight"), and +8.6% with the highlight's own texels.
 pub const HIGHLIGHT_FRACTION: f32 = 0.1;
 
-/// The least share of the highlight's residual (photo − the texture from around it) that the
-/// refitted lobe must explain for that refit to stand ([`explained_share`]). On the poster
+/// The least share of the highlight's residual (photo − the texture solved without it) that
+/// the refitted lobe must explain for that refit to stand ([`explained_share`]). On the poster
 /// scene's desk (a true varnish) it is 0.56–0.74; on the facing-mirrors room's book (a diffuse
 /// texture whose uniform fit found a lobe in its detail) 0.007, and that refit gave the book a
 /// false varnish (ρs 0.01–0.03) and cost it 2 dB.
 pub const HIGHLIGHT_EXPLAINED: f32 = 0.25;
 
-/// The texture with the highlight's texels taken from around it: solved (from `start`, under
-/// the lobe's radiance `spec`) without the pixels where the lobe gives at least
-/// [`HIGHLIGHT_FRACTION`] of the radiance, its texels that no other pixel sees then filled by
-/// pull–push from their surroundings (no fade: the local mean is the estimate there).
+/// The texture solved (from `start`, the previous texture, under the lobe's radiance `spec`)
+/// without the pixels where the lobe gives at least [`HIGHLIGHT_FRACTION`] of the radiance, and
+/// which pixels those are.
 ///
 /// Why: in one photo a free texel can absorb any lobe. Solved from the highlight's pixels under
 /// a lobe too wide, the texels at its centre come out bright and those in its tails dark,
 /// photo − texture is that same lobe again, and a refit returns it (on the poster scene's desk,
-/// α +8.6%, moved by 0.0005 per alternation). A texture known only from around the highlight
-/// carries no trace of the lobe, so the highlight's pixels decide the lobe's shape.
-fn texture_around_highlight(
+/// α +8.6%, moved by 0.0005 per alternation). Without those pixels, a texel that only the
+/// highlight sees has no data term: its ISRA steps are the smoothness penalty's alone, each
+/// moving it towards its neighbours' mean from the previous texture, so it relaxes towards its
+/// surroundings instead of re-absorbing the current lobe, and over the global iterations the
+/// lobe moves to the one the highlight's shape asks for. Filling those texels by pull–push
+/// from around the highlight instead was worse (half resolution: ρs 0.05–0.087, α +6%, desk
+/// 37.9 dB): the grain interpolated across the highlight is further off than the lobe.
+fn texture_without_highlight(
     cache: &GroupCache,
     rows: &TexelRows,
     spec: &[Rgb],
@@ -391,7 +391,7 @@ fn texture_around_highlight(
     atlas: &Atlas,
 ) -> (Vec<Rgb>, Vec<bool>) {
     let sum = |c: Rgb| c.x + c.y + c.z;
-    let mut around = TexelRows {
+    let mut without = TexelRows {
         ranges: rows.ranges.clone(),
         rows: rows.rows.clone(),
     };
@@ -402,22 +402,19 @@ fn texture_around_highlight(
         .map(|(px, &s)| sum(s) >= HIGHLIGHT_FRACTION * sum(px.photo))
         .collect();
     for (p, _) in hot.iter().enumerate().filter(|h| *h.1) {
-        let a = around.ranges[p][0];
-        around.ranges[p] = [a; 3];
+        let a = without.ranges[p][0];
+        without.ranges[p] = [a; 3];
     }
     let charts = atlas.chart_rects();
-    let mut texels = solve(
+    let texels = solve(
         cache,
-        &around,
+        &without,
         spec,
         start,
         ITERATIONS,
         &charts,
         atlas.width,
     );
-    let seen = seen_texels(&column_weights(&around, texels.len()));
-    let mean = seen_mean(&texels, &seen);
-    fill_unseen_with(atlas, &mut texels, &seen, mean, f32::INFINITY);
     (texels, hot)
 }
 
@@ -627,11 +624,6 @@ pub fn error(
 /// seen texel gets m, or `fallback` (the group's mean) if the object has none. The gaps
 /// between charts are left as they are (the export pads them; lookups clamp to the chart).
 pub fn fill_unseen(atlas: &Atlas, texels: &mut [Rgb], seen: &[bool], fallback: Rgb) {
-    fill_unseen_with(atlas, texels, seen, fallback, FILL_FADE_TEXELS)
-}
-
-/// [`fill_unseen`] with the fade's length `fade` in texels (infinite: pull–push alone).
-fn fill_unseen_with(atlas: &Atlas, texels: &mut [Rgb], seen: &[bool], fallback: Rgb, fade: f32) {
     // Per object, the mean of its seen texels: a chart seen nowhere (a book's top, its sides)
     // more likely shares its own object's colours than the group's.
     let rects = atlas.chart_rects();
@@ -677,7 +669,7 @@ fn fill_unseen_with(atlas: &Atlas, texels: &mut [Rgb], seen: &[bool], fallback: 
             for x in 0..w {
                 let i = (y0 + y) * atlas.width + x0 + x;
                 if !seen[i] {
-                    let k = (-d[y * w + x] / fade).exp();
+                    let k = (-d[y * w + x] / FILL_FADE_TEXELS).exp();
                     texels[i] = fallback + (filled[y * w + x] - fallback) * k;
                 }
             }
