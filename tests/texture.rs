@@ -206,12 +206,12 @@ pub(crate) fn scores(
 /// `change` applied to both scenes (a new camera, a moved light):
 /// - the mean radiance of the recovered scene over the truth's, − 1;
 /// - over the pixels whose texel the photo saw (all, off textures), the recovered scene's error
-///   per texel-sized tile against the render noise: a texel is about
-///   a pixel where the photo saw it (the atlas's texel is the photo's pixel footprint), so per
-///   pixel, d = recovered − truth and n = truth′ − truth (truth′: another seed). Both hold the
-///   noise of two renders, d also the recovery's error b, so var(d) − var(n) = var(b) (the mean
-///   offset is the first figure's), and the figure is rms(b) / σ with σ² = var(n)/2 one render's
-///   noise: below 1, the recovered texture's error per tile is within the noise.
+///   per texel-sized tile against the render noise. A texel is about a pixel where the photo
+///   saw it (the atlas's texel is the photo's pixel footprint), so per pixel d = recovered −
+///   truth and n = truth′ − truth (truth′: another seed). Both hold the noise of two renders, d
+///   also the recovery's error b, so var(d) − var(n) = var(b) (the mean offset is the first
+///   figure's), and the figure is rms(b) / σ with σ² = var(n)/2 one render's noise: below 1,
+///   the recovered texture's error per tile is within the noise.
 fn predicted(
     truth: &Scene,
     rec: &matfit::fit::Recovery,

@@ -357,9 +357,9 @@ pub fn fit_textured(
 }
 
 /// A pixel belongs to a varnish's highlight when the lobe gives at least this fraction of its
-/// radiance (summed over the channels). On the poster scene's desk (true α 0.08, ρs 0.1) the
-/// refitted α was +0.3% at 0.1 (+1.1% at half resolution), +5% at 0.03 (87% of the pixels in
-/// the "highlight"), and +8.6% with the highlight's own texels.
+/// radiance (summed over the channels). Much lower and most of a varnished surface counts as
+/// highlight (its lobe also reflects the room), leaving too few pixels to solve the texture
+/// from (the sweep is in 9150de9's message).
 pub const HIGHLIGHT_FRACTION: f32 = 0.1;
 
 /// The least share of the highlight's residual (photo − the texture solved without it) that
@@ -380,9 +380,9 @@ pub const HIGHLIGHT_EXPLAINED: f32 = 0.25;
 /// highlight sees has no data term: its ISRA steps are the smoothness penalty's alone, each
 /// moving it towards its neighbours' mean from the previous texture, so it relaxes towards its
 /// surroundings instead of re-absorbing the current lobe, and over the global iterations the
-/// lobe moves to the one the highlight's shape asks for. Filling those texels by pull–push
-/// from around the highlight instead was worse (half resolution: ρs 0.05–0.087, α +6%, desk
-/// 37.9 dB): the grain interpolated across the highlight is further off than the lobe.
+/// lobe moves to the one the highlight's shape asks for. Those texels are not interpolated
+/// from around the highlight: the grain interpolated across it is further off than the lobe
+/// (measured in 2b5f3cd's message).
 fn texture_without_highlight(
     cache: &GroupCache,
     rows: &TexelRows,
@@ -679,11 +679,9 @@ pub fn fill_unseen(atlas: &Atlas, texels: &mut [Rgb], seen: &[bool], fallback: R
 
 /// How far (in texels) an unseen texel's fill keeps the look of the nearest seen texels before
 /// it fades to its object's mean. Pull–push alone carries the seen edge's texels across a whole
-/// hole: the desk of the poster scene, seen only in its far three quarters, had its near quarter
-/// filled with its edge's grain stretched into streaks, 3% darker than the truth there, and its
-/// render from a viewpoint that sees that quarter 2.4% darker. Far from every seen texel the
-/// object's mean is the estimate with the least expected error for a texture whose detail is
-/// not correlated over more than a few texels.
+/// hole, as streaks of whatever detail lies at the edge (the poster scene's desk: 2936adc's
+/// message). Far from every seen texel the object's mean is the estimate with the least
+/// expected error for a texture whose detail is not correlated over more than a few texels.
 const FILL_FADE_TEXELS: f32 = 4.0;
 
 /// Per pixel of a w × h weighted image, the distance in pixels to the nearest pixel of weight
