@@ -372,7 +372,7 @@ fn poster_scene_from(path: &str, scale: f32, spp: u32) -> Figures {
     .unwrap();
     let view = predicted(&scene, &rec, |s| s.camera = view.clone(), 64);
     let moved = {
-        let p = crate::common::root().join("scenes/poster/scene.toml");
+        let p = crate::common::root().join(path);
         let text = std::fs::read_to_string(&p)
             .unwrap()
             .replace("corner = [-0.2, 1.7, -4.99]", "corner = [0.7, 2.2, -4.99]");

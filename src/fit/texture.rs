@@ -642,7 +642,7 @@ pub fn fill_unseen(atlas: &Atlas, texels: &mut [Rgb], seen: &[bool], fallback: R
         }
     }
     for (&[x0, y0, w, h], o) in rects.iter().zip(&objects) {
-        let fallback = match object_mean.get(o) {
+        let mean = match object_mean.get(o) {
             Some(&(sum, n)) if n > 0 => sum / n as f32,
             _ => fallback,
         };
@@ -658,7 +658,7 @@ pub fn fill_unseen(atlas: &Atlas, texels: &mut [Rgb], seen: &[bool], fallback: R
         if img.iter().all(|p| p.1 == 0.0) {
             for y in 0..h {
                 for x in 0..w {
-                    texels[(y0 + y) * atlas.width + x0 + x] = fallback;
+                    texels[(y0 + y) * atlas.width + x0 + x] = mean;
                 }
             }
             continue;
@@ -670,7 +670,7 @@ pub fn fill_unseen(atlas: &Atlas, texels: &mut [Rgb], seen: &[bool], fallback: R
                 let i = (y0 + y) * atlas.width + x0 + x;
                 if !seen[i] {
                     let k = (-d[y * w + x] / FILL_FADE_TEXELS).exp();
-                    texels[i] = fallback + (filled[y * w + x] - fallback) * k;
+                    texels[i] = mean + (filled[y * w + x] - mean) * k;
                 }
             }
         }
@@ -865,6 +865,7 @@ mod tests {
         assert!((0.2..=0.8).contains(&a) && a < 0.5, "{a}");
         assert!(out.iter().all(|c| c.x >= 0.2 - 1e-6 && c.x <= 0.8 + 1e-6));
     }
+
     #[test]
     fn unseen_texels_continue_the_seen_edge_and_fade_to_the_objects_mean() {
         // A 4 × 1 wall, texel 0.1: one 40 × 10 chart whose first ten columns are seen, 0.2 but
