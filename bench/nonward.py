@@ -54,6 +54,16 @@ sys.path.insert(0, HERE)
 from crosscheck import (eroded_masks, figure6_variant, find_matfit, group_names,  # noqa: E402
                         mitsuba_render, read_pfm)
 
+# A brushed metal: an anisotropic GGX conductor, rougher along the face's dp/dv than along its
+# dp/du (two rooms).
+BRUSHED_METAL = """<bsdf type="roughconductor">
+<string name="material" value="none"/>
+<string name="distribution" value="ggx"/>
+<float name="alpha_u" value="0.08"/>
+<float name="alpha_v" value="0.3"/>
+<rgb name="specular_reflectance" value="0.8, 0.6, 0.3"/>
+</bsdf>"""
+
 CASES = {
     # A red plastic with a GGX coat, and a rough green metal.
     "ggx-plastic+conductor": {
@@ -89,13 +99,18 @@ CASES = {
             <float name="specular" value="0.5"/>
             <float name="metallic" value="0.0"/>
         </bsdf>""",
-        "small_block": """<bsdf type="roughconductor">
-            <string name="material" value="none"/>
+        "small_block": BRUSHED_METAL,
+    },
+    # The brushed metal again, beside a block matfit can model (a GGX plastic of the principled
+    # block's colour and about its coat): separates the metal's own error from the one it
+    # inherits by mirroring a neighbour no level reproduces.
+    "aniso-conductor+ggx-plastic": {
+        "big_block": """<bsdf type="roughplastic">
             <string name="distribution" value="ggx"/>
-            <float name="alpha_u" value="0.08"/>
-            <float name="alpha_v" value="0.3"/>
-            <rgb name="specular_reflectance" value="0.8, 0.6, 0.3"/>
+            <float name="alpha" value="0.2"/>
+            <rgb name="diffuse_reflectance" value="0.2, 0.4, 0.7"/>
         </bsdf>""",
+        "small_block": BRUSHED_METAL,
     },
     # A nearly polished GGX plastic (the low end of the issue's alpha range), and a Beckmann
     # metal.

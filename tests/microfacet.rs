@@ -181,8 +181,8 @@ fn a_brushed_beckmann_metal_is_recovered_at_level_10() {
     let m = &rec.groups[metal];
     assert_eq!(m.level, Level::AnisotropicMicrofacet, "{table}");
     assert_eq!(m.params.distribution, Distribution::Beckmann, "{table}");
-    assert!((m.params.alpha_x / ax - 1.0).abs() < 0.15, "{table}");
-    assert!((m.params.alpha_y / ay - 1.0).abs() < 0.15, "{table}");
+    assert!((m.params.alpha_x / ax - 1.0).abs() < 0.05, "{table}");
+    assert!((m.params.alpha_y / ay - 1.0).abs() < 0.05, "{table}");
     assert!(m.params.theta.to_degrees().abs() < 5.0, "{table}");
     assert!(
         (m.params.rho_s - rho_s).abs().max_element() < 0.05,
