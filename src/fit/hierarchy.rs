@@ -645,6 +645,8 @@ impl GroupState {
         let mut texture = None;
         // Whether every level above the one kept was tried (or ruled out) on this cache.
         let mut exhausted = true;
+        // The ε of the levels tried and not kept (not the texture's).
+        let mut rejected = Vec::new();
         while let Some(next) = level.next() {
             // Levels 8 and 10 reshape a lobe: a group on which no specular level earned its
             // place has none to reshape (a wall whose ε is its noise would only fit the noise).
@@ -735,9 +737,17 @@ impl GroupState {
                     exhausted = level.next().is_none();
                     break;
                 }
+            } else {
+                rejected.push(f.error);
             }
             tried.push(f);
         }
+        // A level that lowered ε by the margin but failed another test (its gain's noise, level
+        // 10's unbiased cost, the held-out tiles) is a near miss, which a later climb on a
+        // settled cache may pass.
+        let near_miss = rejected
+            .iter()
+            .any(|&e| e < (1.0 - opts.margin) * best.error);
         if best.level != self.level && !may_move {
             self.waiting += 1;
             self.pending = Some(best.level);
@@ -756,11 +766,11 @@ impl GroupState {
             self.moves.clear();
             self.last_step = None;
             // Every level above was tried on this cache, in a settled scene, and none earned
-            // its place: a second climb once the move has settled would try the same levels
-            // against nearly the same light. (A texture still converges texel by texel; a
+            // its place or came near it: a second climb once the move has settled would try
+            // the same levels against nearly the same light. (A texture still converges texel by texel; a
             // confirmed mirror lends its ρs to the textures it shows, so its ρs must settle
             // first.)
-            if exhausted && !matches!(self.level, Level::Textured | Level::Specular) {
+            if exhausted && !near_miss && !matches!(self.level, Level::Textured | Level::Specular) {
                 self.status = Status::Confirmed;
                 self.note = Some(format!(
                     "no level above {} lowered the error by a clear margin in the climb that moved it there; kept with fit ε {:.4} above its threshold {:.4}",
