@@ -645,8 +645,8 @@ impl GroupState {
         let mut texture = None;
         // Whether every level above the one kept was tried (or ruled out) on this cache.
         let mut exhausted = true;
-        // The ε of the levels tried and not kept (not the texture's).
-        let mut rejected = Vec::new();
+        // The lowest ε of the levels tried and not kept (not the texture's).
+        let mut rejected = f32::INFINITY;
         while let Some(next) = level.next() {
             // Levels 8 and 10 reshape a lobe: a group on which no specular level earned its
             // place has none to reshape (a wall whose ε is its noise would only fit the noise).
@@ -738,16 +738,14 @@ impl GroupState {
                     break;
                 }
             } else {
-                rejected.push(f.error);
+                rejected = rejected.min(f.error);
             }
             tried.push(f);
         }
         // A level that lowered ε by the margin but failed another test (its gain's noise, level
         // 10's unbiased cost, the held-out tiles) is a near miss, which a later climb on a
         // settled cache may pass.
-        let near_miss = rejected
-            .iter()
-            .any(|&e| e < (1.0 - opts.margin) * best.error);
+        let near_miss = rejected < (1.0 - opts.margin) * best.error;
         if best.level != self.level && !may_move {
             self.waiting += 1;
             self.pending = Some(best.level);
@@ -767,9 +765,9 @@ impl GroupState {
             self.last_step = None;
             // Every level above was tried on this cache, in a settled scene, and none earned
             // its place or came near it: a second climb once the move has settled would try
-            // the same levels against nearly the same light. (A texture still converges texel by texel; a
-            // confirmed mirror lends its ρs to the textures it shows, so its ρs must settle
-            // first.)
+            // the same levels against nearly the same light. (A texture still converges texel
+            // by texel; a confirmed mirror lends its ρs to the textures it shows, so its ρs
+            // must settle first.)
             if exhausted && !near_miss && !matches!(self.level, Level::Textured | Level::Specular) {
                 self.status = Status::Confirmed;
                 self.note = Some(format!(

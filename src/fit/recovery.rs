@@ -174,9 +174,8 @@ pub fn ggx_samples(alpha: f32) -> u32 {
 
 /// A group at a microfacet level (8 or 10) draws this many times more indirect samples again.
 /// A metal's radiance is mostly its lobe's reflection of the room, which only the indirect
-/// samples see (the light samples see the light's highlight), and their noise moved its fit
-/// along the ρd–ρs–α ridge from one global iteration to the next: a Beckmann metal's red ρd
-/// came out anywhere from 0 to 0.27 for 0, and the mean of the last fits 0.06.
+/// samples see (the light samples see the light's highlight), and with fewer their noise moves
+/// its fit along the ρd–ρs–α ridge from one global iteration to the next.
 pub const METAL_INDIRECT: u32 = 4;
 
 impl<'a> RecoveryLoop<'a> {
