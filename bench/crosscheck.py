@@ -16,6 +16,7 @@ Cases
                   diffuse (0.5, 0.1, 0.1) + GGX rho_s 0.3, alpha 0.08 (an exact blendbsdf).
   figure6-plastic figure6-diffuse with both blocks matfit's plastic (level 9): Mitsuba's
                   roughplastic, GGX, IOR 1.49 (red, alpha 0.1; and green, alpha 0.3).
+  figure6-plastic-beckmann  the same with Beckmann coats.
   glossy          scenes/glossy: a mirror, an isotropic Ward sphere, a diffuse+mirror box.
   sunroom         scenes/sunroom (no area light: a directional sun and a spot lamp) with its
                   Ward ball made diffuse, so that the check measures the punctual lights alone.
@@ -185,6 +186,9 @@ PLASTIC_BLOCKS = [
      'material = { type = "plastic", rho_d = [0.7, 0.05, 0.05], rho_s = 0.0387, alpha = 0.1 }'),
 ]
 
+BECKMANN_PLASTIC_BLOCKS = [
+    (old, new.replace(" }", ', distribution = "beckmann" }')) for old, new in PLASTIC_BLOCKS]
+
 FLOOR = re.compile(r'^material = \{ type = "ward".*$', re.M)
 
 
@@ -328,7 +332,7 @@ def main():
                     help="figure6 resolution (same vertical fov; the scene's own is 512x384)")
     ap.add_argument("--cases",
                     default="cornell,figure6-diffuse,figure6-mirror,figure6-ward,figure6-ggx,"
-                    "figure6-plastic,glossy,sunroom,sunroom-ortho,sunroom-stray,skyroom,poster-diffuse,poster")
+                    "figure6-plastic,figure6-plastic-beckmann,glossy,sunroom,sunroom-ortho,sunroom-stray,skyroom,poster-diffuse,poster")
     ap.add_argument("--mapped-cases", default="figure6-ward,glossy,poster",
                     help="cases whose Ward groups measure the export's mapping error")
     ap.add_argument("--out", help="keep images here (default: a temporary folder)")
@@ -343,7 +347,7 @@ def main():
         print("warning: DRJIT_LIBLLVM_PATH unset; source bench/mitsuba_env.sh", file=sys.stderr)
     res = {"figure6-diffuse": args.fig6_res, "figure6-mirror": args.mirror_res,
            "figure6-ward": args.fig6_res, "figure6-ggx": args.fig6_res,
-           "figure6-plastic": args.fig6_res}
+           "figure6-plastic": args.fig6_res, "figure6-plastic-beckmann": args.fig6_res}
     mapped_cases = set(args.mapped_cases.split(","))
     work = args.out or tempfile.mkdtemp(prefix="matfit-crosscheck-")
     os.makedirs(work, exist_ok=True)
@@ -385,12 +389,14 @@ def main():
                          "figure6-mirror": '{ type = "mirror", rho_s = 0.8 }',
                          "figure6-ggx": '{ type = "diffuse", rho_d = 0.5 }',
                          "figure6-plastic": '{ type = "diffuse", rho_d = 0.5 }',
+                         "figure6-plastic-beckmann": '{ type = "diffuse", rho_d = 0.5 }',
                          "figure6-ward": None}[case]
                 fw, fh = (int(x) for x in res[case].split("x"))
                 scene = figure6_variant(d, floor, fw, fh)
-                if case in ("figure6-ggx", "figure6-plastic"):
+                if case in ("figure6-ggx", "figure6-plastic", "figure6-plastic-beckmann"):
                     text = open(scene).read()
-                    blocks = GGX_BLOCKS if case == "figure6-ggx" else PLASTIC_BLOCKS
+                    blocks = {"figure6-ggx": GGX_BLOCKS, "figure6-plastic": PLASTIC_BLOCKS,
+                              "figure6-plastic-beckmann": BECKMANN_PLASTIC_BLOCKS}[case]
                     for old, new in blocks:
                         assert text.count(old) == 1, "figure6's block materials changed"
                         text = text.replace(old, new)

@@ -300,7 +300,8 @@ fn figure6_round_trips_through_mitsuba() {
 }
 
 /// A microfacet material goes out as Mitsuba's GGX `roughconductor` (in a `blendbsdf` with a
-/// diffuse part) and comes back the same material, with no warning.
+/// diffuse part), a Beckmann plastic as a Beckmann `roughplastic`, and each comes back the same
+/// material, with no warning.
 #[test]
 fn microfacet_materials_round_trip_through_mitsuba() {
     let text = std::fs::read_to_string(root().join("scenes/figure6/scene.toml")).unwrap();
@@ -315,7 +316,7 @@ fn microfacet_materials_round_trip_through_mitsuba() {
         )
         .replace(
             "material = { type = \"diffuse\", rho_d = 0.66 }",
-            "material = { type = \"plastic\", rho_d = [0.6, 0.3, 0.1], rho_s = 0.05, alpha = 0.15, eta = 1.6 }",
+            "material = { type = \"plastic\", rho_d = [0.6, 0.3, 0.1], rho_s = 0.05, alpha = 0.15, eta = 1.6, distribution = \"beckmann\" }",
         );
     let dir = tempfile::tempdir().unwrap();
     let src = write(dir.path(), "scene.toml", &text);
@@ -333,11 +334,11 @@ fn microfacet_materials_round_trip_through_mitsuba() {
         );
     }
     // The plastic went out as roughplastic (specular_reflectance = ρs / F0) and comes back as
-    // itself, η included.
+    // itself, η and its Beckmann coat included.
     let m = material("left_wall");
     assert!(
-        matches!(m, Material::Plastic { alpha, eta, .. }
-            if alpha == 0.15 && (eta - 1.6).abs() < 1e-6),
+        matches!(m, Material::Plastic { alpha, eta, distribution, .. }
+            if alpha == 0.15 && (eta - 1.6).abs() < 1e-6 && distribution == Distribution::Beckmann),
         "{m:?}"
     );
 }
@@ -571,6 +572,7 @@ fn approximations_are_warnings_listed_in_the_header() {
 </sensor>
 <bsdf type="roughplastic" id="plastic">
     <float name="alpha" value="0.2"/>
+    <boolean name="nonlinear" value="true"/>
     <rgb name="diffuse_reflectance" value="0.5, 0.4, 0.3"/>
 </bsdf>
 <bsdf type="twosided" id="blend">
@@ -603,10 +605,10 @@ fn approximations_are_warnings_listed_in_the_header() {
     let text = std::fs::read_to_string(&out).unwrap();
     for (line, what) in [
         (5, "no rfilter"),
-        (7, "imported as plastic (a GGX coat"),
+        (7, "imported as plastic (`nonlinear` false"),
         (7, "one-sided"),
-        (26, "a mirror with ρs = Fresnel"),
-        (26, "one-sided"),
+        (27, "a mirror with ρs = Fresnel"),
+        (27, "one-sided"),
     ] {
         let w = format!("{}:{line}: ", xml.display());
         assert!(
@@ -621,15 +623,18 @@ fn approximations_are_warnings_listed_in_the_header() {
     }
     let sc = load_scene(&out).unwrap();
     let obj = |n: &str| sc.objects.iter().find(|o| o.name == n).unwrap();
-    // Roughplastic (Mitsuba's default distribution, Beckmann): matfit's plastic, whose coat is
-    // GGX, with the same α and η = 1.49/1.000277, F0 = ((η − 1)/(η + 1))² ≈ 0.0387.
+    // Roughplastic (Mitsuba's default distribution, Beckmann; nonlinear, which matfit's is
+    // not): matfit's Beckmann plastic with the same α and η = 1.49/1.000277,
+    // F0 = ((η − 1)/(η + 1))² ≈ 0.0387.
     match &obj("board").material {
         Material::Plastic {
             rho_d,
             rho_s,
             alpha,
             eta,
+            distribution,
         } => {
+            assert_eq!(*distribution, Distribution::Beckmann);
             assert!((rho_s.x - 0.0387).abs() < 1e-3, "{rho_s}");
             assert!((*rho_d - Rgb::new(0.5, 0.4, 0.3)).abs().max_element() < 1e-6);
             assert_eq!(*alpha, 0.2);

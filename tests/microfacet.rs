@@ -54,6 +54,7 @@ fn a_rough_metal_and_a_plastic_are_recovered_at_the_ggx_levels() {
             rho_s: Rgb::splat(f0),
             alpha: plastic_a,
             eta: DEFAULT_ETA,
+            distribution: Distribution::Ggx,
         },
     );
     let fit = |ggx: bool| {

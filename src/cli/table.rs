@@ -76,9 +76,14 @@ pub fn material(m: &Material) -> String {
             rho_d,
             rho_s,
             alpha,
+            distribution,
             ..
         } => format!(
-            "plastic (GGX coat) ρd {} ρs {} α {}",
+            "plastic ({} coat) ρd {} ρs {} α {}",
+            match distribution {
+                matfit::scene::Distribution::Ggx => "GGX",
+                matfit::scene::Distribution::Beckmann => "Beckmann",
+            },
             rgb(*rho_d),
             rgb(*rho_s),
             num(*alpha, 4)
@@ -257,7 +262,8 @@ pub fn recovered(rec: &Recovery) -> String {
     {
         use matfit::render::bsdf::plastic::{fresnel_dielectric, DEFAULT_ETA};
         out.push_str(&format!(
-            "plastic: a diffuse base under a rough GGX dielectric coat whose index of refraction \
+            "plastic: a diffuse base under a rough dielectric coat (GGX or Beckmann, whichever \
+             fits better) whose index of refraction \
              is not fitted but taken as η = {DEFAULT_ETA} (acrylic); its ρs is the coat's \
              reflectance at normal incidence (F0 = {:.4} for that η; a ρs away from it is a coat \
              reflecting more or less than clean acrylic).\n",

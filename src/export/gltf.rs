@@ -461,10 +461,18 @@ pub fn material_spec(m: &Material, variant: WardVariant, warnings: &mut Vec<Stri
             rho_d,
             rho_s,
             alpha,
+            distribution,
             ..
         } => {
             // glTF's dielectric lobe is a GGX coat with Schlick's Fresnel from F0 = ρs.
             let (r, aniso) = ward_roughness(*alpha, *alpha, 0.0, warnings);
+            if *distribution != crate::scene::Distribution::Ggx {
+                warnings.push(format!(
+                    "a {} plastic coat is exported as glTF's GGX coat of the same α (a narrower \
+                     core and a wider halo)",
+                    distribution.name()
+                ));
+            }
             layered(*rho_d, *rho_s, r, aniso, warnings)
         }
         Material::Textured { scale, varnish, .. } => match varnish {

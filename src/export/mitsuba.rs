@@ -631,13 +631,15 @@ fn bsdf_xml(
             rho_s,
             alpha,
             eta,
+            distribution,
         } => {
             // Exact: `render::bsdf::plastic` is this plugin; ρs is its F0 × specular_reflectance.
             let f0 = crate::render::bsdf::plastic::fresnel_dielectric(1.0, *eta);
             format!(
-                "<bsdf type=\"roughplastic\">\n    <string name=\"distribution\" value=\"ggx\"/>\n    \
+                "<bsdf type=\"roughplastic\">\n    <string name=\"distribution\" value=\"{}\"/>\n    \
                  <float name=\"alpha\" value=\"{alpha}\"/>\n    <float name=\"int_ior\" value=\"{eta}\"/>\n    \
                  <float name=\"ext_ior\" value=\"1\"/>\n    {}\n    {}\n</bsdf>\n",
+                distribution.name(),
                 rgb("diffuse_reflectance", *rho_d),
                 rgb("specular_reflectance", *rho_s / f0)
             )
@@ -1051,6 +1053,7 @@ mod tests {
                 rho_s: Rgb::splat(0.02),
                 alpha: 0.1,
                 eta: 1.5,
+                distribution: crate::scene::Distribution::Ggx,
             },
             "block",
             || panic!("no Ward scale for a plastic"),

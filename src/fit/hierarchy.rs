@@ -108,6 +108,10 @@ pub struct GroupState {
     /// Running sum of confirmed fits, each weighted by its cache's pixel count (its precision),
     /// with the number of fits and the total weight.
     pub average: Option<(GroupParams, u32, f32)>,
+    /// The same of the fits that chose the other microfacet distribution (levels 8–10): the
+    /// runner-up, which takes over from `average` once its total weight is the greater.
+    #[serde(default)]
+    pub runner_up: Option<(GroupParams, u32, f32)>,
     /// Global iterations since this group last found a higher level that earned its place
     /// but had to wait for another group's turn (0: not waiting). The longest waiting group
     /// climbs first, so no group holds the turn (see `schedule::climbers`).
@@ -229,6 +233,7 @@ impl GroupState {
             note: None,
             last_step: None,
             average: None,
+            runner_up: None,
             waiting: 0,
             pending: None,
             moves: Vec::new(),
@@ -241,14 +246,16 @@ impl GroupState {
 
     /// Adds a confirmed fit of weight `weight` to the running mean and sets the parameters to the
     /// mean.
-    /// The mean is over fits of one microfacet distribution: a fit that changes it starts anew.
+    /// The mean is over fits of one microfacet distribution, the one chosen by the greater
+    /// weight of fits: the two can fit a photo about as well, and one iteration's cache may tip
+    /// the choice the other way, which must neither restart the mean nor end the run on it.
     fn accumulate(&mut self, weight: f32) {
         let p = self.params;
         if self
             .average
             .is_some_and(|(sums, _, _)| sums.distribution != p.distribution)
         {
-            self.average = None;
+            std::mem::swap(&mut self.average, &mut self.runner_up);
         }
         let (sums, n, total) = self
             .average
@@ -256,6 +263,18 @@ impl GroupState {
         *n += 1;
         *total += weight;
         self.params = p.add_to_mean(sums, weight, *total);
+        if let (Some(a), Some(r)) = (&self.average, &self.runner_up) {
+            if r.2 > a.2 {
+                self.params = r.0.mean_of_sums(r.2);
+                std::mem::swap(&mut self.average, &mut self.runner_up);
+            }
+        }
+    }
+
+    /// Starts its mean of confirmed fits afresh.
+    pub fn restart_average(&mut self) {
+        self.average = None;
+        self.runner_up = None;
     }
 
     /// What is not finite about the group's last fit (its error, noise floor or a parameter),
@@ -603,7 +622,7 @@ impl GroupState {
                     self.iterations_at_level = 0;
                     self.moves.clear();
                     self.last_step = None;
-                    self.average = None;
+                    self.restart_average();
                     self.status = Status::Analysing;
                     // What was said of the level it left no longer holds.
                     self.note = None;
@@ -970,6 +989,46 @@ mod tests {
         assert!(st.error >= opts.thresholds.of(st.level), "{events:?}");
         assert!(tried.contains(&Level::Plastic), "{tried:?}");
         assert_eq!(st.status, Status::Analysing, "{events:?}");
+    }
+
+    /// A confirmed group's mean is over the fits of the distribution chosen by the greater
+    /// weight: a fit that tips the other way joins the runner-up without moving the parameters
+    /// or restarting the mean, and the runner-up leads once it outweighs.
+    #[test]
+    fn a_distribution_flip_joins_the_runner_up() {
+        use crate::scene::Distribution::{Beckmann, Ggx};
+        let mut st = GroupState::new("block", Status::Confirmed, GroupParams::default());
+        let fit = |st: &mut GroupState, distribution, alpha: f32, weight: f32| {
+            st.params = GroupParams {
+                alpha_x: alpha,
+                alpha_y: alpha,
+                distribution,
+                ..GroupParams::default()
+            };
+            st.accumulate(weight);
+            (st.params.distribution, st.params.alpha_x)
+        };
+        for _ in 0..3 {
+            fit(&mut st, Beckmann, 0.3, 100.0);
+        }
+        let (d, a) = fit(&mut st, Ggx, 0.2, 100.0);
+        assert_eq!(d, Beckmann);
+        assert!((a - 0.3).abs() < 1e-5, "{a}");
+        assert_eq!(st.average.map(|a| a.1), Some(3));
+        let (d, a) = fit(&mut st, Beckmann, 0.3, 100.0);
+        assert_eq!((d, st.average.map(|a| a.1)), (Beckmann, Some(4)));
+        assert!((a - 0.3).abs() < 1e-5, "{a}");
+        // Four GGX fits (weight 460) outweigh four Beckmann fits (400).
+        for _ in 0..2 {
+            fit(&mut st, Ggx, 0.2, 120.0);
+        }
+        let (d, a) = fit(&mut st, Ggx, 0.22, 120.0);
+        assert_eq!(d, Ggx);
+        let want = ((340.0 * 0.2f32.ln() + 120.0 * 0.22f32.ln()) / 460.0).exp();
+        assert!((a - want).abs() < 1e-4, "{a} vs {want}");
+        assert_eq!(st.runner_up.map(|r| r.1), Some(4));
+        st.restart_average();
+        assert!(st.average.is_none() && st.runner_up.is_none());
     }
 
     /// A group that has converged ever since it reached its level restarts its average each

@@ -32,8 +32,9 @@ pub enum Level {
     /// ρs, αx, αy, θ: brushed metal. Tried right after level 8, as level 6 after level 5.
     AnisotropicMicrofacet = 10,
     /// 9 (beyond the notes): a diffuse base under a rough dielectric coat, ρd, ρs (at normal
-    /// incidence), α (`render::bsdf::plastic`): plastics, paint, lacquer, whose reflection rises
-    /// towards grazing and whose diffuse light falls off faster than the cosine.
+    /// incidence), α, GGX or Beckmann as level 8 (`render::bsdf::plastic`): plastics, paint,
+    /// lacquer, whose reflection rises towards grazing and whose diffuse light falls off faster
+    /// than the cosine.
     Plastic = 9,
 }
 
@@ -122,9 +123,14 @@ impl Level {
         self.is_ward() || self.is_microfacet() || self == Level::Plastic
     }
 
-    /// Whether the level is Lambert + a GGX lobe (8 or 10).
+    /// Whether the level is Lambert + a microfacet lobe (8 or 10; not the coated level 9).
     pub fn is_microfacet(self) -> bool {
         matches!(self, Level::Microfacet | Level::AnisotropicMicrofacet)
+    }
+
+    /// Whether the level's lobe has a microfacet distribution to choose (8, 9 and 10).
+    pub fn has_distribution(self) -> bool {
+        self.is_microfacet() || self == Level::Plastic
     }
 }
 

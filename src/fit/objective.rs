@@ -36,9 +36,13 @@ pub enum Spec {
         theta: f32,
         distribution: Distribution,
     },
-    /// A diffuse base under a GGX dielectric coat (`render::bsdf::plastic`): the diffuse term
-    /// is the coat's, not the cache's Lambert D.
-    Plastic { alpha: f32, eta: f32 },
+    /// A diffuse base under a dielectric coat (`render::bsdf::plastic`): the diffuse term is
+    /// the coat's, not the cache's Lambert D.
+    Plastic {
+        alpha: f32,
+        eta: f32,
+        distribution: Distribution,
+    },
 }
 
 /// Per-pixel specular term S (per unit ρs), its halves, and the halves of
@@ -145,8 +149,12 @@ pub fn pixel_specs(
             };
             lobe_specs(cache, |samples| aniso_sums(samples, &lobe, derivatives))
         }
-        Spec::Plastic { alpha, eta } => {
-            let coat = crate::render::bsdf::Coat::get(alpha, eta);
+        Spec::Plastic {
+            alpha,
+            eta,
+            distribution,
+        } => {
+            let coat = crate::render::bsdf::Coat::get(alpha, eta, distribution);
             cache
                 .pixels
                 .par_iter()

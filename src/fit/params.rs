@@ -263,7 +263,6 @@ impl GroupParams {
     /// mean of the sums over the total weight `total` (this weight included), clamped.
     pub fn add_to_mean(&self, sums: &mut GroupParams, weight: f32, total: f32) -> GroupParams {
         sums.distribution = self.distribution;
-        let mut mean = *sums;
         for row in &REGISTRY {
             let sum = (row.get_mut)(sums);
             for (s, &v) in sum.iter_mut().zip((row.get)(self)) {
@@ -272,7 +271,16 @@ impl GroupParams {
                     Scale::Log => v.ln() * weight,
                 };
             }
-            for (m, &s) in (row.get_mut)(&mut mean).iter_mut().zip(&*sum) {
+        }
+        sums.mean_of_sums(total)
+    }
+
+    /// The mean of these running sums ([`GroupParams::add_to_mean`]) of total weight `total`,
+    /// clamped.
+    pub fn mean_of_sums(&self, total: f32) -> GroupParams {
+        let mut mean = *self;
+        for row in &REGISTRY {
+            for (m, &s) in (row.get_mut)(&mut mean).iter_mut().zip((row.get)(self)) {
                 *m = match row.scale {
                     Scale::Linear => s / total,
                     Scale::Log => (s / total).exp(),
@@ -389,6 +397,7 @@ impl GroupParams {
                 rho_s: self.rho_s,
                 alpha: self.alpha_x,
                 eta: crate::render::bsdf::plastic::DEFAULT_ETA,
+                distribution: self.distribution,
             },
         }
     }

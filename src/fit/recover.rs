@@ -155,6 +155,9 @@ pub struct LogLine {
     #[serde(flatten)]
     pub event: Event,
     pub params: std::collections::BTreeMap<&'static str, super::params::Value>,
+    /// The distribution of the parameters' lobe at levels 8–10.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub distribution: Option<&'static str>,
     /// Time spent on this group in this iteration (cache build and fits).
     pub seconds: f64,
     /// Seconds since the recovery started when the line was written (across a resume: the

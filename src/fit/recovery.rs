@@ -381,6 +381,10 @@ impl<'a> RecoveryLoop<'a> {
             iteration: it,
             group: st.name.clone(),
             params: st.params.named(st.params_level()).into_iter().collect(),
+            distribution: st
+                .params_level()
+                .has_distribution()
+                .then(|| st.params.distribution.name()),
             event,
             seconds,
             elapsed: self.elapsed(),
@@ -785,6 +789,7 @@ impl<'a> RecoveryLoop<'a> {
                 group: "stray_light".into(),
                 event: Event::StrayLight(s.clone()),
                 params: Default::default(),
+                distribution: None,
                 seconds: 0.0,
                 elapsed: self.elapsed(),
             });
@@ -816,7 +821,7 @@ impl<'a> RecoveryLoop<'a> {
             }
             // Only its own: the light it sends the others barely changes on the way.
             if self.states[g].restarts_its_average(motion, opts.settle) {
-                self.states[g].average = None;
+                self.states[g].restart_average();
             }
             motions.push(motion);
         }
@@ -833,7 +838,7 @@ impl<'a> RecoveryLoop<'a> {
         // model also the record of how its parameters converge.
         if level_changed || unseen_drift > 2.0 * opts.tolerance {
             for s in self.states.iter_mut() {
-                s.average = None;
+                s.restart_average();
                 if level_changed {
                     s.moves.clear();
                 }

@@ -91,9 +91,21 @@ pub fn sigma(
     // The coat's α moves its diffuse term as well as its lobe, and neither has an analytic
     // derivative here: central differences in ln α, ∂S into `ds_half`, ∂D into `dd`.
     let mut dd = vec![Rgb::ZERO; specs.len()];
-    if let Spec::Plastic { alpha, eta } = spec {
+    if let Spec::Plastic {
+        alpha,
+        eta,
+        distribution,
+    } = spec
+    {
         let h = 0.02f32;
-        let at = |a: f32| pixel_specs(cache, Spec::Plastic { alpha: a, eta }, variant, false);
+        let at = |a: f32| {
+            let spec = Spec::Plastic {
+                alpha: a,
+                eta,
+                distribution,
+            };
+            pixel_specs(cache, spec, variant, false)
+        };
         let (up, down) = (at(alpha * h.exp()), at(alpha / h.exp()));
         for (((s, d), u), w) in specs.iter_mut().zip(&mut dd).zip(&up).zip(&down) {
             for k in 0..2 {

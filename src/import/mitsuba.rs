@@ -60,7 +60,7 @@
 //!   "beckmann", alone or blended with a `diffuse` → microfacet, likewise; a textured `diffuse`
 //!   blended with a specular lobe (the exporter's varnished texture) → textured, scale 1 − w,
 //!   with the lobe's ρs and α as its Ward varnish (a warning where the lobe is a microfacet one:
-//!   matfit's varnish is Ward's); `roughplastic` with `distribution = "ggx"`
+//!   matfit's varnish is Ward's); `roughplastic` with `distribution` "ggx" or "beckmann"
 //!   (and `nonlinear` false) → plastic (ρd = diffuse_reflectance, ρs = F0·specular_reflectance,
 //!   α, η = int_ior/ext_ior). Initial guesses, not truth (a warning each), with ρs from Fresnel
 //!   reflectance at normal incidence F0: conductors with eta/k (or a named metal, from a small
@@ -68,7 +68,7 @@
 //!   conductor, α = alpha (αx, αy = alpha_u, alpha_v; Beckmann's and Ward's α are the same slope
 //!   width); `plastic` → diffuse_mirror with F0 = ((η−1)/(η+1))², η = int_ior/ext_ior,
 //!   ρs = F0·specular_reflectance, ρd = (1−F0)·diffuse_reflectance; `roughplastic` with
-//!   another distribution than GGX or `nonlinear` → plastic with its α and η; `principled` →
+//!   `nonlinear` → plastic with its α, η and distribution; `principled` →
 //!   Ward α = roughness², F0 = 0.08·specular blended to base_color by metallic,
 //!   ρd = (1−metallic)(1−F0)·base_color. Anything else
 //!   (dielectrics, …) → diffuse 0.5 with a warning. A shape with no BSDF gets Mitsuba's default,
@@ -192,8 +192,9 @@ struct Lobes {
     /// The rough part is exactly matfit's microfacet lobe of this distribution: a GGX or
     /// Beckmann `roughconductor` with `material = "none"`.
     microfacet: Option<Distribution>,
-    /// A `roughplastic`: matfit's plastic with this coat's η (d and s as matfit's ρd and ρs).
-    plastic: Option<f64>,
+    /// A `roughplastic`: matfit's plastic with this coat's η and distribution (d and s as
+    /// matfit's ρd and ρs).
+    plastic: Option<(f64, Distribution)>,
 }
 
 impl Lobes {
@@ -1387,17 +1388,22 @@ impl<'a> Ctx<'a> {
                 }
             }
             "roughplastic" => {
-                // matfit's plastic is this plugin with a GGX coat and `nonlinear = false`.
+                // matfit's plastic is this plugin with `nonlinear = false`.
                 let eta = self.ior_ratio(b)?;
                 let f0 = crate::render::bsdf::plastic::fresnel_dielectric(1.0, eta as f32) as f64;
                 let distribution = self
                     .string(b, "distribution")?
                     .unwrap_or_else(|| "beckmann".into());
-                if distribution != "ggx" || self.boolean(b, "nonlinear")? {
+                let known = match distribution.as_str() {
+                    "ggx" => Some(Distribution::Ggx),
+                    "beckmann" => Some(Distribution::Beckmann),
+                    _ => None,
+                };
+                if known.is_none() || self.boolean(b, "nonlinear")? {
                     guess(
                         self,
-                        "plastic (a GGX coat, `nonlinear` false) with the same alpha and η, \
-                         ρs = F0 × specular_reflectance",
+                        "plastic (`nonlinear` false; a GGX coat unless Beckmann) with the same \
+                         alpha and η, ρs = F0 × specular_reflectance",
                     );
                 }
                 let (a, _) = self.alpha(b, 0.1)?;
@@ -1405,7 +1411,7 @@ impl<'a> Ctx<'a> {
                     d: self.rgb(b, "diffuse_reflectance", 0.5)?,
                     s: self.rgb(b, "specular_reflectance", 1.0)? * f0,
                     alpha: Some((a, a)),
-                    plastic: Some(eta),
+                    plastic: Some((eta, known.unwrap_or_default())),
                     ..Default::default()
                 }
             }
@@ -1616,12 +1622,13 @@ impl<'a> Ctx<'a> {
                 theta_deg: None,
             };
         }
-        if let (Some(eta), Some((a, _))) = (l.plastic, l.alpha) {
+        if let (Some((eta, distribution)), Some((a, _))) = (l.plastic, l.alpha) {
             return MaterialSpec::Plastic {
                 rho_d: c(d),
                 rho_s: c(s),
                 alpha: a as f32,
                 eta: Some(eta as f32),
+                distribution,
             };
         }
         if let (Some(distribution), Some(_), true, None) =

@@ -72,11 +72,12 @@ pub fn bsdf_at(material: &Material, hit: &SurfaceHit, variant: WardVariant) -> (
             rho_s,
             alpha,
             eta,
+            distribution,
         } => (
             Bsdf::Plastic {
                 rho_d: *rho_d,
                 rho_s: *rho_s,
-                coat: super::bsdf::Coat::get(*alpha, *eta),
+                coat: super::bsdf::Coat::get(*alpha, *eta, *distribution),
             },
             hit.frame,
         ),

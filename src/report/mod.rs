@@ -39,7 +39,8 @@ pub struct GroupResult {
     pub band_width: usize,
     pub edge_test: bool,
     pub params: BTreeMap<&'static str, Value>,
-    /// The microfacet levels' distribution ("ggx" or "beckmann"), chosen by the fit.
+    /// The microfacet levels' and the plastic's distribution ("ggx" or "beckmann"), chosen by
+    /// the fit.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub distribution: Option<&'static str>,
     /// The 1σ of each parameter in `params` (same units), from the group's last cache
@@ -193,7 +194,9 @@ pub fn results(rec: &Recovery) -> Results {
                 band_width: st.band_width,
                 edge_test: st.edge_test,
                 params: params.named(named_at).into_iter().collect(),
-                distribution: named_at.is_microfacet().then(|| params.distribution.name()),
+                distribution: named_at
+                    .has_distribution()
+                    .then(|| params.distribution.name()),
                 sigma: match (s.status, &s.sigma) {
                     (Status::Analysing | Status::Confirmed, Some(sd)) => {
                         sd.named(named_at).into_iter().collect()

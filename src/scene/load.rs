@@ -956,6 +956,7 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
             rho_s,
             alpha,
             eta,
+            distribution,
         } => {
             let (alpha, _, _) = lobe(Some(*alpha), None, None, None, "a plastic material")?;
             let eta = eta.unwrap_or(crate::render::bsdf::plastic::DEFAULT_ETA);
@@ -969,6 +970,7 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
                 rho_s,
                 alpha,
                 eta,
+                distribution: *distribution,
             }
         }
         MaterialSpec::Textured {

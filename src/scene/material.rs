@@ -27,7 +27,9 @@ impl WardVariant {
 
 /// The microfacet normals' distribution of a microfacet lobe (`render::bsdf::microfacet`), as
 /// Mitsuba's `distribution` parameter names it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, Default)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize, Default,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum Distribution {
     /// Trowbridge–Reitz (GGX): a sharp core with a wide halo (Walter et al. 2007).
@@ -83,12 +85,14 @@ pub enum Material {
         distribution: Distribution,
     },
     /// A diffuse base under a rough dielectric coat (`render::bsdf::plastic`, Mitsuba's
-    /// `roughplastic` with GGX): ρd the base's reflectance, ρs the coat's at normal incidence.
+    /// `roughplastic`, GGX or Beckmann): ρd the base's reflectance, ρs the coat's at normal
+    /// incidence.
     Plastic {
         rho_d: Rgb,
         rho_s: Rgb,
         alpha: f32,
         eta: f32,
+        distribution: Distribution,
     },
     /// Lambert with ρd(u, v) = scale × texture(u, v), and optionally a uniform Ward lobe on
     /// top (a varnish: glossy posters, lacquered wood).

@@ -400,14 +400,17 @@ pub enum MaterialSpec {
         #[serde(default, skip_serializing_if = "is_ggx")]
         distribution: Distribution,
     },
-    /// A diffuse base under a rough dielectric coat (Mitsuba's `roughplastic`, GGX): `rho_d`,
-    /// `rho_s` (the coat's reflectance at normal incidence), `alpha`, optional `eta` (1.49).
+    /// A diffuse base under a rough dielectric coat (Mitsuba's `roughplastic`): `rho_d`,
+    /// `rho_s` (the coat's reflectance at normal incidence), `alpha`, optional `eta` (1.49) and
+    /// `distribution` ("ggx", the default, or "beckmann").
     Plastic {
         rho_d: Color,
         rho_s: Color,
         alpha: f32,
         #[serde(default, skip_serializing_if = "Option::is_none")]
         eta: Option<f32>,
+        #[serde(default, skip_serializing_if = "is_ggx")]
+        distribution: Distribution,
     },
     Textured {
         texture: String,

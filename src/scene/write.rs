@@ -60,12 +60,14 @@ pub fn material_spec(m: &Material) -> MaterialSpec {
             rho_s,
             alpha,
             eta,
+            distribution,
         } => MaterialSpec::Plastic {
             rho_d: c(*rho_d),
             rho_s: c(*rho_s),
             alpha: *alpha,
             // Written even at the default: a recovered η is an assumption the reader should see.
             eta: Some(*eta),
+            distribution: *distribution,
         },
         Material::Textured {
             texture,

@@ -198,6 +198,25 @@ pub fn ggx_at(hv: &HalfVector, alpha: f32) -> (f32, f32) {
     (g, g * dln)
 }
 
+/// The isotropic lobe per unit ρs at a cached pair, value only, of either distribution (the
+/// plastic coat's lobe, `plastic::plastic_sums`). Beckmann's D of the module comment with
+/// t = tan²θh and 1/cos⁴θh = (1 + t)²: D = exp(−t/α²) (1 + t)² / (π α²).
+#[inline]
+pub fn isotropic_at(hv: &HalfVector, alpha: f32, distribution: Distribution) -> f32 {
+    match distribution {
+        Distribution::Ggx => ggx_at(hv, alpha).0,
+        Distribution::Beckmann => {
+            let Some(q) = Pair::of(hv) else {
+                return 0.0;
+            };
+            let a2 = alpha * alpha;
+            let one_t = 1.0 + q.tan2_h;
+            let d = exp_neg_poly(q.tan2_h / a2) * one_t * one_t / (PI * a2);
+            d * beckmann_g1(a2 * q.tan2_i) * beckmann_g1(a2 * q.tan2_o) * q.inv_4cc
+        }
+    }
+}
+
 /// Σ c·g over `samples` and, if asked, Σ c·2∂g/∂ln α (zero otherwise), for the isotropic lobe
 /// of roughness `alpha`: [`ggx_at`] on eight samples at a time, the rest one by one (the lanes
 /// reorder no operation, but may differ from the scalar sum in the last bits of the totals).
@@ -453,8 +472,8 @@ mod tests {
         }
     }
 
-    /// The fitter's form from a half vector: the renderer's value for the isotropic lobe, and
-    /// its derivative in ln α against central differences.
+    /// The fitter's form from a half vector: the renderer's value for the isotropic lobe (GGX
+    /// and Beckmann), and GGX's derivative in ln α against central differences.
     #[test]
     fn the_fitters_form_is_the_lobe_and_its_derivative() {
         let pairs = [
@@ -471,6 +490,15 @@ mod tests {
                 let (g, dg) = ggx_at(&hv, alpha);
                 let f = lobe.eval(wo, wi);
                 assert!((g - f).abs() <= 2e-3 * f + 1e-6, "α {alpha}: {g} vs {f}");
+                let beckmann = MicrofacetLobe {
+                    distribution: Distribution::Beckmann,
+                    ..lobe
+                };
+                let (b, fb) = (
+                    isotropic_at(&hv, alpha, Distribution::Beckmann),
+                    beckmann.eval(wo, wi),
+                );
+                assert!((b - fb).abs() <= 2e-3 * fb + 1e-6, "α {alpha}: {b} vs {fb}");
                 let h = 1e-3f32;
                 let num = (ggx_at(&hv, alpha * h.exp()).0 as f64
                     - ggx_at(&hv, alpha / h.exp()).0 as f64)

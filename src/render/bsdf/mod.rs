@@ -256,7 +256,7 @@ mod tests {
     //! test at significance 1% (with a Šidák correction over the cases).
     use super::*;
     use crate::math::{Frame, Sampler, Vec2, PI};
-    use crate::scene::WardVariant;
+    use crate::scene::{Distribution, WardVariant};
     use statrs::distribution::{ChiSquared, ContinuousCDF};
 
     const THETA_BINS: usize = 24;
@@ -420,10 +420,20 @@ mod tests {
                 Bsdf::Plastic {
                     rho_d: Rgb::new(0.7, 0.1, 0.1),
                     rho_s: Rgb::splat(0.04),
-                    coat: Coat::get(0.1, plastic::DEFAULT_ETA),
+                    coat: Coat::get(0.1, plastic::DEFAULT_ETA, Distribution::Ggx),
                 },
                 tilted,
                 wo(60.0, 30.0),
+            ),
+            (
+                "beckmann plastic",
+                Bsdf::Plastic {
+                    rho_d: Rgb::new(0.2, 0.5, 0.6),
+                    rho_s: Rgb::splat(0.04),
+                    coat: Coat::get(0.3, plastic::DEFAULT_ETA, Distribution::Beckmann),
+                },
+                std_frame,
+                wo(45.0, 60.0),
             ),
             ("ggx iso", ggx(0.0, 1.0, 0.2, 0.2), std_frame, wo(40.0, 0.0)),
             (

@@ -1,8 +1,8 @@
 //! A rough plastic: a diffuse base under a rough dielectric coat, as Mitsuba 3's `roughplastic`
-//! with `distribution = "ggx"` (and `nonlinear = false`), which matfit exports it as. With η the
-//! coat's relative index of refraction, F(η, cos) the unpolarised Fresnel reflectance of a
-//! dielectric interface (Born & Wolf; total internal reflection where η < 1) and the GGX lobe of
-//! `microfacet.rs`:
+//! with `distribution = "ggx"` or `"beckmann"` (and `nonlinear = false`), which matfit exports it
+//! as. With η the coat's relative index of refraction, F(η, cos) the unpolarised Fresnel
+//! reflectance of a dielectric interface (Born & Wolf; total internal reflection where η < 1)
+//! and the microfacet lobe D G1 G1 of `microfacet.rs` (GGX or Beckmann):
 //!
 //!   f = specular_reflectance · F(η, ωi·ĥ) D G1 G1 / (4 cosθi cosθo)
 //!     + diffuse_reflectance / (1 − F_int) · t(cosθi) t(cosθo) / (π η²)
@@ -14,7 +14,7 @@
 //! with R_η(μ) the directional albedo of its reflection (the first term's ∫ f cosθo dωo at
 //! specular_reflectance 1). Mitsuba tabulates t at 64
 //! cosines i/63 and interpolates linearly, and averages F_int over the same 64 cosines; matfit
-//! does the same, with its own quadrature of R (a 128 × 64 midpoint grid in the GGX sampling
+//! does the same, with its own quadrature of R (a 128 × 64 midpoint grid in the lobe's sampling
 //! variables, exact importance for D cos θh).
 //!
 //! The diffuse part falls off faster than the cosine towards grazing (t falls as the coat's
@@ -23,9 +23,10 @@
 //!
 //! matfit's parameters: ρd = diffuse_reflectance, and ρs = F0 · specular_reflectance with
 //! F0 = F(η, 1), the coat's reflectance at normal incidence (so that ρs means what it means at
-//! the other levels, and ρd + ρs ≤ 1 holds). The lobe per unit ρs is F(η, ωi·ĥ)/F0 · GGX.
+//! the other levels, and ρd + ρs ≤ 1 holds). The lobe per unit ρs is F(η, ωi·ĥ)/F0 · D G1 G1 /
+//! (4 cosθi cosθo).
 
-use super::microfacet::MicrofacetLobe;
+use super::microfacet::{Distribution, MicrofacetLobe};
 use crate::math::{Rgb, Vec3, PI};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -53,7 +54,7 @@ pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
     0.5 * (a_s * a_s + a_p * a_p)
 }
 
-/// A rough dielectric coat of GGX roughness α and index η, with its tables.
+/// A rough dielectric coat of roughness α (GGX or Beckmann) and index η, with its tables.
 #[derive(Debug, PartialEq)]
 pub struct Coat {
     pub lobe: MicrofacetLobe,
@@ -67,8 +68,12 @@ pub struct Coat {
 }
 
 impl Coat {
-    fn new(alpha: f32, eta: f32) -> Coat {
-        let q = Quadrature::new(MicrofacetLobe::ggx(alpha, alpha));
+    fn new(alpha: f32, eta: f32, distribution: Distribution) -> Coat {
+        let q = Quadrature::new(MicrofacetLobe {
+            alpha_x: alpha,
+            alpha_y: alpha,
+            distribution,
+        });
         let mu = |i: usize| (i as f32 / (RES - 1) as f32).max(1e-6);
         // Each table entry is its own integral, one task each (the sum keeps its order).
         let table = |f: &(dyn Fn(usize) -> f32 + Sync)| -> Vec<f32> {
@@ -89,19 +94,21 @@ impl Coat {
         }
     }
 
-    /// The coat of roughness `alpha` and index `eta`, computed once per pair and kept for the
-    /// run (a BSDF is a plain value that refers to it; a level-9 fit makes one per trial α).
-    pub fn get(alpha: f32, eta: f32) -> &'static Coat {
-        static COATS: OnceLock<Mutex<HashMap<(u32, u32), &'static Coat>>> = OnceLock::new();
+    /// The coat of roughness `alpha`, index `eta` and `distribution`, computed once per triple
+    /// and kept for the run (a BSDF is a plain value that refers to it; a level-9 fit makes one
+    /// per trial α).
+    pub fn get(alpha: f32, eta: f32, distribution: Distribution) -> &'static Coat {
+        type Key = (u32, u32, Distribution);
+        static COATS: OnceLock<Mutex<HashMap<Key, &'static Coat>>> = OnceLock::new();
         let coats = COATS.get_or_init(Default::default);
         let lock = || coats.lock().unwrap_or_else(|e| e.into_inner());
-        let key = (alpha.to_bits(), eta.to_bits());
+        let key = (alpha.to_bits(), eta.to_bits(), distribution);
         if let Some(&c) = lock().get(&key) {
             return c;
         }
         // Built unlocked: the build runs on the thread pool, whose tasks may want a coat too.
         // Two threads building the same coat build the same one; the first is kept.
-        let coat = Coat::new(alpha, eta);
+        let coat = Coat::new(alpha, eta, distribution);
         lock()
             .entry(key)
             .or_insert_with(|| Box::leak(Box::new(coat)))
@@ -122,7 +129,7 @@ impl Coat {
         self.transmittance(cos_o) * self.transmittance(cos_i) * self.diffuse_scale
     }
 
-    /// The specular part per unit ρs: F(η, ωi·ĥ)/F0 times the GGX lobe.
+    /// The specular part per unit ρs: F(η, ωi·ĥ)/F0 times the microfacet lobe.
     #[inline]
     pub fn specular(&self, wo: Vec3, wi: Vec3) -> f32 {
         if wo.z <= 0.0 || wi.z <= 0.0 {
@@ -142,15 +149,16 @@ pub fn plastic_sums(samples: &[super::ward::LobeSample], coat: &Coat) -> (Rgb, R
         let Some((ci, co, cd)) = super::microfacet::cosines(&smp.half) else {
             continue;
         };
-        let g = super::microfacet::ggx_at(&smp.half, coat.lobe.alpha_x).0;
+        let lobe = &coat.lobe;
+        let g = super::microfacet::isotropic_at(&smp.half, lobe.alpha_x, lobe.distribution);
         s += smp.c * (fresnel_dielectric(cd, coat.eta) / coat.f0 * g);
         d += smp.c * coat.diffuse(ci, co);
     }
     (s, d)
 }
 
-/// The quadrature of the coat's integrals: a 128 × 64 midpoint grid of the GGX sampling
-/// variables, ĥ distributed as D cos θh. The normals do not depend on the incidence, so they
+/// The quadrature of the coat's integrals: a 128 × 64 midpoint grid of the lobe's sampling
+/// variables (`MicrofacetLobe::sample`), ĥ distributed as D cos θh. The normals do not depend on the incidence, so they
 /// are computed once per coat rather than once per table entry.
 struct Quadrature {
     lobe: MicrofacetLobe,
@@ -164,7 +172,10 @@ impl Quadrature {
         let mut normals = Vec::with_capacity(n1 * n2);
         for i in 0..n1 {
             let u1 = (i as f32 + 0.5) / n1 as f32;
-            let r = a * (u1 / (1.0 - u1)).sqrt();
+            let r = a * match lobe.distribution {
+                Distribution::Ggx => (u1 / (1.0 - u1)).sqrt(),
+                Distribution::Beckmann => (-(1.0 - u1).ln()).sqrt(),
+            };
             for j in 0..n2 {
                 let (s, c) = (2.0 * PI * (j as f32 + 0.5) / n2 as f32).sin_cos();
                 normals.push(Vec3::new(r * c, r * s, 1.0).normalize());
@@ -247,8 +258,11 @@ mod tests {
     #[test]
     fn tables_match_brute_force_and_conserve_energy() {
         let eta = DEFAULT_ETA;
-        for alpha in [0.05f32, 0.2, 0.5] {
-            let coat = Coat::get(alpha, eta);
+        let cases = [Distribution::Ggx, Distribution::Beckmann]
+            .into_iter()
+            .flat_map(|d| [0.05f32, 0.2, 0.5].map(|a| (a, d)));
+        for (alpha, distribution) in cases {
+            let coat = Coat::get(alpha, eta, distribution);
             let mut s = Sampler::new(5, 0);
             for mu in [0.2f32, 0.5, 0.9] {
                 let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
@@ -267,22 +281,27 @@ mod tests {
                 let table_r = Quadrature::new(coat.lobe).albedo(eta, mu) as f64;
                 assert!(
                     (table_r - r).abs() < 0.01,
-                    "α {alpha} μ {mu}: quadrature R {table_r} vs sampled {r}"
+                    "{distribution:?} α {alpha} μ {mu}: quadrature R {table_r} vs sampled {r}"
                 );
                 // What the coat's masking loses is neither reflected nor transmitted.
                 assert!(
                     t + r <= 1.0 + 0.01 && t + r > 0.6,
-                    "α {alpha} μ {mu}: t {t} R {r}"
+                    "{distribution:?} α {alpha} μ {mu}: t {t} R {r}"
                 );
-                assert!(all < 1.0 + 0.01, "α {alpha} μ {mu}: albedo {all}");
+                assert!(all < 1.0 + 0.01, "{distribution:?} α {alpha} μ {mu}: {all}");
             }
         }
-        let smooth = Coat::get(0.005, eta);
+        let smooth = Coat::get(0.005, eta, Distribution::Ggx);
         for mu in [0.3f32, 0.7, 1.0] {
             let t = smooth.transmittance(mu);
             let want = 1.0 - fresnel_dielectric(mu, eta);
             assert!((t - want).abs() < 0.01, "μ {mu}: {t} vs {want}");
         }
-        assert!(std::ptr::eq(Coat::get(0.2, eta), Coat::get(0.2, eta)));
+        let ggx = Coat::get(0.2, eta, Distribution::Ggx);
+        assert!(std::ptr::eq(ggx, Coat::get(0.2, eta, Distribution::Ggx)));
+        assert!(!std::ptr::eq(
+            ggx,
+            Coat::get(0.2, eta, Distribution::Beckmann)
+        ));
     }
 }
