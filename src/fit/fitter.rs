@@ -411,9 +411,8 @@ fn fit_level_from(
             // between the best point's neighbours (the cost is smooth and unimodal there). Both
             // distributions, as level 8, but the one of lower ε is kept, not of lower cost: a
             // nearly smooth coat's α can collapse to the bound, where the per-pixel cost is
-            // biased low (see `objective::pooled`), and with two distributions to choose from
-            // that happened in every other iteration (a GGX plastic of α 0.05, room 5 of
-            // bench/nonward.py: ε 0.025 at α 0.01 against 0.015 at α 0.05).
+            // biased low (see `objective::pooled`), and a second distribution gives it a second
+            // way down (bench/NONWARD.md).
             let eta = crate::render::bsdf::plastic::DEFAULT_ETA;
             let mut evals = 0;
             let mut fitted: Option<LevelFit> = None;
