@@ -222,32 +222,30 @@ fn a_brushed_metal_that_misses_level_10_once_still_reaches_it() {
         );
     assert!(text.contains("beckmann") && text.contains("rho_d = 0.5 }"));
     write(d.path(), "scene.toml", &text);
-    let args = ["--seed", "1"];
-    let (code, _, err) = run(
-        &[
-            &["render", "scene.toml", "-o", "photo.exr", "--spp", "256"],
-            &args[..],
-        ]
-        .concat(),
-        d.path(),
-    );
+    let render = [
+        "render",
+        "scene.toml",
+        "-o",
+        "photo.exr",
+        "--spp",
+        "256",
+        "--seed",
+        "1",
+    ];
+    let (code, _, err) = run(&render, d.path());
     assert_eq!(code, 0, "{err}");
-    let (code, out, err) = run(
-        &[
-            &[
-                "recover",
-                "scene.toml",
-                "photo.exr",
-                "-o",
-                "out",
-                "--exposure",
-                "1",
-            ],
-            &args[..],
-        ]
-        .concat(),
-        d.path(),
-    );
+    let recover = [
+        "recover",
+        "scene.toml",
+        "photo.exr",
+        "-o",
+        "out",
+        "--exposure",
+        "1",
+        "--seed",
+        "1",
+    ];
+    let (code, out, err) = run(&recover, d.path());
     assert_eq!(code, 0, "{err}");
     let res = results(&d.path().join("out"));
     let metal = result_group(&res, "small_block");

@@ -35,6 +35,14 @@ pub fn rgb(c: Rgb) -> String {
     }
 }
 
+/// A microfacet distribution's name in a table.
+fn distribution_label(d: matfit::scene::Distribution) -> &'static str {
+    match d {
+        matfit::scene::Distribution::Ggx => "GGX",
+        matfit::scene::Distribution::Beckmann => "Beckmann",
+    }
+}
+
 /// A material as the scene file would write it, on one line.
 pub fn material(m: &Material) -> String {
     match m {
@@ -64,10 +72,7 @@ pub fn material(m: &Material) -> String {
             distribution,
         } => format!(
             "microfacet ({}) ρd {} ρs {} {}",
-            match distribution {
-                matfit::scene::Distribution::Ggx => "GGX",
-                matfit::scene::Distribution::Beckmann => "Beckmann",
-            },
+            distribution_label(*distribution),
             rgb(*rho_d),
             rgb(*rho_s),
             alpha(*alpha_x, *alpha_y, *theta)
@@ -80,10 +85,7 @@ pub fn material(m: &Material) -> String {
             ..
         } => format!(
             "plastic ({} coat) ρd {} ρs {} α {}",
-            match distribution {
-                matfit::scene::Distribution::Ggx => "GGX",
-                matfit::scene::Distribution::Beckmann => "Beckmann",
-            },
+            distribution_label(*distribution),
             rgb(*rho_d),
             rgb(*rho_s),
             num(*alpha, 4)

@@ -296,6 +296,38 @@ pub fn refit_level(
     fit_level_from(cache, level, start, variant, &DISTRIBUTIONS, true)
 }
 
+/// The minimum in ln α of a cost that is smooth and unimodal near its best point on a coarse
+/// grid: the grid, then golden-section search between the best point's neighbours to 0.01 in
+/// ln α. Returns ln α and the number of evaluations.
+fn scan_then_golden(cost: impl Fn(f64) -> f64) -> (f64, u32) {
+    let grid: Vec<f64> = [0.01f64, 0.02, 0.04, 0.07, 0.12, 0.2, 0.35, 0.6, 1.0]
+        .iter()
+        .map(|a| a.ln())
+        .collect();
+    let costs: Vec<f64> = grid.iter().map(|&x| cost(x)).collect();
+    let k = (0..grid.len())
+        .min_by(|&i, &j| costs[i].total_cmp(&costs[j]))
+        .unwrap_or(0);
+    let (mut lo, mut hi) = (grid[k.saturating_sub(1)], grid[(k + 1).min(grid.len() - 1)]);
+    let r = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut x1, mut x2) = (hi - r * (hi - lo), lo + r * (hi - lo));
+    let (mut f1, mut f2) = (cost(x1), cost(x2));
+    let mut evals = grid.len() as u32 + 2;
+    while hi - lo > 0.01 {
+        if f1 < f2 {
+            (hi, x2, f2) = (x2, x1, f1);
+            x1 = hi - r * (hi - lo);
+            f1 = cost(x1);
+        } else {
+            (lo, x1, f1) = (x1, x2, f2);
+            x2 = lo + r * (hi - lo);
+            f2 = cost(x2);
+        }
+        evals += 1;
+    }
+    (0.5 * (lo + hi), evals)
+}
+
 /// The distributions levels 8–10 try.
 const DISTRIBUTIONS: [Distribution; 2] = [Distribution::Ggx, Distribution::Beckmann];
 
@@ -407,8 +439,7 @@ fn fit_level_from(
         }
         Level::Plastic => {
             // The coat's α moves its diffuse term too (through the transmittance), which the
-            // Ward-style Jacobian does not carry: a scan, then golden-section search in ln α
-            // between the best point's neighbours (the cost is smooth and unimodal there). Both
+            // Ward-style Jacobian does not carry: [`scan_then_golden`] of the cost. Both
             // distributions, as level 8, but the one of lower ε is kept, not of lower cost: a
             // nearly smooth coat's α can collapse to the bound, where the per-pixel cost is
             // biased low (see `objective::pooled`), and a second distribution gives it a second
@@ -422,37 +453,11 @@ fn fit_level_from(
                     eta,
                     distribution,
                 };
-                let cost = |ln_a: f64| {
+                let (x, n) = scan_then_golden(|ln_a| {
                     let specs = pixel_specs(cache, coat(ln_a), variant, false);
                     project_rho(cache, &specs, Free::Both).2
-                };
-                let grid: Vec<f64> = [0.01f64, 0.02, 0.04, 0.07, 0.12, 0.2, 0.35, 0.6, 1.0]
-                    .iter()
-                    .map(|a| a.ln())
-                    .collect();
-                let costs: Vec<f64> = grid.iter().map(|&x| cost(x)).collect();
-                let k = (0..grid.len())
-                    .min_by(|&i, &j| costs[i].total_cmp(&costs[j]))
-                    .unwrap_or(0);
-                let (mut lo, mut hi) =
-                    (grid[k.saturating_sub(1)], grid[(k + 1).min(grid.len() - 1)]);
-                let r = 0.5 * (5f64.sqrt() - 1.0);
-                let (mut x1, mut x2) = (hi - r * (hi - lo), lo + r * (hi - lo));
-                let (mut f1, mut f2) = (cost(x1), cost(x2));
-                evals += grid.len() as u32 + 2;
-                while hi - lo > 0.01 {
-                    if f1 < f2 {
-                        (hi, x2, f2) = (x2, x1, f1);
-                        x1 = hi - r * (hi - lo);
-                        f1 = cost(x1);
-                    } else {
-                        (lo, x1, f1) = (x1, x2, f2);
-                        x2 = lo + r * (hi - lo);
-                        f2 = cost(x2);
-                    }
-                    evals += 1;
-                }
-                let x = 0.5 * (lo + hi);
+                });
+                evals += n;
                 let f = finish(
                     cache,
                     level,

@@ -1359,12 +1359,8 @@ impl<'a> Ctx<'a> {
                 } else {
                     String::new()
                 };
-                let microfacet = match distribution.as_str() {
-                    "ggx" => Some(Distribution::Ggx),
-                    "beckmann" => Some(Distribution::Beckmann),
-                    _ => None,
-                }
-                .filter(|_| rough && f0.is_none());
+                let microfacet =
+                    Distribution::from_name(&distribution).filter(|_| rough && f0.is_none());
                 if f0.is_some() || (rough && microfacet.is_none()) {
                     guess(
                         self,
@@ -1394,11 +1390,7 @@ impl<'a> Ctx<'a> {
                 let distribution = self
                     .string(b, "distribution")?
                     .unwrap_or_else(|| "beckmann".into());
-                let known = match distribution.as_str() {
-                    "ggx" => Some(Distribution::Ggx),
-                    "beckmann" => Some(Distribution::Beckmann),
-                    _ => None,
-                };
+                let known = Distribution::from_name(&distribution);
                 if known.is_none() || self.boolean(b, "nonlinear")? {
                     guess(
                         self,

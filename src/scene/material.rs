@@ -46,6 +46,13 @@ impl Distribution {
             Distribution::Beckmann => "beckmann",
         }
     }
+
+    /// The distribution Mitsuba's `distribution` string names, if matfit has it.
+    pub fn from_name(name: &str) -> Option<Distribution> {
+        [Distribution::Ggx, Distribution::Beckmann]
+            .into_iter()
+            .find(|d| d.name() == name)
+    }
 }
 
 /// A uniform Ward lobe over a textured diffuse term: ρs, αx, αy and θ (radians) as in

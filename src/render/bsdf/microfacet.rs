@@ -112,15 +112,20 @@ impl MicrofacetLobe {
         self.distribution(h) * h.z / (4.0 * wo.dot(h).abs())
     }
 
+    /// The half vector's slope over α drawn from D cos θh at `u1` in [0, 1) (module comment).
+    #[inline]
+    pub(crate) fn slope_radius(&self, u1: f32) -> f32 {
+        match self.distribution {
+            Distribution::Ggx => (u1 / (1.0 - u1)).sqrt(),
+            Distribution::Beckmann => (-(1.0 - u1).ln()).sqrt(),
+        }
+    }
+
     /// Draws ωi by sampling the half vector; None when the reflected direction is below the
     /// surface (the sample is then lost, which `pdf` accounts for by not renormalising).
     #[inline]
     pub fn sample(&self, wo: Vec3, u: Vec2) -> Option<Vec3> {
-        let u1 = u.x.min(1.0 - f32::EPSILON);
-        let r = match self.distribution {
-            Distribution::Ggx => (u1 / (1.0 - u1)).sqrt(),
-            Distribution::Beckmann => (-(1.0 - u1).ln()).sqrt(),
-        };
+        let r = self.slope_radius(u.x.min(1.0 - f32::EPSILON));
         let (s, c) = (2.0 * PI * u.y).sin_cos();
         let h = Vec3::new(self.alpha_x * r * c, self.alpha_y * r * s, 1.0).normalize();
         let wi = 2.0 * wo.dot(h) * h - wo;
