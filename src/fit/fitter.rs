@@ -54,6 +54,7 @@ fn linearise<const N: usize>(
     shape: impl Fn(&[f64; N]) -> Spec,
     chain: impl Fn(&[Rgb; 3]) -> [Rgb; N],
     pool: bool,
+    free: Free,
 ) -> Linearisation<N> {
     let specs = pixel_specs(cache, shape(x), variant, true);
     let tiles;
@@ -63,7 +64,7 @@ fn linearise<const N: usize>(
     } else {
         (cache, &specs[..])
     };
-    let (rd, rs, cost) = project_rho(cache, specs, Free::Both);
+    let (rd, rs, cost) = project_rho(cache, specs, free);
     let mut lin = Linearisation {
         cost,
         jtj: [[0.0; N]; N],
@@ -343,6 +344,12 @@ fn fit_level_among(
 }
 
 /// [`fit_level_among`]; `warm`: the anisotropic levels race their starts ([`refit_level`]).
+///
+/// Levels 8 and 10 are fitted twice: with their diffuse term, and as a bare metal (ρd = 0), and
+/// the diffuse term must earn its place against the bare metal as a level does. A conductor has
+/// none, and a free ρd trades against ρs and α along a ridge that the cache's noise moves from
+/// one global iteration to the next: a Beckmann metal's red ρd came out 0 to 0.08 for 0, with α
+/// and ρs low in step (bench/NONWARD.md).
 fn fit_level_from(
     cache: &GroupCache,
     level: Level,
@@ -350,6 +357,79 @@ fn fit_level_from(
     variant: WardVariant,
     distributions: &[Distribution],
     warm: bool,
+) -> LevelFit {
+    let fit = fit_shape(
+        cache,
+        level,
+        start,
+        variant,
+        distributions,
+        warm,
+        Free::Both,
+    );
+    if !level.is_microfacet() || fit.params.rho_d == Rgb::ZERO {
+        return fit;
+    }
+    let mut metal = fit_shape(
+        cache,
+        level,
+        &fit.params,
+        variant,
+        distributions,
+        true,
+        Free::Specular,
+    );
+    metal.params.rho_d = Rgb::ZERO;
+    // ε decides, as for a level (`lowers_error`). But ε holds the model's own noise, and a wide
+    // bare lobe is less noisy than the cache's Lambert sum: where the metal's noise floor is
+    // below (1 − margin) of the other's, the share of the photo's energy Σp² the diffuse term
+    // explains decides instead, from the unbiased cross-half costs, against the level's
+    // threshold squared.
+    let rule = super::hierarchy::HierarchyOptions::default();
+    let energy: f64 = (cache.pixels.iter())
+        .map(|p| p.photo.length_squared() as f64)
+        .sum();
+    let threshold = rule.thresholds.of(level) as f64;
+    let explained = (metal.cost - fit.cost) / energy.max(1e-300);
+    let quieter = metal.noise_floor < (1.0 - rule.margin) * fit.noise_floor;
+    let diffuse = lowers_error(&metal, &fit, rule.margin, rule.noise_factor).0
+        || (quieter && explained > threshold * threshold);
+    let evals = fit.evals + metal.evals;
+    let mut kept = if diffuse { fit } else { metal };
+    kept.evals = evals;
+    kept
+}
+
+/// Whether `better` lowers the error of `base` by a clear margin on the same cache: by the
+/// fraction `margin` of the base's ε, by more than `noise_factor` times the noise of that gain
+/// (both models are evaluated on the same samples, so the gain's noise is measured by evaluating
+/// it on each half of the samples alone: |gain₀ − gain₁| / 2), and on each half. Returns the
+/// verdict and the gain's noise.
+pub fn lowers_error(
+    base: &LevelFit,
+    better: &LevelFit,
+    margin: f32,
+    noise_factor: f32,
+) -> (bool, f32) {
+    let gain = base.error - better.error;
+    let g0 = base.halves[0] - better.halves[0];
+    let g1 = base.halves[1] - better.halves[1];
+    let gain_noise = 0.5 * (g0 - g1).abs();
+    (
+        gain > margin * base.error && gain > noise_factor * gain_noise && g0 > 0.0 && g1 > 0.0,
+        gain_noise,
+    )
+}
+
+/// One fit of a level's shape, with the reflectances `free` as given.
+fn fit_shape(
+    cache: &GroupCache,
+    level: Level,
+    start: &GroupParams,
+    variant: WardVariant,
+    distributions: &[Distribution],
+    warm: bool,
+    free: Free,
 ) -> LevelFit {
     let alpha = param("alpha_x");
     let (ln_lo, ln_hi) = alpha.solver_bounds();
@@ -405,7 +485,7 @@ fn fit_level_from(
                 for a in [start.alpha_x, 0.01, 0.02, 0.04, 0.07, 0.12, 0.2, 0.35, 0.6] {
                     let a = a.clamp(alpha.min, alpha.max);
                     let specs = pixel_specs(cache, lobe(a), variant, false);
-                    let cost = project_rho(cache, &specs, Free::Both).2;
+                    let cost = project_rho(cache, &specs, free).2;
                     evals += 1;
                     if cost < best.0 {
                         best = (cost, a);
@@ -424,6 +504,7 @@ fn fit_level_from(
                                 _ => [d[0]],
                             },
                             false,
+                            free,
                         )
                     },
                     |x| [x[0].clamp(ln_lo, ln_hi)],
@@ -435,7 +516,7 @@ fn fit_level_from(
                 }
             }
             let spec = fitted.expect("a distribution").0;
-            finish(cache, level, spec, Free::Both, *start, variant, evals)
+            finish(cache, level, spec, free, *start, variant, evals)
         }
         Level::Plastic => {
             // The coat's α moves its diffuse term too (through the transmittance), which the
@@ -521,7 +602,7 @@ fn fit_level_from(
                     s,
                     |x| {
                         let shape = |x: &[f64; 3]| lobe(x, distribution);
-                        linearise(cache, variant, x, shape, |d| [d[0], d[1], d[2]], pool)
+                        linearise(cache, variant, x, shape, |d| [d[0], d[1], d[2]], pool, free)
                     },
                     |x| [x[0].clamp(ln_lo, ln_hi), x[1].clamp(ln_lo, ln_hi), x[2]],
                     max_evals,
@@ -557,7 +638,7 @@ fn fit_level_from(
                 }
             }
             let spec = best.expect("a start").0;
-            finish(cache, level, spec, Free::Both, *start, variant, evals)
+            finish(cache, level, spec, free, *start, variant, evals)
         }
     }
 }
@@ -753,9 +834,38 @@ mod tests {
     /// Level 8's Beckmann lobe is fitted to a Beckmann photo's roughness and reflectance. (This
     /// cache, cosine-sampled under a broad sky, fits either distribution to its noise floor, so
     /// which one the level picks is tested on a rendered photo, tests/microfacet.rs.)
+    /// A metal (no diffuse term) is fitted with ρd pinned to exactly 0 and no 1σ for it, nearer
+    /// the truth than with ρd free; a lobe over a diffuse base keeps its ρd, which halves ε.
+    #[test]
+    fn a_bare_metal_is_fitted_with_no_diffuse_term_and_a_diffuse_base_keeps_its_own() {
+        let (rs, a) = (Rgb::new(0.9, 0.6, 0.2), 0.3f32);
+        let lobe = MicrofacetLobe {
+            alpha_x: a,
+            alpha_y: a,
+            distribution: Distribution::Beckmann,
+        };
+        let v = WardVariant::Ward1992;
+        let only = [Distribution::Beckmann];
+        let metal = microfacet_cache(Rgb::ZERO, rs, lobe, 0.0);
+        let m = fit_level_among(&metal, Level::Microfacet, &GroupParams::default(), v, &only);
+        assert_eq!(m.params.rho_d, Rgb::ZERO, "{m:?}");
+        assert!((m.params.alpha_x / a - 1.0).abs() < 0.02, "{m:?}");
+        assert!((m.params.rho_s - rs).abs().max_element() < 0.01, "{m:?}");
+        let sd = super::super::uncertainty::sigma(&metal, Level::Microfacet, &m.params, v, 1)
+            .expect("a 1σ");
+        assert_eq!(sd.rho_d, Rgb::ZERO);
+        assert!(sd.rho_s.min_element() > 0.0 && sd.alpha_x > 0.0, "{sd:?}");
+        let rd = Rgb::new(0.05, 0.1, 0.2);
+        let based = microfacet_cache(rd, rs, lobe, 0.0);
+        let b = fit_level_among(&based, Level::Microfacet, &GroupParams::default(), v, &only);
+        // (ρd itself wanders along the ridge with ρs and α that a free diffuse term opens.)
+        assert!(b.params.rho_d.min_element() > 0.03, "{b:?}");
+        assert!((b.params.alpha_x / a - 1.0).abs() < 0.1, "{b:?}");
+    }
+
     #[test]
     fn a_beckmann_photo_is_fitted_by_the_beckmann_lobe() {
-        let (rd, rs, a) = (Rgb::new(0.1, 0.05, 0.02), Rgb::new(0.8, 0.6, 0.3), 0.3f32);
+        let (rd, rs, a) = (Rgb::ZERO, Rgb::new(0.8, 0.6, 0.3), 0.3f32);
         let lobe = MicrofacetLobe {
             alpha_x: a,
             alpha_y: a,

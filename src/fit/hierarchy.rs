@@ -26,7 +26,7 @@
 //! Every fit and every level tried becomes an [`Event`] for the log.
 
 use super::cache::{CacheNeeds, GroupCache};
-use super::fitter::{assess, fit_level, fit_level_above, refit_level, LevelFit};
+use super::fitter::{assess, fit_level, fit_level_above, lowers_error, refit_level, LevelFit};
 use super::level::{Level, Thresholds};
 use super::params::GroupParams;
 use super::texture::{coherent_detail, fit_textured, uniform_model, TextureState};
@@ -415,17 +415,7 @@ impl GroupState {
 
     /// Whether `better` lowers the error of `base` by a clear margin on the same cache.
     fn earns(base: &LevelFit, better: &LevelFit, opts: &HierarchyOptions) -> (bool, f32) {
-        let gain = base.error - better.error;
-        let g0 = base.halves[0] - better.halves[0];
-        let g1 = base.halves[1] - better.halves[1];
-        let gain_noise = 0.5 * (g0 - g1).abs();
-        (
-            gain > opts.margin * base.error
-                && gain > opts.noise_factor * gain_noise
-                && g0 > 0.0
-                && g1 > 0.0,
-            gain_noise,
-        )
+        lowers_error(base, better, opts.margin, opts.noise_factor)
     }
 
     /// Whether `better` (a higher level that earned its place on the whole cache) also predicts

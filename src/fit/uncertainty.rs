@@ -76,7 +76,10 @@ pub fn sigma(
         }
         Level::Textured => return None,
     };
-    let has_d = !matches!(level, Level::PerfectSpecular | Level::Specular);
+    // A bare metal's ρd is not free: levels 8 and 10 pin it to 0 where it did not earn its place
+    // (`fitter::fit_level_from`), in every fit of the mean.
+    let metal = level.is_microfacet() && params.rho_d == Rgb::ZERO;
+    let has_d = !matches!(level, Level::PerfectSpecular | Level::Specular) && !metal;
     let has_s = !matches!(level, Level::Diffuse | Level::PerfectSpecular);
     // The lobe's free shape parameters: ln α (both axes at once) or ln αx, ln αy, θ.
     let shape: &[[f32; 3]] = match level {
