@@ -370,7 +370,7 @@ fn fit_level_from(
     if !level.is_microfacet() || fit.params.rho_d == Rgb::ZERO {
         return fit;
     }
-    let mut metal = fit_shape(
+    let metal = fit_shape(
         cache,
         level,
         &fit.params,
@@ -379,21 +379,22 @@ fn fit_level_from(
         true,
         Free::Specular,
     );
-    metal.params.rho_d = Rgb::ZERO;
     // ε decides, as for a level (`lowers_error`). But ε holds the model's own noise, and a wide
     // bare lobe is less noisy than the cache's Lambert sum: where the metal's noise floor is
     // below (1 − margin) of the other's, the share of the photo's energy Σp² the diffuse term
     // explains decides instead, from the unbiased cross-half costs, against the level's
     // threshold squared.
     let rule = super::hierarchy::HierarchyOptions::default();
-    let energy: f64 = (cache.pixels.iter())
-        .map(|p| p.photo.length_squared() as f64)
-        .sum();
-    let threshold = rule.thresholds.of(level) as f64;
-    let explained = (metal.cost - fit.cost) / energy.max(1e-300);
     let quieter = metal.noise_floor < (1.0 - rule.margin) * fit.noise_floor;
-    let diffuse = lowers_error(&metal, &fit, rule.margin, rule.noise_factor).0
-        || (quieter && explained > threshold * threshold);
+    let explains = || {
+        let energy: f64 = (cache.pixels.iter())
+            .map(|p| p.photo.length_squared() as f64)
+            .sum();
+        let threshold = rule.thresholds.of(level) as f64;
+        (metal.cost - fit.cost) / energy.max(1e-300) > threshold * threshold
+    };
+    let diffuse =
+        lowers_error(&metal, &fit, rule.margin, rule.noise_factor).0 || (quieter && explains());
     let evals = fit.evals + metal.evals;
     let mut kept = if diffuse { fit } else { metal };
     kept.evals = evals;
@@ -831,9 +832,6 @@ mod tests {
         cache
     }
 
-    /// Level 8's Beckmann lobe is fitted to a Beckmann photo's roughness and reflectance. (This
-    /// cache, cosine-sampled under a broad sky, fits either distribution to its noise floor, so
-    /// which one the level picks is tested on a rendered photo, tests/microfacet.rs.)
     /// A metal (no diffuse term) is fitted with ρd pinned to exactly 0 and no 1σ for it, nearer
     /// the truth than with ρd free; a lobe over a diffuse base keeps its ρd, which halves ε.
     #[test]
@@ -863,6 +861,9 @@ mod tests {
         assert!((b.params.alpha_x / a - 1.0).abs() < 0.1, "{b:?}");
     }
 
+    /// Level 8's Beckmann lobe is fitted to a Beckmann photo's roughness and reflectance. (This
+    /// cache, cosine-sampled under a broad sky, fits either distribution to its noise floor, so
+    /// which one the level picks is tested on a rendered photo, tests/microfacet.rs.)
     #[test]
     fn a_beckmann_photo_is_fitted_by_the_beckmann_lobe() {
         let (rd, rs, a) = (Rgb::ZERO, Rgb::new(0.8, 0.6, 0.3), 0.3f32);
