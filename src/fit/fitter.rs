@@ -28,6 +28,20 @@ pub struct LevelFit {
     pub evals: u32,
 }
 
+/// Where [`linearise`] evaluates the cost: on pixels, or on the error's tiles (see
+/// `objective::pooled`), plain or less the pixels' noise.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Pool {
+    Pixels,
+    Tiles,
+    TilesDebiased,
+}
+
+/// The debiasing descent of level 10 (see `fit_shape`): its evaluations, and how far (in ln α
+/// and in θ, radians) it may move from the plain optimum and be kept.
+const DEBIAS_EVALS: u32 = 8;
+const DEBIAS_REACH: f64 = 0.25;
+
 /// ρd, ρs per channel for given specular terms, and the least-squares cost.
 fn project_rho(cache: &GroupCache, specs: &[PixelSpec], free: Free) -> (Rgb, Rgb, f64) {
     let m = moments(cache, specs);
@@ -53,13 +67,13 @@ fn linearise<const N: usize>(
     x: &[f64; N],
     shape: impl Fn(&[f64; N]) -> Spec,
     chain: impl Fn(&[Rgb; 3]) -> [Rgb; N],
-    pool: bool,
+    pool: Pool,
     free: Free,
 ) -> Linearisation<N> {
     let specs = pixel_specs(cache, shape(x), variant, true);
     let tiles;
-    let (cache, specs) = if pool {
-        tiles = pooled(cache, &specs);
+    let (cache, specs) = if pool != Pool::Pixels {
+        tiles = pooled(cache, &specs, pool == Pool::TilesDebiased);
         (&tiles.0, &tiles.1[..])
     } else {
         (cache, &specs[..])
@@ -504,7 +518,7 @@ fn fit_shape(
                                 Level::Isotropic => [d[0] + d[1]],
                                 _ => [d[0]],
                             },
-                            false,
+                            Pool::Pixels,
                             free,
                         )
                     },
@@ -562,7 +576,8 @@ fn fit_shape(
             // Several starts around the isotropic answer (the lobe is symmetric under
             // (αx, αy, θ) → (αy, αx, θ + 90°), so two orientations and two orderings cover the
             // quarter turns), plus the warm start; keep the best. The microfacet lobe's cost is
-            // on tiles (see `objective::pooled`), and it tries both distributions as level 8.
+            // on tiles (see `objective::pooled`, and the last descent below), and it tries both
+            // distributions as level 8.
             let pool = level == Level::AnisotropicMicrofacet;
             let distributions = match level {
                 Level::AnisotropicMicrofacet => distributions,
@@ -598,19 +613,21 @@ fn fit_shape(
                 starts.push([(a / r).ln(), (a * r).ln(), th]);
             }
             let cap = if pool { 30 } else { 60 };
-            let descend = |s: [f64; 3], distribution: Distribution, max_evals: u32| {
+            let on = if pool { Pool::Tiles } else { Pool::Pixels };
+            let descend_on = |s: [f64; 3], distribution: Distribution, max_evals: u32, on| {
                 levenberg_marquardt(
                     s,
                     |x| {
                         let shape = |x: &[f64; 3]| lobe(x, distribution);
-                        linearise(cache, variant, x, shape, |d| [d[0], d[1], d[2]], pool, free)
+                        linearise(cache, variant, x, shape, |d| [d[0], d[1], d[2]], on, free)
                     },
                     |x| [x[0].clamp(ln_lo, ln_hi), x[1].clamp(ln_lo, ln_hi), x[2]],
                     max_evals,
                 )
             };
+            let descend = |s, distribution, max_evals| descend_on(s, distribution, max_evals, on);
             let mut evals = 0;
-            let mut best: Option<(Spec, f64)> = None;
+            let mut best: Option<f64> = None;
             let mut best_x = starts[0];
             let mut best_d = distributions[0];
             for (k, &distribution) in distributions.iter().enumerate() {
@@ -623,8 +640,8 @@ fn fit_shape(
                 for s in from {
                     let (x, cost, n) = descend(s, distribution, if warm { cap / 4 } else { cap });
                     evals += n;
-                    if best.is_none_or(|b| cost < b.1) {
-                        best = Some((lobe(&x, distribution), cost));
+                    if best.is_none_or(|b| cost < b) {
+                        best = Some(cost);
                         best_x = x;
                         best_d = distribution;
                     }
@@ -634,11 +651,23 @@ fn fit_shape(
                 // The race's winner, descended the rest of the way.
                 let (x, cost, n) = descend(best_x, best_d, cap);
                 evals += n;
-                if best.is_none_or(|b| cost < b.1) {
-                    best = Some((lobe(&x, best_d), cost));
+                if best.is_none_or(|b| cost < b) {
+                    best_x = x;
                 }
             }
-            let spec = best.expect("a start").0;
+            if pool {
+                // The plain cost on tiles also holds the cache's noise, Σ var(S), which is
+                // smaller for a wider lobe and so pulls the shape wide. A last descent on the
+                // cost less that noise, as the pixels' halves measure it, removes the pull; it
+                // starts from the plain optimum and is kept only near it, since the unbiased
+                // cost's own noise would otherwise lead a narrow lobe to the bound.
+                let (x, _, n) = descend_on(best_x, best_d, DEBIAS_EVALS, Pool::TilesDebiased);
+                evals += n;
+                if (0..3).all(|k| (x[k] - best_x[k]).abs() < DEBIAS_REACH) {
+                    best_x = x;
+                }
+            }
+            let spec = lobe(&best_x, best_d);
             finish(cache, level, spec, free, *start, variant, evals)
         }
     }

@@ -176,15 +176,22 @@ pub fn pixel_specs(
     }
 }
 
-/// The cache's pixels and their terms summed over the error's tiles, as plain (not cross-half)
-/// least-squares data: one pooled pixel per tile (photo, D, S and the derivatives summed, both
-/// halves set to their mean), for the anisotropic microfacet level's cost. Per pixel, a lobe
-/// much narrower than the spacing of the cache's directions makes S a few spikes, and the
-/// cross-half cost then rewards narrowing it further (its ρs solve divides by a Σ s₀s₁ that the
-/// spikes leave too small); a plain cost on pixels penalises the spikes' variance instead and
-/// widens the lobe. Summed over a tile (~70 pixels) the variance is small and the tiles'
-/// pattern still pins the shape (the measurements are in the commit that added it, b168191).
-pub fn pooled(cache: &GroupCache, specs: &[PixelSpec]) -> (GroupCache, Vec<PixelSpec>) {
+/// The cache's pixels and their terms summed over the error's tiles: one pooled pixel per tile
+/// (photo, D, S and the derivatives summed), for the anisotropic microfacet level's cost. Per
+/// pixel, a lobe much narrower than the spacing of the cache's directions makes S a few spikes,
+/// and the cross-half cost then rewards narrowing it further (its ρs solve divides by a Σ s₀s₁
+/// that the spikes leave too small); summed over a tile (~70 pixels) the spikes are a small
+/// part of S, and the tiles' pattern still pins the shape (b168191).
+///
+/// Without `debias` both halves of a tile are its mean: plain least squares on the tiles, whose
+/// cost also holds each tile's noise Σ var(S), smaller for a wider lobe. With it the halves are
+/// the mean ± the pixels' noise (below), so that the cross-half products of `solve::Moments`
+/// subtract from each tile's squares the noise its pixels' halves measure.
+pub fn pooled(
+    cache: &GroupCache,
+    specs: &[PixelSpec],
+    debias: bool,
+) -> (GroupCache, Vec<PixelSpec>) {
     let zero = Rgb::ZERO;
     let n = cache.tiles.max(1);
     let mut pixels: Vec<CachePixel> = (0..n as u32)
@@ -202,9 +209,22 @@ pub fn pooled(cache: &GroupCache, specs: &[PixelSpec]) -> (GroupCache, Vec<Pixel
         })
         .collect();
     let mut out = vec![PixelSpec::default(); n];
+    // Per tile, the pixels' noise as their halves show it: Σ Δs²/4, Σ Δd Δs/4, Σ Δd²/4 and
+    // Σ Δg_k Δs/4 (Δ the difference of a pixel's two half estimates; Δ²/4 estimates the
+    // variance of their mean, and pixels are independent).
+    let mut noise = vec![TileNoise::default(); n];
     for (p, s) in cache.pixels.iter().zip(specs) {
         let t = (p.tile as usize).min(n - 1);
-        let (q, o) = (&mut pixels[t], &mut out[t]);
+        let (q, o, v) = (&mut pixels[t], &mut out[t], &mut noise[t]);
+        let (d, d_half) = s.diffuse(p);
+        let ds = (s.s_half[0] - s.s_half[1]) * 0.5;
+        let dd = (d_half[0] - d_half[1]) * 0.5;
+        v.ss += ds * ds;
+        v.ds += dd * ds;
+        v.dd += dd * dd;
+        for k in 0..3 {
+            v.gs[k] += (s.ds_half[0][k] - s.ds_half[1][k]) * 0.5 * ds;
+        }
         q.photo += p.photo;
         q.d += p.d;
         q.mirror += p.mirror;
@@ -217,26 +237,43 @@ pub fn pooled(cache: &GroupCache, specs: &[PixelSpec]) -> (GroupCache, Vec<Pixel
             }
         }
         o.s += s.s;
-        if let Some((d, dh)) = s.d {
+        if s.d.is_some() {
             let (od, odh) = o.d.get_or_insert((zero, [zero; 2]));
             *od += d;
-            odh[0] += dh[0];
-            odh[1] += dh[1];
+            odh[0] += d_half[0];
+            odh[1] += d_half[1];
         }
     }
-    // Both halves become their mean: plain least squares on the tiles.
-    let mean = |h: &mut [Rgb; 2]| *h = [(h[0] + h[1]) * 0.5; 2];
-    for (q, o) in pixels.iter_mut().zip(&mut out) {
-        mean(&mut q.d_half);
-        mean(&mut q.mirror_half);
-        mean(&mut o.s_half);
+    // Each tile's halves become its sums ± the pixels' noise, δs = √(Σ Δs²/4) and the other
+    // terms' δ in proportion to their covariance with s (δd δs = Σ Δd Δs/4): the cross-half
+    // products of `solve::Moments` then subtract from the tile's squares exactly the noise
+    // the pixels' halves measure, S² − Σ Δs²/4 and DS − Σ Δd Δs/4 (D² loses at most its own
+    // Σ Δd²/4, by Cauchy–Schwarz).
+    for ((q, o), v) in pixels.iter_mut().zip(&mut out).zip(&noise) {
+        let v = if debias { *v } else { TileNoise::default() };
+        let ds = v.ss.map(|x| x.sqrt());
+        let along = |cov: Rgb| {
+            Rgb::new(
+                if ds.x > 0.0 { cov.x / ds.x } else { 0.0 },
+                if ds.y > 0.0 { cov.y / ds.y } else { 0.0 },
+                if ds.z > 0.0 { cov.z / ds.z } else { 0.0 },
+            )
+        };
+        let dd = along(v.ds).clamp(-v.dd.map(|x| x.sqrt()), v.dd.map(|x| x.sqrt()));
+        let split = |h: &mut [Rgb; 2], delta: Rgb| {
+            let m = (h[0] + h[1]) * 0.5;
+            *h = [m + delta, m - delta];
+        };
+        split(&mut q.d_half, dd);
+        split(&mut q.mirror_half, zero);
+        split(&mut o.s_half, ds);
         for k in 0..3 {
-            let m = (o.ds_half[0][k] + o.ds_half[1][k]) * 0.5;
-            o.ds_half[0][k] = m;
-            o.ds_half[1][k] = m;
+            let mut g = o.ds_half.map(|h| h[k]);
+            split(&mut g, along(v.gs[k]));
+            (o.ds_half[0][k], o.ds_half[1][k]) = (g[0], g[1]);
         }
         if let Some((_, dh)) = &mut o.d {
-            mean(dh);
+            split(dh, dd);
         }
     }
     let cache = GroupCache {
@@ -246,6 +283,15 @@ pub fn pooled(cache: &GroupCache, specs: &[PixelSpec]) -> (GroupCache, Vec<Pixel
         ..Default::default()
     };
     (cache, out)
+}
+
+/// A tile's noise sums in [`pooled`].
+#[derive(Clone, Copy, Default)]
+struct TileNoise {
+    ss: Rgb,
+    ds: Rgb,
+    dd: Rgb,
+    gs: [Rgb; 3],
 }
 
 /// Per-channel least-squares moments of the cache's pixels for the given specular terms.
@@ -279,4 +325,100 @@ pub fn error(cache: &GroupCache, specs: &[PixelSpec], rho_d: Rgb, rho_s: Rgb) ->
         (p.tile as usize, terms)
     });
     tiled_error(cache.tiles.max(1), pixels).unwrap_or_default()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::sampler::{mix64, unit_f32};
+
+    /// Pooled with `debias`, a tile's cross-half products estimate the noise-free products of
+    /// its sums (Σ S², Σ D S and Σ G S for a derivative G), where plain pooling exceeds them by
+    /// the pixels' noise: pixels of known means whose two half estimates carry independent
+    /// noise, correlated between the terms as a sample's weight moves them all.
+    #[test]
+    fn debiased_tiles_subtract_the_noise_the_pixels_halves_measure() {
+        let (tiles, per) = (4000usize, 20usize);
+        let mut key = 0u64;
+        let mut noise = || {
+            key += 1;
+            3.0 * (2.0 * unit_f32(mix64(key)) - 1.0)
+        };
+        let mut cache = GroupCache {
+            tiles,
+            ..Default::default()
+        };
+        let mut specs = Vec::new();
+        let mut truth = [0.0f64; 3];
+        for t in 0..tiles {
+            let (mut s_t, mut d_t, mut g_t) = (0.0f64, 0.0f64, 0.0f64);
+            for k in 0..per {
+                let s = 1.0 + 0.5 * ((t * per + k) as f32 * 0.37).sin();
+                let (d, g) = (0.8, -0.3 * s);
+                let e = [noise(), noise()];
+                let f = [noise(), noise()];
+                let half = |m: f32, a: f32, b: f32| Rgb::new(m + a, m + b, m);
+                let s_half = [half(s, e[0], 0.0), half(s, e[1], 0.0)];
+                let d_half = [
+                    half(d, 0.5 * e[0] + 0.2 * f[0], 0.0),
+                    half(d, 0.5 * e[1] + 0.2 * f[1], 0.0),
+                ];
+                let g_half = [half(g, -0.3 * e[0], 0.0), half(g, -0.3 * e[1], 0.0)];
+                (s_t, d_t, g_t) = (s_t + s as f64, d_t + d as f64, g_t + g as f64);
+                cache.pixels.push(CachePixel {
+                    pixel: (t * per + k) as u32,
+                    photo: Rgb::ZERO,
+                    d: (d_half[0] + d_half[1]) * 0.5,
+                    d_half,
+                    mirror: Rgb::ZERO,
+                    mirror_half: [Rgb::ZERO; 2],
+                    start: 0,
+                    mid: 0,
+                    end: 0,
+                    tile: t as u32,
+                });
+                specs.push(PixelSpec {
+                    s: (s_half[0] + s_half[1]) * 0.5,
+                    s_half,
+                    ds_half: [[g_half[0]; 3], [g_half[1]; 3]],
+                    d: None,
+                });
+            }
+            truth[0] += s_t * s_t;
+            truth[1] += d_t * s_t;
+            truth[2] += g_t * s_t;
+        }
+        // Channel 0 is noisy, channel 2 noise-free: there both poolings are exact.
+        for debias in [false, true] {
+            let (tc, ts) = pooled(&cache, &specs, debias);
+            let m = moments(&tc, &ts);
+            let gs: [f64; 3] = std::array::from_fn(|c| {
+                ts.iter()
+                    .map(|s| {
+                        let (g, h) = (s.ds_half[0][0][c] as f64, s.ds_half[1][0][c] as f64);
+                        0.5 * (g * s.s_half[1][c] as f64 + h * s.s_half[0][c] as f64)
+                    })
+                    .sum()
+            });
+            let rel = |x: f64, t: f64| x / t - 1.0;
+            let got = [
+                rel(m[0].ss, truth[0]),
+                rel(m[0].ds, truth[1]),
+                rel(gs[0], truth[2]),
+            ];
+            for (x, t) in [(m[2].ss, truth[0]), (m[2].ds, truth[1]), (gs[2], truth[2])] {
+                assert!(
+                    rel(x, t).abs() < 1e-4,
+                    "noise-free channel, debias {debias}"
+                );
+            }
+            if debias {
+                assert!(got.iter().all(|r| r.abs() < 0.01), "{got:?}");
+            } else {
+                // Per tile Σ var(s) = 20 × 1.5 (a half's variance 3, their mean's 1.5) over S²
+                // ≈ 400, Σ cov(d, s) = 20 × 0.75 over D S ≈ 320, and the same for G.
+                assert!(got.iter().all(|r| r.abs() > 0.03), "{got:?}");
+            }
+        }
+    }
 }
