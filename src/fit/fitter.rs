@@ -362,8 +362,7 @@ fn fit_level_among(
 /// Levels 8 and 10 are fitted twice: with their diffuse term, and as a bare metal (ρd = 0), and
 /// the diffuse term must earn its place against the bare metal as a level does. A conductor has
 /// none, and a free ρd trades against ρs and α along a ridge that the cache's noise moves from
-/// one global iteration to the next: a Beckmann metal's red ρd came out 0 to 0.08 for 0, with α
-/// and ρs low in step (bench/NONWARD.md).
+/// one global iteration to the next (bench/NONWARD.md).
 fn fit_level_from(
     cache: &GroupCache,
     level: Level,
