@@ -718,10 +718,10 @@ impl GroupState {
             };
             let f = fit_level_above(cache, next, &start, &tried, variant);
             let (mut earned, gain_noise) = Self::earns(&best, &f, opts);
-            // Level 10 chooses its shape on a cost on tiles (`objective::pooled`), plain until
-            // its last, debiasing descent, which trades the cache's noise for bias and so can
-            // lower ε as no unbiased fit does: it must also lower the unbiased cross-half cost,
-            // or it only fits the noise.
+            // Level 10 searches its shape on a plain cost on tiles (`objective::pooled`; only
+            // its last few steps subtract the noise), which trades the cache's noise for bias
+            // and so can lower ε as no unbiased fit does: it must also lower the unbiased
+            // cross-half cost, or it only fits the noise.
             if next == Level::AnisotropicMicrofacet && f.cost >= best.cost {
                 earned = false;
             }

@@ -209,7 +209,7 @@ pub fn pooled(
         })
         .collect();
     let mut out = vec![PixelSpec::default(); n];
-    // Per tile, the pixels' noise as their halves show it: Σ Δs²/4, Σ Δd Δs/4, Σ Δd²/4 and
+    // Per tile (zero without `debias`), the pixels' noise as their halves show it: Σ Δs²/4, Σ Δd Δs/4, Σ Δd²/4 and
     // Σ Δg_k Δs/4 (Δ the difference of a pixel's two half estimates; Δ²/4 estimates the
     // variance of their mean, and pixels are independent).
     let mut noise = vec![TileNoise::default(); n];
@@ -217,13 +217,15 @@ pub fn pooled(
         let t = (p.tile as usize).min(n - 1);
         let (q, o, v) = (&mut pixels[t], &mut out[t], &mut noise[t]);
         let (d, d_half) = s.diffuse(p);
-        let ds = (s.s_half[0] - s.s_half[1]) * 0.5;
-        let dd = (d_half[0] - d_half[1]) * 0.5;
-        v.ss += ds * ds;
-        v.ds += dd * ds;
-        v.dd += dd * dd;
-        for k in 0..3 {
-            v.gs[k] += (s.ds_half[0][k] - s.ds_half[1][k]) * 0.5 * ds;
+        if debias {
+            let ds = (s.s_half[0] - s.s_half[1]) * 0.5;
+            let dd = (d_half[0] - d_half[1]) * 0.5;
+            v.ss += ds * ds;
+            v.ds += dd * ds;
+            v.dd += dd * dd;
+            for k in 0..3 {
+                v.gs[k] += (s.ds_half[0][k] - s.ds_half[1][k]) * 0.5 * ds;
+            }
         }
         q.photo += p.photo;
         q.d += p.d;
@@ -250,7 +252,6 @@ pub fn pooled(
     // the pixels' halves measure, S² − Σ Δs²/4 and DS − Σ Δd Δs/4 (D² loses at most its own
     // Σ Δd²/4, by Cauchy–Schwarz).
     for ((q, o), v) in pixels.iter_mut().zip(&mut out).zip(&noise) {
-        let v = if debias { *v } else { TileNoise::default() };
         let ds = v.ss.map(|x| x.sqrt());
         let along = |cov: Rgb| {
             Rgb::new(
