@@ -78,9 +78,10 @@ fn params(dir: &std::path::Path, out: &str) -> serde_json::Value {
 /// response, 1% noise and 8 bits, and its exposure is found from the grey card in a model whose
 /// other materials are placeholders. Every parameter is compared with the truth within twice
 /// the tolerance of the clean photo (the radiance through the true camera, exposure known),
-/// fitted with the same settings — three times with the pose off, whose refinement leaves a
-/// centimetre or a tenth of a degree that the floor's highlight and the blocks' edges feel —
-/// and the exposure within 1% of the one that made the brackets.
+/// fitted with the same settings — and the exposure within 1% of the one that made the
+/// brackets (1.5% with the pose off, below). With the pose off, the pose must be found within 0.1° and 1 cm: the refinement
+/// against the placeholders alone (no quick fit) found 1.18° and a 3.3 cm lift, and the floor
+/// came out ρd 0.074 for 0.1 and θ −4.8°.
 fn capture_is_recovered(pose: bool, (width, height): (u32, u32)) {
     let d = tempfile::tempdir().unwrap();
     let keep = std::env::var_os("MATFIT_KEEP").map(std::path::PathBuf::from);
@@ -227,8 +228,11 @@ fn capture_is_recovered(pose: bool, (width, height): (u32, u32)) {
     let k_true = sm / sr;
     let k = params(dir, "out")["inputs"]["exposure"].as_f64().unwrap();
     eprintln!("exposure {k:.4}, true {k_true:.4}\n{stdout}");
+    // 1% through the right pose (128×96). At 256×192 the grey card's few pixels leave ±1%
+    // whatever the pose: through the exact camera, given, these brackets gave +0.9%.
+    let k_tol = if pose { 0.015 } else { 0.01 };
     assert!(
-        (k / k_true - 1.0).abs() < 0.01,
+        (k / k_true - 1.0).abs() < k_tol,
         "exposure {k} for {k_true}\n{stdout}"
     );
     assert!(stdout.contains("recalibrated from grey card"), "{stdout}");
@@ -236,15 +240,20 @@ fn capture_is_recovered(pose: bool, (width, height): (u32, u32)) {
         .as_f64()
         .unwrap();
     if pose {
+        let moved = &params(dir, "out")["inputs"]["registration"]["translation"];
+        let off: f64 = (0..3)
+            .map(|i| moved[i].as_f64().unwrap() - [0.02, 0.0, 0.0][i])
+            .map(|d| d * d)
+            .sum::<f64>()
+            .sqrt();
         assert!(
-            (found - 1.0).abs() < 0.25,
-            "camera turned by {found}°, not 1°"
+            (found - 1.0).abs() < 0.1 && off < 0.01,
+            "camera turned by {found}° and moved by {moved}, not 1° and (0.02, 0, 0)"
         );
     }
     let truth = Fit::truth();
-    // Each parameter within twice (pose off: three times) the clean photo's tolerance: its error
-    // on the clean photo (128×96 pixels leave the blocks ±0.06), at least 0.01 for ρ, 4% for α,
-    // 2° for θ.
+    // Each parameter within twice the clean photo's tolerance: its error on the clean photo
+    // (128×96 pixels leave the blocks ±0.06), at least 0.01 for ρ, 4% for α, 2° for θ.
     let mut report = String::new();
     let mut bad = Vec::new();
     for (k, (name, t)) in truth.0.iter().enumerate() {
@@ -256,7 +265,7 @@ fn capture_is_recovered(pose: bool, (width, height): (u32, u32)) {
         } else {
             0.01
         };
-        let tol = if pose { 3.0 } else { 2.0 } * (c - t).abs().max(floor);
+        let tol = 2.0 * (c - t).abs().max(floor);
         report +=
             &format!("{name}: truth {t:.4}, clean {c:.4}, capture {g:.4} (tolerance {tol:.4})\n");
         if (g - t).abs() > tol {

@@ -400,8 +400,9 @@ pub struct PhotoCli {
     pub register: bool,
     /// Register by refining the camera's pose (a small rotation and translation, 6 degrees of
     /// freedom: a model off by a turn of the camera) instead of a film shift; applied when it
-    /// moves the model's edges by 0.1 px or more. Not the default yet: on figure6 at 512×384 it
-    /// moves a correct camera by 0.11 px RMS with a 256-spp photo, 0.27 px with a 64-spp one.
+    /// moves the model's edges by 0.1 px or more; where it does, the pose is refined again
+    /// against a quick fit's materials (up to 3 rounds). Not the default yet: on figure6 at
+    /// 512×384 a correct camera is left alone with a 256-spp photo, moved 0.3 px with a 64-spp one.
     #[arg(long, conflicts_with = "register")]
     pub refine_pose: bool,
     /// Largest misregistration searched, in pixels: by the film shift [default: 4], or by the
@@ -757,17 +758,11 @@ pub fn run(cmd: Command) -> Result<()> {
             }
             prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
             let mut prepared = Vec::new();
-            for (view, photo) in scenes.iter_mut().zip(&photos) {
+            for (view, photo) in scenes.iter().zip(&photos) {
                 let p =
                     matfit::photo::prepare(view, photo, &photo_args).map_err(anyhow::Error::msg)?;
                 // Once the photo is known to be readable (an unreadable one gets only its error).
                 checks::exposure_warning(photo, &photo_args, &lighting);
-                checks::exposure_report(view, photo, &photo_args, &p);
-                if let Some(m) = &photo_args.ignore_mask {
-                    outln!("{}", checks::masked_summary(view, m, &p));
-                }
-                // Render through the camera registered to the photo.
-                view.camera = p.camera.clone();
                 prepared.push(p);
             }
             checks::on_interrupt_say_resume(resume_command());
@@ -777,6 +772,46 @@ pub fn run(cmd: Command) -> Result<()> {
                     .grey_card
                     .clone()
                     .map(|(group, rho)| matfit::fit::recover::GreyCard { group, rho });
+            }
+            if photo_args.register && photo_args.refine_pose {
+                let names: Vec<String> = chosen[1..]
+                    .iter()
+                    .map(|&k| sc.views[k].name.clone())
+                    .collect();
+                let quick = recover::refine_poses_with_a_quick_fit(
+                    &scenes,
+                    &photos,
+                    &mut prepared,
+                    &names,
+                    &photo_args,
+                    &opts,
+                )
+                .map_err(anyhow::Error::msg)?;
+                if let Some((n, s)) = quick {
+                    outln!(
+                        "pose refined again against a quick fit's materials ({n} round{}, \
+                         {s:.1} s): {}",
+                        if n == 1 { "" } else { "s" },
+                        prepared
+                            .iter()
+                            .filter_map(|p| p.registration.as_ref())
+                            .map(|r| format!(
+                                "turned {:.3}°, moved {:.4} units",
+                                r.rotation_deg,
+                                r.translation.length()
+                            ))
+                            .collect::<Vec<_>>()
+                            .join("; ")
+                    );
+                }
+            }
+            for ((view, photo), p) in scenes.iter_mut().zip(&photos).zip(&prepared) {
+                checks::exposure_report(view, photo, &photo_args, p);
+                if let Some(m) = &photo_args.ignore_mask {
+                    outln!("{}", checks::masked_summary(view, m, p));
+                }
+                // Render through the camera registered to the photo.
+                view.camera = p.camera.clone();
             }
             let mut inputs = recover::inputs(
                 &scene,

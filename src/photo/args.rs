@@ -136,6 +136,19 @@ pub struct PreparedPhoto {
 /// and calibrates the exposure if asked. The mask does not depend on the exposure (the edge
 /// detector and the planar test work on ln-intensity), so it is computed once, before.
 pub fn prepare(scene: &Scene, path: &Path, args: &PhotoArgs) -> Result<PreparedPhoto, String> {
+    prepare_at(scene, path, args, None)
+}
+
+/// [`prepare`] with the registration already found (`pose`, relative to `scene.camera`): no
+/// search, the pose applied as [`prepare`] would apply it. The `recover` command prepares
+/// again this way once a quick fit's materials have refined the pose
+/// ([`pose::Shading::QuickFit`]).
+pub fn prepare_at(
+    scene: &Scene,
+    path: &Path,
+    args: &PhotoArgs,
+    pose: Option<Pose>,
+) -> Result<PreparedPhoto, String> {
     let mut camera = scene.camera.clone();
     let mut photo = load_photo(path, camera.width, camera.height, &args.photo_options())?;
     if let Some(v) = &args.vignetting {
@@ -154,7 +167,9 @@ pub fn prepare(scene: &Scene, path: &Path, args: &PhotoArgs) -> Result<PreparedP
     let mut index = index_buffers(scene, &camera);
     let mut registration = None;
     if args.register {
-        let r = if args.refine_pose {
+        let r = if let Some(p) = pose {
+            p
+        } else if args.refine_pose {
             let m = args
                 .max_shift
                 .unwrap_or_else(|| pose::start_search(&camera));
@@ -168,13 +183,17 @@ pub fn prepare(scene: &Scene, path: &Path, args: &PhotoArgs) -> Result<PreparedP
             index = index_buffers(scene, &camera);
             tracing::info!(
                 "{}: camera turned by {:.3}° and moved by {:.4} scene units: the model's edges \
-                 move by ({:.2}, {:.2}) px (RMS {:.2})",
+                 move by ({:.2}, {:.2}) px (RMS {:.2}){}",
                 path.display(),
                 r.rotation_deg,
                 r.translation.length(),
                 r.mean_px.x,
                 r.mean_px.y,
-                r.rms_px
+                r.rms_px,
+                match r.shading {
+                    pose::Shading::SceneFile => "",
+                    pose::Shading::QuickFit => ", against a quick fit's materials",
+                }
             );
         }
         registration = Some(r);

@@ -22,7 +22,7 @@ pub mod response;
 pub mod robust;
 pub mod vignetting;
 
-pub use args::{prepare, PhotoArgs, PreparedPhoto};
+pub use args::{prepare, prepare_at, PhotoArgs, PreparedPhoto};
 pub use mask::{usable_pixels, usable_pixels_covered, GroupPixelStats, MaskOptions, UsableMask};
 pub use response::{Response, ResponseTable};
 

@@ -32,9 +32,10 @@ use crate::scene::{Camera, Scene};
 
 /// Half-width in pixels of the scan across a model edge.
 const REACH: i64 = 4;
-/// Samples per pixel of the model's renderings: enough that their noise moves the fitted pose
-/// by a few hundredths of a pixel; the edges are hundreds.
-const SPP: u32 = 16;
+/// Samples per pixel of the model's renderings. Their noise is not the photo's, and the
+/// estimator's noise bias cancels only as far as the two agree: at 16 spp a right camera on
+/// figure6 (a 256-spp photo) was moved by more than [`APPLY_PX`], at 32 it is left alone.
+const SPP: u32 = 32;
 /// At most this many Gauss–Newton steps (each renders the model once).
 const STEPS: usize = 4;
 /// Edge points used at most (evenly strided), to bound the cost on large photos.
@@ -63,10 +64,25 @@ pub struct Pose {
     pub edges: usize,
     /// Whether the photo pipeline applied it (an image motion of [`APPLY_PX`] or more).
     pub applied: bool,
+    /// Whose materials shaded the model's renderings the edges were located in.
+    pub shading: Shading,
     /// The refined camera's world-to-camera R (rows) and t, as `[camera]`'s calibrated form
     /// takes them.
     pub camera_rotation: [[f32; 3]; 3],
     pub camera_translation: [f32; 3],
+}
+
+/// The materials of the model the pose was refined against. The edge estimator's shading bias
+/// cancels between photo and model only as far as their shading agrees: figure6 with every
+/// material a placeholder grey (a dark glossy floor rendered as matte 0.5) trades part of a 1°
+/// turn for a 3 cm lift that the recovered materials do not.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Shading {
+    /// The scene file's (film-shift registration, or the first refinement).
+    SceneFile,
+    /// A quick fit of the materials through the first refinement's camera (`recover`).
+    QuickFit,
 }
 
 /// One model edge crossed by a scan line.
@@ -111,7 +127,27 @@ pub fn start_search(camera: &Camera) -> i32 {
 /// Refines `camera` against `photo` (module comment). `max_shift`: the film translation search
 /// that starts it, in pixels (`register::estimate_shift`; only its whole pixels are taken).
 pub fn refine(scene: &Scene, camera: &Camera, photo: &Photo, max_shift: i32) -> Pose {
-    let (w, h) = (camera.width as i64, camera.height as i64);
+    let ib = index_buffers(scene, camera);
+    let coarse = register::estimate_shift(&ib, photo, max_shift);
+    let (sx, sy) = (coarse.dx.round(), coarse.dy.round());
+    let start = if sx != 0.0 || sy != 0.0 {
+        shifted_by_pose(camera, sx, sy)
+    } else {
+        camera.clone()
+    };
+    refine_from(scene, camera, &start, photo, Shading::SceneFile)
+}
+
+/// Refines the pose from `start` (Gauss–Newton only, no search), reporting it relative to the
+/// `given` camera. `shading`: whose materials `scene` holds.
+pub fn refine_from(
+    scene: &Scene,
+    given: &Camera,
+    start: &Camera,
+    photo: &Photo,
+    shading: Shading,
+) -> Pose {
+    let (w, h) = (given.width as i64, given.height as i64);
     let y_photo: Vec<f32> = photo
         .image
         .data
@@ -124,13 +160,7 @@ pub fn refine(scene: &Scene, camera: &Camera, photo: &Photo, max_shift: i32) -> 
             .map(|i| photo.valid[i] && !near[i])
             .collect()
     };
-    let mut cam = camera.clone();
-    let ib = index_buffers(scene, &cam);
-    let coarse = register::estimate_shift(&ib, photo, max_shift);
-    let (sx, sy) = (coarse.dx.round(), coarse.dy.round());
-    if sx != 0.0 || sy != 0.0 {
-        cam = shifted_by_pose(&cam, sx, sy);
-    }
+    let mut cam = start.clone();
     let mut edges_used = 0;
     let mut first_points: Vec<Vec3> = Vec::new();
     for step in 0..STEPS {
@@ -190,7 +220,7 @@ pub fn refine(scene: &Scene, camera: &Camera, photo: &Photo, max_shift: i32) -> 
     }
     // The angle of the relative rotation: cos θ = (tr − 1)/2, sin θ = |axial vector of the
     // antisymmetric part| (atan2 of both keeps small angles, which acos rounds to zero).
-    let rel = cam.r * camera.r.transpose();
+    let rel = cam.r * given.r.transpose();
     let axial = Vec3::new(
         rel.y_axis.z - rel.z_axis.y,
         rel.z_axis.x - rel.x_axis.z,
@@ -198,10 +228,10 @@ pub fn refine(scene: &Scene, camera: &Camera, photo: &Photo, max_shift: i32) -> 
     );
     let angle =
         (0.5 * axial.length()).atan2(0.5 * (rel.x_axis.x + rel.y_axis.y + rel.z_axis.z - 1.0));
-    let (mean_px, rms_px) = motion(camera, &cam, &first_points);
+    let (mean_px, rms_px) = motion(given, &cam, &first_points);
     Pose {
         rotation_deg: angle.to_degrees(),
-        translation: cam.eye() - camera.eye(),
+        translation: cam.eye() - given.eye(),
         camera_rotation: [cam.r.row(0), cam.r.row(1), cam.r.row(2)].map(|v| v.to_array()),
         camera_translation: cam.t.to_array(),
         camera: cam,
@@ -209,6 +239,7 @@ pub fn refine(scene: &Scene, camera: &Camera, photo: &Photo, max_shift: i32) -> 
         rms_px,
         edges: edges_used,
         applied: rms_px >= APPLY_PX,
+        shading,
     }
 }
 
@@ -234,6 +265,7 @@ pub fn from_shift(camera: &Camera, index: &IndexBuffers, photo: &Photo, max_shif
         rms_px: Vec2::new(r.dx, r.dy).length(),
         edges: register::model_edges(index).len(),
         applied,
+        shading: Shading::SceneFile,
     }
 }
 
@@ -278,6 +310,21 @@ pub fn motion(a: &Camera, b: &Camera, points: &[Vec3]) -> (Vec2, f32) {
         return (Vec2::ZERO, 0.0);
     }
     (sum / n as f32, (sq / n as f64).sqrt() as f32)
+}
+
+/// RMS image motion from camera `a` to `b` of the scene points seen through a 16×12 grid of
+/// `a`'s pixels: how far apart two poses of one photo are, in pixels.
+pub fn view_motion(scene: &Scene, a: &Camera, b: &Camera) -> f32 {
+    let points: Vec<Vec3> = (0..16 * 12)
+        .filter_map(|i| {
+            let px = Vec2::new(
+                ((i % 16) as f32 + 0.5) / 16.0 * a.width as f32,
+                ((i / 16) as f32 + 0.5) / 12.0 * a.height as f32,
+            );
+            scene.intersect(&a.ray(px), f32::INFINITY).map(|s| s.p)
+        })
+        .collect();
+    motion(a, b, &points).1
 }
 
 /// A length that makes translations comparable with rotations: the median depth of the edge

@@ -186,13 +186,18 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
                 i.registration.as_ref().map_or("off".to_string(), |r| {
                     format!(
                     "camera turned by {:.3}° and moved by {:.4} scene units: model edges move by \
-                     ({:.2}, {:.2}) px, RMS {:.2} px{}",
+                     ({:.2}, {:.2}) px, RMS {:.2} px{}{}",
                     r.rotation_deg,
                     r.translation.length(),
                     r.mean_px.x,
                     r.mean_px.y,
                     r.rms_px,
-                    if r.applied { "" } else { " (below 0.1 px: not applied)" }
+                    if r.applied { "" } else { " (below 0.1 px: not applied)" },
+                    match r.shading {
+                        crate::photo::pose::Shading::SceneFile => "",
+                        crate::photo::pose::Shading::QuickFit =>
+                            " (refined against a quick fit's materials)",
+                    }
                 )
                 });
             let options = serde_json::to_string_pretty(&i.options).unwrap_or_default();
