@@ -193,12 +193,25 @@ pub fn refine_poses_with_a_quick_fit(
             .iter()
             .any(|p| p.registration.as_ref().is_some_and(|r| r.applied))
     {
+        if rounds == 0 {
+            crate::outln!(
+                "refining the pose against a quick fit's materials (at most {QUICK_ROUNDS} \
+                 rounds of {QUICK_ITERATIONS} global iterations)"
+            );
+        }
         rounds += 1;
+        // A quick fit that fails keeps the last round's pose: the main fit will say why.
+        let poses = match quick_fit_poses(given, prepared, names, opts) {
+            Ok(p) => p,
+            Err(e) => {
+                crate::cli::out::warn(format!(
+                    "the pose's quick fit stopped ({e}); keeping the pose found before it"
+                ));
+                break;
+            }
+        };
         let mut moved = 0.0f32;
-        for (k, p) in quick_fit_poses(given, prepared, names, opts)?
-            .into_iter()
-            .enumerate()
-        {
+        for (k, p) in poses.into_iter().enumerate() {
             moved = moved.max(matfit::photo::pose::view_motion(
                 &given[k],
                 &prepared[k].camera,
