@@ -401,8 +401,8 @@ pub struct PhotoCli {
     /// Register by refining the camera's pose (a small rotation and translation, 6 degrees of
     /// freedom: a model off by a turn of the camera) instead of a film shift; applied when it
     /// moves the model's edges by 0.1 px or more; where it does, the pose is refined again
-    /// against a quick fit's materials (up to 3 rounds). Not the default yet: on figure6 at
-    /// 512×384 a correct camera is left alone with a 256-spp photo, moved 0.3 px with a 64-spp one.
+    /// against a quick fit's materials (up to 3 rounds). It leaves a right camera alone (figure6
+    /// at 512×384: 0.05–0.06 px with 64- and 256-spp photos); not the default yet for its cost.
     #[arg(long, conflicts_with = "register")]
     pub refine_pose: bool,
     /// Largest misregistration searched, in pixels: by the film shift [default: 4], or by the

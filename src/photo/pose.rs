@@ -11,11 +11,16 @@
 //! the shading at an edge, it makes of the model's shading too, so a right camera measures zero.
 //!
 //! The estimator: on the scan line across a model edge, the luminance steps d_j = Y_{j+1} − Y_j
-//! (located at the pixel boundary j + 1) of the edge's sign; the run of them above a quarter of
-//! the peak (a tenth let in enough noise to move a right camera by 0.2 px); their centroid
-//! Σ j d_j / Σ d_j. For a box-filtered step from A to B at e, inside
+//! (located at the pixel boundary j + 1) of the edge's sign, each averaged with the same step on
+//! the [`LINES`] lines either side; the run of them above a quarter of the peak (a tenth let in
+//! enough noise to move a right camera by 0.2 px); their centroid Σ j d_j / Σ d_j. For a
+//! box-filtered step from A to B at e, inside
 //! pixel m = ⌊e⌋ (which reads A (e − m) + B (m + 1 − e)), that is e exactly: the only steps are
-//! (B − A)(m + 1 − e) at m and (B − A)(e − m) at m + 1, whose centroid is e.
+//! (B − A)(m + 1 − e) at m and (B − A)(e − m) at m + 1, whose centroid is e. Averaged over lines
+//! along a straight edge it is the mean of their crossings, which is the middle line's. The
+//! average is there for noise: a noisier side lets more of its steps over the quarter, which
+//! pulls the centroid toward it by an amount that grows with the noise, and the photo's noise
+//! is not the model rendering's.
 //!
 //! The fit: each edge point X (the foreground surface's point beside the edge) projects to
 //! u(δ) under the pose x_cam = exp([ω]×)(R X + t) + τ, δ = (ω, τ). A row crossing moves by
@@ -32,6 +37,8 @@ use crate::scene::{Camera, Scene};
 
 /// Half-width in pixels of the scan across a model edge.
 const REACH: i64 = 4;
+/// Lines on either side of an edge's scan line averaged into it (module comment).
+const LINES: i64 = 2;
 /// Samples per pixel of the model's renderings. Their noise is not the photo's, and the
 /// estimator's noise bias cancels only as far as the two agree: at 16 spp a right camera on
 /// figure6 (a 256-spp photo) was moved by more than [`APPLY_PX`], at 32 it is left alone.
@@ -366,26 +373,33 @@ fn centroid(
     sign: f32,
     ok: &dyn Fn(i64) -> bool,
 ) -> Option<(f32, f32)> {
-    let len = if e.axis == 0 { w } else { h };
-    let idx = |k: i64| {
+    let (len, across) = if e.axis == 0 { (w, h) } else { (h, w) };
+    let idx = |line: i64, k: i64| {
         if e.axis == 0 {
-            e.line * w + k
+            line * w + k
         } else {
-            k * w + e.line
+            k * w + line
         }
     };
     let (lo, hi) = (e.at - reach, e.at + reach);
     if lo < 1 || hi >= len {
         return None;
     }
-    // Steps d at boundaries lo..=hi: d(b) = Y[b] − Y[b − 1].
+    let lines: Vec<i64> = (e.line - LINES..=e.line + LINES)
+        .filter(|&l| (0..across).contains(&l))
+        .collect();
+    // Steps d at boundaries lo..=hi: d(b) = Y[b] − Y[b − 1], averaged over the lines.
     let mut d = Vec::with_capacity((hi - lo + 1) as usize);
     for b in lo..=hi {
-        let (i0, i1) = (idx(b - 1), idx(b));
-        if !ok(i0) || !ok(i1) {
-            return None;
+        let mut sum = 0.0f32;
+        for &l in &lines {
+            let (i0, i1) = (idx(l, b - 1), idx(l, b));
+            if !ok(i0) || !ok(i1) {
+                return None;
+            }
+            sum += y[i1 as usize] - y[i0 as usize];
         }
-        d.push(y[i1 as usize] - y[i0 as usize]);
+        d.push(sum / lines.len() as f32);
     }
     let sign = if sign != 0.0 {
         sign
