@@ -394,16 +394,18 @@ pub struct PhotoCli {
     #[arg(long)]
     pub planar_outliers: bool,
     /// The camera is calibrated: use it exactly as given [default: register the model to the
-    /// photo by a shift of the film that aligns the model's outlines and creases with the
-    /// photo's edges, applied from half a pixel on].
+    /// photo by refining the camera's pose, a small rotation and translation (6 degrees of
+    /// freedom), applied when it moves the model's edges by 0.1 px or more; where it does, the
+    /// pose is refined again against a quick fit's materials (up to 3 rounds)].
     #[arg(long = "camera-is-calibrated", alias = "no-register", action = clap::ArgAction::SetFalse)]
     pub register: bool,
-    /// Register by refining the camera's pose (a small rotation and translation, 6 degrees of
-    /// freedom: a model off by a turn of the camera) instead of a film shift; applied when it
-    /// moves the model's edges by 0.1 px or more; where it does, the pose is refined again
-    /// against a quick fit's materials (up to 3 rounds). It leaves a right camera alone (figure6
-    /// at 512×384: 0.05–0.06 px with 64- and 256-spp photos); not the default yet for its cost.
+    /// Register by a shift of the film that aligns the model's outlines and creases with the
+    /// photo's edges, applied from half a pixel on, instead of refining the pose: cheaper, but it
+    /// cannot follow a turn or a move of the camera.
     #[arg(long, conflicts_with = "register")]
+    pub film_shift: bool,
+    /// The default registration (the pose refinement); the flag is kept for scripts.
+    #[arg(long, hide = true, conflicts_with_all = ["register", "film_shift"])]
     pub refine_pose: bool,
     /// Largest misregistration searched, in pixels: by the film shift [default: 4], or by the
     /// pose refinement's first, film-shift step [default: 2% of the image diagonal, at least 4:
@@ -437,7 +439,7 @@ impl From<PhotoCli> for PhotoArgs {
             edge_threshold: a.edge_threshold,
             planar_outliers: a.planar_outliers,
             register: a.register,
-            refine_pose: a.refine_pose,
+            refine_pose: !a.film_shift,
             max_shift: a.max_shift,
             ignore_mask: a.ignore_mask,
             vignetting: match (a.vignetting, a.flat_field) {

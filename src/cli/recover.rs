@@ -170,9 +170,10 @@ const QUICK_PIXELS: usize = 3000;
 /// camera by [`matfit::photo::pose::APPLY_PX`].
 const QUICK_ROUNDS: usize = 3;
 
-/// `--refine-pose`, second pass. The first refinement located the model's edges in renderings
-/// shaded by the scene file's materials, often placeholders; the estimator's shading bias
-/// cancels only as far as that shading is the photo's. Where it moved a camera, a quick fit
+/// The pose refinement's second pass (`recover`'s default registration). The first refinement
+/// located the model's edges in renderings shaded by the scene file's materials, often
+/// placeholders; the estimator's shading bias cancels only as far as that shading is the
+/// photo's. Where it moved a camera, a quick fit
 /// through the refined cameras (no outputs) gives materials whose shading is, the pose is
 /// refined again against them from where the last round left it, and every photo is prepared
 /// again through that pose. The main fit starts from the scene file's materials as before.

@@ -34,7 +34,9 @@ pub struct PhotoArgs {
     /// false: the camera is calibrated, use it as given.
     pub register: bool,
     /// Refine all six degrees of freedom of the pose (`photo::pose::refine`) rather than a
-    /// shift of the film (`photo::pose::from_shift`).
+    /// shift of the film (`photo::pose::from_shift`). False here; the command line's default is
+    /// true (`--film-shift` makes it false), and `demo`, whose misregistration is a film shift,
+    /// keeps false.
     pub refine_pose: bool,
     /// Largest misregistration searched, in pixels (None: [`super::pose::DEFAULT_SHIFT`] for a
     /// film shift, [`super::pose::start_search`] for the pose refinement).
