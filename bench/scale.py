@@ -71,8 +71,11 @@ def run_point(a, p):
     if not os.path.exists(photo):
         render = [a.matfit, *threads, "render", scene, "-o", photo, "--spp", str(a.photo_spp)]
         subprocess.run(render, check=True, capture_output=True)
+    # The photo comes through the scene's camera: the film shift (cheap, never applied here)
+    # registers it, as when the figures in SCALE.md were recorded.
     cmd = ["/usr/bin/time", "-v", a.matfit, *threads, "recover", scene, photo, "-o", rec, "--force",
-           "--max-iterations", str(a.max_iterations), "--final-spp", str(a.final_spp)]
+           "--max-iterations", str(a.max_iterations), "--final-spp", str(a.final_spp),
+           "--film-shift"]
     cmd += ["--lambert"] if a.lambert else []
     runs = []
     for _ in range(a.repeat):
