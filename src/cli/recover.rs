@@ -162,8 +162,7 @@ pub fn inputs(
 }
 
 /// Global iterations and cached pixels per group of the quick fit that shades the model for
-/// the pose's next refinement: on figure6's simulated capture (256×192) six iterations at 3000
-/// pixels found the same pose as a full fit, to 0.1°.
+/// the pose's next refinement: enough for the shading near edges, far less than the fit.
 const QUICK_ITERATIONS: u32 = 6;
 const QUICK_PIXELS: usize = 3000;
 /// At most this many rounds of quick fit and refinement; they stop once a round moves no
@@ -173,10 +172,9 @@ const QUICK_ROUNDS: usize = 3;
 /// The pose refinement's second pass (`recover`'s default registration). The first refinement
 /// located the model's edges in renderings shaded by the scene file's materials, often
 /// placeholders; the estimator's shading bias cancels only as far as that shading is the
-/// photo's. Where it moved a camera, a quick fit
-/// through the refined cameras (no outputs) gives materials whose shading is, the pose is
-/// refined again against them from where the last round left it, and every photo is prepared
-/// again through that pose. The main fit starts from the scene file's materials as before.
+/// photo's. Where it moved a camera, a quick fit through the refined cameras (no outputs)
+/// gives materials whose shading is; the pose is refined again against them from where the
+/// last round left it, and every photo is prepared again through that pose. The main fit starts from the scene file's materials as before.
 /// `given`: the scenes through the cameras as given, one per photo; `names`: the further
 /// photos' views. Returns the rounds and their seconds, None where no camera moved.
 pub fn refine_poses_with_a_quick_fit(

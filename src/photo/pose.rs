@@ -40,8 +40,7 @@ const REACH: i64 = 4;
 /// Lines on either side of an edge's scan line averaged into it (module comment).
 const LINES: i64 = 2;
 /// Samples per pixel of the model's renderings. Their noise is not the photo's, and the
-/// estimator's noise bias cancels only as far as the two agree: at 16 spp a right camera on
-/// figure6 (a 256-spp photo) was moved by more than [`APPLY_PX`], at 32 it is left alone.
+/// estimator's noise bias cancels only as far as the two agree.
 const SPP: u32 = 32;
 /// At most this many Gauss–Newton steps (each renders the model once).
 const STEPS: usize = 4;
@@ -80,9 +79,8 @@ pub struct Pose {
 }
 
 /// The materials of the model the pose was refined against. The edge estimator's shading bias
-/// cancels between photo and model only as far as their shading agrees: figure6 with every
-/// material a placeholder grey (a dark glossy floor rendered as matte 0.5) trades part of a 1°
-/// turn for a 3 cm lift that the recovered materials do not.
+/// cancels between photo and model only as far as their shading agrees, and placeholder
+/// materials (a dark glossy floor rendered as matte grey) do not agree.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Shading {
@@ -322,14 +320,14 @@ pub fn motion(a: &Camera, b: &Camera, points: &[Vec3]) -> (Vec2, f32) {
 /// RMS image motion from camera `a` to `b` of the scene points seen through a 16×12 grid of
 /// `a`'s pixels: how far apart two poses of one photo are, in pixels.
 pub fn view_motion(scene: &Scene, a: &Camera, b: &Camera) -> f32 {
-    let points: Vec<Vec3> = (0..16 * 12)
-        .filter_map(|i| {
-            let px = Vec2::new(
-                ((i % 16) as f32 + 0.5) / 16.0 * a.width as f32,
-                ((i / 16) as f32 + 0.5) / 12.0 * a.height as f32,
-            );
-            scene.intersect(&a.ray(px), f32::INFINITY).map(|s| s.p)
-        })
+    let through_a = Scene {
+        camera: a.clone(),
+        ..scene.clone()
+    };
+    let points: Vec<Vec3> = through_a
+        .camera_grid_hits(16, 12)
+        .into_iter()
+        .map(|(_, _, h)| h.p)
         .collect();
     motion(a, b, &points).1
 }
