@@ -357,3 +357,43 @@ fn eight_path_batches_give_the_one_path_integrators_pixels_to_the_bit() {
         );
     }
 }
+
+#[test]
+fn a_render_of_some_pixels_gives_them_the_whole_renders_values_to_the_bit() {
+    // `film::render_where` renders runs of the marked pixels of a row; each must come out as
+    // in the whole image (a pixel's sampler is keyed by its index), the rest black. The mask has
+    // lone pixels, runs, whole rows and runs that end at the row's end.
+    let (text, path) = quarter("figure6", "ward1992");
+    let sc = parse_scene(&text, &path).unwrap();
+    let opts = RenderOptions {
+        spp: 9,
+        seed: 23,
+        progress: false,
+    };
+    let (w, h) = (sc.camera.width as usize, sc.camera.height as usize);
+    let wanted: Vec<bool> = (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            (x * 7 + y * 13) % 11 == 0 || (y % 5 == 1 && x % 17 < 6) || y == h / 2 || x + 3 >= w
+        })
+        .collect();
+    let whole = render(&sc, &sc.camera, &opts);
+    let some = matfit::render::film::render_where(&sc, &sc.camera, &opts, &wanted);
+    let mut lit = 0;
+    for (i, (a, b)) in whole.data.iter().zip(&some.data).enumerate() {
+        let expect = if wanted[i] { *a } else { Rgb::ZERO };
+        assert_eq!(
+            b.to_array().map(f32::to_bits),
+            expect.to_array().map(f32::to_bits),
+            "pixel ({}, {}), wanted {}",
+            i % w,
+            i / w,
+            wanted[i]
+        );
+        lit += usize::from(wanted[i] && a.max_element() > 0.0);
+    }
+    assert!(
+        lit > w * h / 10,
+        "too few lit marked pixels ({lit}) to test"
+    );
+}

@@ -32,7 +32,7 @@
 use crate::math::{luminance_mean, Mat3, Vec2, Vec3};
 use crate::photo::{ignore, register, Photo};
 use crate::render::aov::{index_buffers, IndexBuffers};
-use crate::render::film::{render, RenderOptions};
+use crate::render::film::{render_where, RenderOptions};
 use crate::scene::{Camera, Scene};
 
 /// Half-width in pixels of the scan across a model edge.
@@ -170,7 +170,9 @@ pub fn refine_from(
     let mut first_points: Vec<Vec3> = Vec::new();
     for step in 0..STEPS {
         let ib = index_buffers(scene, &cam);
-        let model = render(
+        let edges = model_edges(scene, &cam, &ib);
+        // Only the pixels the model's scans read are rendered: a few percent of the image.
+        let model = render_where(
             scene,
             &cam,
             &RenderOptions {
@@ -178,9 +180,9 @@ pub fn refine_from(
                 seed: 0x5EED + step as u64,
                 progress: false,
             },
+            &model_scan_pixels(&edges, w, h),
         );
         let y_model: Vec<f32> = model.data.iter().map(|&c| luminance_mean(c)).collect();
-        let edges = model_edges(scene, &cam, &ib);
         if first_points.is_empty() {
             first_points = edges.iter().map(|e| e.p).collect();
         }
@@ -446,6 +448,26 @@ fn centroid(
         den += v as f64;
     }
     Some(((num / den) as f32, sign))
+}
+
+/// The pixels [`centroid`] reads of the model's rendering (reach 1) for `edges`, marked in a
+/// `w`×`h` mask.
+fn model_scan_pixels(edges: &[Edge], w: i64, h: i64) -> Vec<bool> {
+    let mut marks = vec![false; (w * h) as usize];
+    for e in edges {
+        let (len, across) = if e.axis == 0 { (w, h) } else { (h, w) };
+        for line in (e.line - LINES).max(0)..=(e.line + LINES).min(across - 1) {
+            for k in (e.at - 2).max(0)..=(e.at + 1).min(len - 1) {
+                let i = if e.axis == 0 {
+                    line * w + k
+                } else {
+                    k * w + line
+                };
+                marks[i as usize] = true;
+            }
+        }
+    }
+    marks
 }
 
 /// The model's edges crossed by rows and columns: id boundaries (silhouettes, weight 2) and

@@ -55,6 +55,41 @@ pub fn render(scene: &Scene, camera: &Camera, opts: &RenderOptions) -> Image {
     img
 }
 
+/// Renders only the pixels `wanted` marks (row-major, the camera's size), each to the value
+/// [`render`] gives it (the pixel's sampler is keyed by its index, not by what else is
+/// rendered); the others stay zero. For callers that read a few pixels of an image.
+pub fn render_where(
+    scene: &Scene,
+    camera: &Camera,
+    opts: &RenderOptions,
+    wanted: &[bool],
+) -> Image {
+    let pt = PathTracer::new(scene);
+    let spp = opts.spp.max(1);
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    assert_eq!(
+        wanted.len(),
+        w * h,
+        "render_where: the mask is not the camera's size"
+    );
+    let mut img = Image::new(w, h);
+    let run = (65_536 / spp as usize).clamp(1, w.max(1));
+    img.data.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let marks = &wanted[y * w..(y + 1) * w];
+        let mut x = 0;
+        while x < w {
+            if !marks[x] {
+                x += 1;
+                continue;
+            }
+            let end = (x..w).find(|&e| !marks[e]).unwrap_or(w).min(x + run);
+            batch::render_pixels(&pt, camera, y, x, spp, opts.seed, &mut row[x..end]);
+            x = end;
+        }
+    });
+    img
+}
+
 /// The mean of `spp` samples of pixel (x, y), one path at a time (`batch.rs` computes the same
 /// value eight paths at a time). Non-finite samples are dropped (and would be a bug).
 pub fn render_pixel(
