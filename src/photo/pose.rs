@@ -35,8 +35,10 @@ use crate::render::aov::{index_buffers, IndexBuffers};
 use crate::render::film::{render_where, RenderOptions};
 use crate::scene::{Camera, Scene};
 
-/// Half-width in pixels of the scan across a model edge.
+/// Half-width in pixels of the scan across a model edge in the photo.
 const REACH: i64 = 4;
+/// The same in the model's rendering, whose step lies within a pixel of its id boundary.
+const MODEL_REACH: i64 = 1;
 /// Lines on either side of an edge's scan line averaged into it (module comment).
 const LINES: i64 = 2;
 /// Samples per pixel of the model's renderings. Their noise is not the photo's, and the
@@ -101,6 +103,17 @@ struct Edge {
     p: Vec3,
     n: Vec2,
     weight: f64,
+}
+
+impl Edge {
+    /// The row-major index, in a `w`-wide image, of pixel `k` along the scan on line `line`.
+    fn pixel(&self, line: i64, k: i64, w: i64) -> i64 {
+        if self.axis == 0 {
+            line * w + k
+        } else {
+            k * w + line
+        }
+    }
 }
 
 /// The camera moved by δ = (ω, τ): x_cam ↦ exp([ω]×) x_cam + τ.
@@ -195,7 +208,7 @@ pub fn refine_from(
             };
             let any = |_: i64| true;
             // The model's step sign and location, within a pixel of its id boundary.
-            let Some((em, sign)) = scan(&y_model, &any, 1, 0.0) else {
+            let Some((em, sign)) = scan(&y_model, &any, MODEL_REACH, 0.0) else {
                 continue;
             };
             let ok = |i: i64| usable[i as usize];
@@ -374,13 +387,6 @@ fn centroid(
     ok: &dyn Fn(i64) -> bool,
 ) -> Option<(f32, f32)> {
     let (len, across) = if e.axis == 0 { (w, h) } else { (h, w) };
-    let idx = |line: i64, k: i64| {
-        if e.axis == 0 {
-            line * w + k
-        } else {
-            k * w + line
-        }
-    };
     let (lo, hi) = (e.at - reach, e.at + reach);
     if lo < 1 || hi >= len {
         return None;
@@ -393,7 +399,7 @@ fn centroid(
     for b in lo..=hi {
         let mut sum = 0.0f32;
         for &l in &lines {
-            let (i0, i1) = (idx(l, b - 1), idx(l, b));
+            let (i0, i1) = (e.pixel(l, b - 1, w), e.pixel(l, b, w));
             if !ok(i0) || !ok(i1) {
                 return None;
             }
@@ -450,20 +456,16 @@ fn centroid(
     Some(((num / den) as f32, sign))
 }
 
-/// The pixels [`centroid`] reads of the model's rendering (reach 1) for `edges`, marked in a
-/// `w`×`h` mask.
+/// The pixels [`centroid`] reads of the model's rendering (reach [`MODEL_REACH`]) for `edges`,
+/// marked in a `w`×`h` mask: the steps at boundaries at ± reach read pixels at − reach − 1 to
+/// at + reach, on the [`LINES`] lines either side.
 fn model_scan_pixels(edges: &[Edge], w: i64, h: i64) -> Vec<bool> {
     let mut marks = vec![false; (w * h) as usize];
     for e in edges {
         let (len, across) = if e.axis == 0 { (w, h) } else { (h, w) };
         for line in (e.line - LINES).max(0)..=(e.line + LINES).min(across - 1) {
-            for k in (e.at - 2).max(0)..=(e.at + 1).min(len - 1) {
-                let i = if e.axis == 0 {
-                    line * w + k
-                } else {
-                    k * w + line
-                };
-                marks[i as usize] = true;
+            for k in (e.at - MODEL_REACH - 1).max(0)..=(e.at + MODEL_REACH).min(len - 1) {
+                marks[e.pixel(line, k, w) as usize] = true;
             }
         }
     }

@@ -37,22 +37,7 @@ pub fn progress_bar(len: u64, what: &str, show: bool) -> ProgressBar {
 
 /// Renders the scene through `camera` (normally `scene.camera`), at least one sample per pixel.
 pub fn render(scene: &Scene, camera: &Camera, opts: &RenderOptions) -> Image {
-    let pt = PathTracer::new(scene);
-    let spp = opts.spp.max(1);
-    let (w, h) = (camera.width as usize, camera.height as usize);
-    let mut img = Image::new(w, h);
-    let pb = progress_bar(h as u64, "render", opts.progress);
-    // Pixels go to the batch integrator a run at a time, at most ~2^16 samples per run (the
-    // size of its buffer of per-sample values).
-    let run = (65_536 / spp as usize).clamp(1, w.max(1));
-    img.data.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        for (k, pixels) in row.chunks_mut(run).enumerate() {
-            batch::render_pixels(&pt, camera, y, k * run, spp, opts.seed, pixels);
-        }
-        pb.inc(1);
-    });
-    pb.finish_and_clear();
-    img
+    render_marked(scene, camera, opts, None)
 }
 
 /// Renders only the pixels `wanted` marks (row-major, the camera's size), each to the value
@@ -64,29 +49,45 @@ pub fn render_where(
     opts: &RenderOptions,
     wanted: &[bool],
 ) -> Image {
-    let pt = PathTracer::new(scene);
-    let spp = opts.spp.max(1);
     let (w, h) = (camera.width as usize, camera.height as usize);
     assert_eq!(
         wanted.len(),
         w * h,
         "render_where: the mask is not the camera's size"
     );
+    render_marked(scene, camera, opts, Some(wanted))
+}
+
+/// [`render`] of every pixel, or of those `wanted` marks.
+fn render_marked(
+    scene: &Scene,
+    camera: &Camera,
+    opts: &RenderOptions,
+    wanted: Option<&[bool]>,
+) -> Image {
+    let pt = PathTracer::new(scene);
+    let spp = opts.spp.max(1);
+    let (w, h) = (camera.width as usize, camera.height as usize);
     let mut img = Image::new(w, h);
+    let pb = progress_bar(h as u64, "render", opts.progress);
+    // Pixels go to the batch integrator a run at a time, at most ~2^16 samples per run (the
+    // size of its buffer of per-sample values).
     let run = (65_536 / spp as usize).clamp(1, w.max(1));
     img.data.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        let marks = &wanted[y * w..(y + 1) * w];
+        let marked = |x: usize| wanted.is_none_or(|m| m[y * w + x]);
         let mut x = 0;
         while x < w {
-            if !marks[x] {
+            if !marked(x) {
                 x += 1;
                 continue;
             }
-            let end = (x..w).find(|&e| !marks[e]).unwrap_or(w).min(x + run);
+            let end = (x..w).find(|&e| !marked(e)).unwrap_or(w).min(x + run);
             batch::render_pixels(&pt, camera, y, x, spp, opts.seed, &mut row[x..end]);
             x = end;
         }
+        pb.inc(1);
     });
+    pb.finish_and_clear();
     img
 }
 
