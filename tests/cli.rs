@@ -220,6 +220,41 @@ fn exposure_default_is_stated_and_an_ldr_photo_without_one_is_warned() {
     assert!(!err.contains("warning"), "{err}");
 }
 
+/// Each registration states the rule it was held to: the pose refinement applies from 0.1 px
+/// RMS, the film shift from half a pixel on either axis (it once quoted the pose's rule).
+#[test]
+fn inspect_states_each_registrations_own_rule() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    write(dir, "scene.toml", SMALL_SCENE);
+    render_photo(dir, "photo.exr");
+    for (extra, found, rule) in [
+        (
+            None,
+            "registration: camera turned by",
+            "below 0.1 px RMS, not applied",
+        ),
+        (
+            Some("--film-shift"),
+            "registration: film shifted by (",
+            "below 0.5 px on both axes, not applied",
+        ),
+    ] {
+        let mut args = vec!["inspect", "scene.toml", "photo.exr", "-o", "i"];
+        args.extend(extra);
+        let (code, out, err) = run(&args, dir);
+        assert_eq!(code, 0, "{err}");
+        let line = out
+            .lines()
+            .find(|l| l.starts_with("registration:"))
+            .unwrap_or_else(|| panic!("no registration line in:\n{out}"));
+        assert!(line.starts_with(found), "{line}");
+        // The photo is rendered through the scene's own camera: nothing to apply.
+        assert!(line.ends_with(rule), "{line}");
+        std::fs::remove_dir_all(dir.join("i")).unwrap();
+    }
+}
+
 #[test]
 fn recover_ends_with_the_table_and_repeats_warnings() {
     let d = tempfile::tempdir().unwrap();

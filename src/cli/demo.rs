@@ -248,8 +248,9 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
             .collect();
         let (_, off) = matfit::photo::pose::motion(&scene.camera, &prepared.camera, &points);
         crate::outln!(
-            "registration: camera turned by {:.3}°, moved by {:.4} units (edges move {:.2} px RMS); the model's camera is now {:.2} px RMS off the photo's",
-            r.rotation_deg, r.translation.length(), r.rms_px, off
+            "registration: {}; the model's camera is now {:.2} px RMS off the photo's",
+            r.found(),
+            off
         );
     }
     model.camera = prepared.camera.clone();

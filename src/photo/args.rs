@@ -184,14 +184,9 @@ pub fn prepare_at(
             camera = r.camera.clone();
             index = index_buffers(scene, &camera);
             tracing::info!(
-                "{}: camera turned by {:.3}° and moved by {:.4} scene units: the model's edges \
-                 move by ({:.2}, {:.2}) px (RMS {:.2}){}",
+                "{}: {}{}",
                 path.display(),
-                r.rotation_deg,
-                r.translation.length(),
-                r.mean_px.x,
-                r.mean_px.y,
-                r.rms_px,
+                r.found(),
                 match r.shading {
                     pose::Shading::SceneFile => "",
                     pose::Shading::QuickFit => ", against a quick fit's materials",

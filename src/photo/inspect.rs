@@ -132,22 +132,13 @@ pub fn inspect(
     if let Some(g) = &p.registration {
         let _ = writeln!(
             r,
-            "registration: camera turned by {:.3}° and moved by {:.4} scene units ({:.4}, {:.4}, \
-             {:.4}): the model's edges move by ({:.2}, {:.2}) px, RMS {:.2} px, over {} edge \
-             points{}",
-            g.rotation_deg,
-            g.translation.length(),
-            g.translation.x,
-            g.translation.y,
-            g.translation.z,
-            g.mean_px.x,
-            g.mean_px.y,
-            g.rms_px,
+            "registration: {}, over {} edge points; {}",
+            g.found(),
             g.edges,
             if p.camera != scene.camera {
-                "; masks use the corrected camera"
+                "masks use the corrected camera".to_string()
             } else {
-                "; below 0.1 px, not applied"
+                g.not_applied_because()
             }
         );
     }

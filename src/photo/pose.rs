@@ -54,6 +54,10 @@ const MAX_EDGES: usize = 6000;
 /// left exactly as calibrated than moved by the estimate's noise.
 pub const APPLY_PX: f32 = 0.1;
 
+/// A film shift is applied from this many pixels on either axis: sub-pixel shifts are biased
+/// by the shading near edges.
+pub const SHIFT_APPLY_PX: f32 = 0.5;
+
 /// What the refinement found.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Pose {
@@ -74,6 +78,8 @@ pub struct Pose {
     pub applied: bool,
     /// Whose materials shaded the model's renderings the edges were located in.
     pub shading: Shading,
+    /// How it was found, which also sets the rule for applying it.
+    pub method: Method,
     /// The refined camera's world-to-camera R (rows) and t, as `[camera]`'s calibrated form
     /// takes them.
     pub camera_rotation: [[f32; 3]; 3],
@@ -90,6 +96,46 @@ pub enum Shading {
     SceneFile,
     /// A quick fit of the materials through the first refinement's camera (`recover`).
     QuickFit,
+}
+
+/// How a [`Pose`] was found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Method {
+    /// The 6-DoF refinement ([`refine`]), applied from [`APPLY_PX`] RMS on.
+    Refinement,
+    /// A shift of the film ([`from_shift`]), applied from [`SHIFT_APPLY_PX`] on either axis.
+    FilmShift,
+}
+
+impl Pose {
+    /// What the registration found, in one clause: the camera's turn and move, or the film's
+    /// shift, and the model's edges' image motion.
+    pub fn found(&self) -> String {
+        match self.method {
+            Method::Refinement => format!(
+                "camera turned by {:.3}° and moved by {:.4} scene units: the model's edges move \
+                 by ({:.2}, {:.2}) px, RMS {:.2} px",
+                self.rotation_deg,
+                self.translation.length(),
+                self.mean_px.x,
+                self.mean_px.y,
+                self.rms_px
+            ),
+            Method::FilmShift => format!(
+                "film shifted by ({:.2}, {:.2}) px",
+                self.mean_px.x, self.mean_px.y
+            ),
+        }
+    }
+
+    /// Why a registration that was not applied was left out.
+    pub fn not_applied_because(&self) -> String {
+        match self.method {
+            Method::Refinement => format!("below {APPLY_PX} px RMS, not applied"),
+            Method::FilmShift => format!("below {SHIFT_APPLY_PX} px on both axes, not applied"),
+        }
+    }
 }
 
 /// One model edge crossed by a scan line.
@@ -260,16 +306,16 @@ pub fn refine_from(
         edges: edges_used,
         applied: rms_px >= APPLY_PX,
         shading,
+        method: Method::Refinement,
     }
 }
 
 /// The film-shift registration (`register::estimate_shift`) as a [`Pose`]: the default while
 /// the 6-DoF refinement still moves correct cameras on figure6 at full size. Applied as a shift
-/// of the principal point from half a pixel on, since sub-pixel shifts are biased by the shading
-/// near edges.
+/// of the principal point from [`SHIFT_APPLY_PX`] on.
 pub fn from_shift(camera: &Camera, index: &IndexBuffers, photo: &Photo, max_shift: i32) -> Pose {
     let r = register::estimate_shift(index, photo, max_shift);
-    let applied = r.dx.abs().max(r.dy.abs()) >= 0.5;
+    let applied = r.dx.abs().max(r.dy.abs()) >= SHIFT_APPLY_PX;
     let cam = if applied {
         camera.shifted(r.dx, r.dy)
     } else {
@@ -286,6 +332,7 @@ pub fn from_shift(camera: &Camera, index: &IndexBuffers, photo: &Photo, max_shif
         edges: register::model_edges(index).len(),
         applied,
         shading: Shading::SceneFile,
+        method: Method::FilmShift,
     }
 }
 

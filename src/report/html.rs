@@ -182,24 +182,22 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
     let bar = colour_bar(scale);
     let inputs = match &res.inputs {
         Some(i) => {
-            let reg =
-                i.registration.as_ref().map_or("off".to_string(), |r| {
-                    format!(
-                    "camera turned by {:.3}° and moved by {:.4} scene units: model edges move by \
-                     ({:.2}, {:.2}) px, RMS {:.2} px{}{}",
-                    r.rotation_deg,
-                    r.translation.length(),
-                    r.mean_px.x,
-                    r.mean_px.y,
-                    r.rms_px,
-                    if r.applied { "" } else { " (below 0.1 px: not applied)" },
+            let reg = i.registration.as_ref().map_or("off".to_string(), |r| {
+                format!(
+                    "{}{}{}",
+                    r.found(),
+                    if r.applied {
+                        String::new()
+                    } else {
+                        format!(" ({})", r.not_applied_because())
+                    },
                     match r.shading {
                         crate::photo::pose::Shading::SceneFile => "",
                         crate::photo::pose::Shading::QuickFit =>
                             " (refined against a quick fit's materials)",
                     }
                 )
-                });
+            });
             let options = serde_json::to_string_pretty(&i.options).unwrap_or_default();
             format!(
                 "<h2>Inputs</h2>\n<table id=\"inputs\"><tr><td>matfit</td><td>{}</td></tr><tr><td>scene</td><td>{}</td></tr><tr><td>photo</td><td>{}</td></tr><tr><td>exposure k</td><td>{} ({})</td></tr><tr><td>registration</td><td>{}</td></tr>{}</table>\n<details><summary>options</summary><pre>{}</pre></details>\n",
