@@ -447,6 +447,7 @@ pub fn build(
     let w = cam.width as usize;
     let (nl, ni) = (opts.light_samples.max(1), opts.indirect_samples.max(1));
     let cw = needs.cosine_weight();
+    let images = super::mirror_images::MirrorImages::new(scene);
     let per_pixel: Vec<BuiltPixel> = pixels
         .par_iter()
         .zip(tiles)
@@ -481,6 +482,7 @@ pub fn build(
                 let taps = atlas.and_then(|a| a.taps(hit.object, hit.p, hit.ng));
                 let (frame, ng) = facing(hit.frame, hit.ng, wo_world);
                 let wo = frame.to_local(wo_world);
+                let mix = super::mixture::Mixture::at(cw, &images, hit.p, frame);
                 if k < hl {
                     // Next-event estimation: a point on an area light and a direction to the
                     // environment, MIS-weighted against the mixture, and every punctual light
@@ -504,7 +506,7 @@ pub fn build(
                         let w_l = if ls.delta {
                             1.0
                         } else {
-                            let pm = super::mixture::pdf(wo, wi, cw);
+                            let pm = mix.pdf(wo, wi);
                             nl as f32 * ls.pdf / (nl as f32 * ls.pdf + ni as f32 * pm)
                         };
                         entries.push(Entry {
@@ -518,14 +520,14 @@ pub fn build(
                         });
                     }
                 } else {
-                    let Some(wi) = super::mixture::sample(wo, &mut sampler, cw) else {
+                    let Some(wi) = mix.sample(wo, &mut sampler) else {
                         continue;
                     };
                     let wi_world = frame.to_world(wi);
                     if ng.dot(wi_world) <= 0.0 {
                         continue;
                     }
-                    let pm = super::mixture::pdf(wo, wi, cw);
+                    let pm = mix.pdf(wo, wi);
                     let r = Ray::new(offset_origin(hit.p, ng, wi_world), wi_world);
                     // Emission at the first hit, MIS-weighted against light sampling; the rest
                     // of the path as the path tracer computes it.

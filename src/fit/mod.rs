@@ -7,6 +7,7 @@ pub mod error;
 pub mod fitter;
 pub mod hierarchy;
 pub mod level;
+pub mod mirror_images;
 pub mod mixture;
 pub mod objective;
 pub mod params;
