@@ -138,6 +138,10 @@ pub struct GroupState {
     /// The 1σ of its parameters at its level, from its latest cache (`uncertainty.rs`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sigma: Option<GroupParams>,
+    /// Set (by the recovery loop) when a group that lights this textured group changed level:
+    /// its next step asks Algorithm 1's gate again ([`GroupState::untexture`]).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub recheck_texture: bool,
 }
 
 /// What happened to a group in one global iteration.
@@ -241,6 +245,7 @@ impl GroupState {
             lit_by: Vec::new(),
             open: 0.0,
             sigma: None,
+            recheck_texture: false,
         }
     }
 
@@ -327,7 +332,10 @@ impl GroupState {
         let textured = level == Level::Textured;
         let varnished = textured && self.texture.as_ref().is_some_and(|t| t.base.is_ward());
         CacheNeeds {
-            lobe_samples: may_climb || level.has_lobe() || varnished,
+            lobe_samples: may_climb
+                || level.has_lobe()
+                || varnished
+                || (textured && self.recheck_texture),
             mirror: may_climb || level.is_mirror(),
             mirror_fitted: level.is_mirror(),
             texels: may_climb || textured,
@@ -546,6 +554,58 @@ impl GroupState {
         events
     }
 
+    /// Algorithm 1's gate asked again of a textured group, after a group that lights it changed
+    /// level. The texture was chosen because every uniform model missed, but against the light
+    /// of that group's old model: a glossy floor that climbed while the mirror beside it was
+    /// still diffuse found no lobe for the highlights the mirror sends it and took a texture,
+    /// which then kept them for good. The uniform levels are fitted as a climb would (each
+    /// must earn its place over the one below); if the best now passes the gate (ε within the
+    /// texture threshold beyond the noise, and no coherent detail), the group goes back to it
+    /// and is analysed again from there.
+    fn untexture(
+        &mut self,
+        cache: &GroupCache,
+        variant: WardVariant,
+        opts: &HierarchyOptions,
+    ) -> Option<Event> {
+        cache.texels.as_ref()?;
+        let mut best = fit_level(cache, Level::Diffuse, &self.params, variant);
+        for level in [Level::Isotropic, Level::Anisotropic] {
+            let f = fit_level(cache, level, &best.params, variant);
+            if Self::earns(&best, &f, opts).0 {
+                best = f;
+            }
+        }
+        let model = uniform_model(cache, best.level, &best.params, variant);
+        if best.error - best.noise_floor >= opts.thresholds.texture_error
+            || coherent_detail(cache, &model, cache.width) >= opts.thresholds.texture_detail
+        {
+            return None;
+        }
+        Some(self.demote(&best))
+    }
+
+    /// Goes back to the simpler level `f` fitted, to be analysed again from there.
+    fn demote(&mut self, f: &LevelFit) -> Event {
+        let event = Event::Demoted {
+            from: self.level,
+            to: f.level,
+            error_before: self.error,
+            error_after: f.error,
+        };
+        self.level = f.level;
+        self.take(f);
+        self.texture = None;
+        self.iterations_at_level = 0;
+        self.moves.clear();
+        self.last_step = None;
+        self.restart_average();
+        self.status = Status::Analysing;
+        // What was said of the level it left no longer holds.
+        self.note = None;
+        event
+    }
+
     /// [`GroupState::step`] but the parameters' σ.
     fn fit_and_climb(
         &mut self,
@@ -579,6 +639,12 @@ impl GroupState {
             self.take_texture(new);
         }
         self.iterations_at_level += 1;
+        if self.level == Level::Textured && std::mem::take(&mut self.recheck_texture) {
+            if let Some(e) = self.untexture(cache, variant, opts) {
+                events.push(e);
+                return events;
+            }
+        }
         if self.status == Status::Confirmed
             && self.level != Level::Diffuse
             && self.level != Level::Textured
@@ -601,21 +667,7 @@ impl GroupState {
                     evals: 0,
                 };
                 if !Self::earns(&f, &current, opts).0 {
-                    events.push(Event::Demoted {
-                        from: self.level,
-                        to: lower,
-                        error_before: self.error,
-                        error_after: f.error,
-                    });
-                    self.level = lower;
-                    self.take(&f);
-                    self.iterations_at_level = 0;
-                    self.moves.clear();
-                    self.last_step = None;
-                    self.restart_average();
-                    self.status = Status::Analysing;
-                    // What was said of the level it left no longer holds.
-                    self.note = None;
+                    events.push(self.demote(&f));
                     break;
                 }
             }

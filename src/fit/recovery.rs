@@ -693,6 +693,7 @@ impl<'a> RecoveryLoop<'a> {
                 }
             }
             let st = &mut self.states[g];
+            let level_before = st.level;
             let events = st.step(
                 &cache,
                 atlas,
@@ -713,6 +714,19 @@ impl<'a> RecoveryLoop<'a> {
             shares.extend(super::unseen::shares(&cache, g, &self.states[g], variant));
             self.states[g].lit_by = cache.light_from.clone();
             self.states[g].open = cache.open;
+            if self.states[g].level != level_before {
+                for (h, st) in self.states.iter_mut().enumerate() {
+                    if h != g
+                        && st.level == Level::Textured
+                        && st
+                            .lit_by
+                            .get(g)
+                            .is_some_and(|&x| x > super::schedule::INDEPENDENT)
+                    {
+                        st.recheck_texture = true;
+                    }
+                }
+            }
             let secs = tg.elapsed().as_secs_f64();
             for e in events {
                 if let Event::Fit { evals: n, .. } = e {
