@@ -197,6 +197,14 @@ pub enum Event {
         error_before: f32,
         error_after: f32,
     },
+    /// A textured group re-asked Algorithm 1's gate ([`GroupState::untexture`]) keeps its
+    /// texture: its best uniform level, with that level's ε, noise floor and coherent detail.
+    TextureKept {
+        level: Level,
+        error: f32,
+        noise_floor: f32,
+        detail: f32,
+    },
     /// §5.1 (`pseudo.rs`): the group's mirror level fitted with the groups it reflects that are
     /// still being analysed rendered, and read from the photo (pseudo-textures); the one with
     /// the smaller cost (`chose`: "rendered" or "pseudo_texture") is used in this iteration.
@@ -561,7 +569,7 @@ impl GroupState {
     /// which then kept them for good. The uniform levels are fitted as a climb would (each
     /// must earn its place over the one below); if the best now passes the gate (ε within the
     /// texture threshold beyond the noise, and no coherent detail), the group goes back to it
-    /// and is analysed again from there.
+    /// and is analysed again from there; otherwise it says what kept the texture.
     fn untexture(
         &mut self,
         cache: &GroupCache,
@@ -577,10 +585,16 @@ impl GroupState {
             }
         }
         let model = uniform_model(cache, best.level, &best.params, variant);
+        let detail = coherent_detail(cache, &model, cache.width);
         if best.error - best.noise_floor >= opts.thresholds.texture_error
-            || coherent_detail(cache, &model, cache.width) >= opts.thresholds.texture_detail
+            || detail >= opts.thresholds.texture_detail
         {
-            return None;
+            return Some(Event::TextureKept {
+                level: best.level,
+                error: best.error,
+                noise_floor: best.noise_floor,
+                detail,
+            });
         }
         Some(self.demote(&best))
     }
@@ -641,8 +655,11 @@ impl GroupState {
         self.iterations_at_level += 1;
         if self.level == Level::Textured && std::mem::take(&mut self.recheck_texture) {
             if let Some(e) = self.untexture(cache, variant, opts) {
+                let demoted = matches!(e, Event::Demoted { .. });
                 events.push(e);
-                return events;
+                if demoted {
+                    return events;
+                }
             }
         }
         if self.status == Status::Confirmed
