@@ -232,6 +232,36 @@ pub enum Event {
     StrayLight(super::unseen::StrayEstimate),
 }
 
+/// Fine detail a uniform model leaves that the error's tiles average away (the texture
+/// threshold of Algorithm 1): 0 at level 7 or without the cache's texel rows.
+fn uniform_detail(
+    cache: &GroupCache,
+    level: Level,
+    params: &GroupParams,
+    variant: WardVariant,
+) -> f32 {
+    if level == Level::Textured || cache.texels.is_none() {
+        return 0.0;
+    }
+    let model = uniform_model(cache, level, params, variant);
+    coherent_detail(cache, &model, cache.width)
+}
+
+/// Algorithm 1's gate on a group's best uniform model: it tries a texture if it misses by the
+/// texture threshold beyond its noise floor (gross: a small group's ε can reach the threshold
+/// on its cache's noise alone), or leaves coherent detail of the detail threshold. Returns
+/// whether, and the detail.
+fn texture_gate(
+    cache: &GroupCache,
+    best: &LevelFit,
+    variant: WardVariant,
+    opts: &HierarchyOptions,
+) -> (bool, f32) {
+    let gross = best.error - best.noise_floor >= opts.thresholds.texture_error;
+    let detail = uniform_detail(cache, best.level, &best.params, variant);
+    (gross || detail >= opts.thresholds.texture_detail, detail)
+}
+
 impl GroupState {
     pub fn new(name: &str, status: Status, params: GroupParams) -> GroupState {
         GroupState {
@@ -584,11 +614,8 @@ impl GroupState {
                 best = f;
             }
         }
-        let model = uniform_model(cache, best.level, &best.params, variant);
-        let detail = coherent_detail(cache, &model, cache.width);
-        if best.error - best.noise_floor >= opts.thresholds.texture_error
-            || detail >= opts.thresholds.texture_detail
-        {
+        let (texture, detail) = texture_gate(cache, &best, variant, opts);
+        if texture {
             return Some(Event::TextureKept {
                 level: best.level,
                 error: best.error,
@@ -695,14 +722,9 @@ impl GroupState {
         }
         let thr = opts.thresholds.of(self.level);
         // Fine detail the error's tiles average away (the texture threshold of Algorithm 1).
-        let detail = |level: Level, params: &GroupParams| match atlas {
-            Some(_) if level != Level::Textured && cache.texels.is_some() => {
-                let model = uniform_model(cache, level, params, variant);
-                coherent_detail(cache, &model, cache.width)
-            }
-            _ => 0.0,
-        };
-        let textured_detail = detail(self.level, &fit.params) >= opts.thresholds.texture_detail;
+        let textured_detail = atlas.is_some()
+            && uniform_detail(cache, self.level, &fit.params, variant)
+                >= opts.thresholds.texture_detail;
         if fit.error < thr && !textured_detail {
             self.status = Status::Confirmed;
             events.push(Event::Confirmed {
@@ -734,10 +756,7 @@ impl GroupState {
                 continue;
             }
             if next == Level::Textured {
-                // Gross: by the threshold beyond the noise floor (a small group's ε can reach the
-                // threshold on its cache's noise alone).
-                let gross = best.error - best.noise_floor >= opts.thresholds.texture_error;
-                if !gross && detail(best.level, &best.params) < opts.thresholds.texture_detail {
+                if !texture_gate(cache, &best, variant, opts).0 {
                     break;
                 }
                 // Algorithm 1 of the notes: every uniform model failed its threshold. A
