@@ -29,6 +29,7 @@ use super::cache::{CacheNeeds, GroupCache};
 use super::fitter::{assess, fit_level, fit_level_above, lowers_error, refit_level, LevelFit};
 use super::level::{Level, Thresholds};
 use super::params::GroupParams;
+use super::schedule::Turn;
 use super::texture::{coherent_detail, fit_textured, uniform_model, TextureState};
 use crate::scene::atlas::Atlas;
 use crate::scene::WardVariant;
@@ -142,6 +143,10 @@ pub struct GroupState {
     /// its next step asks Algorithm 1's gate again ([`GroupState::untexture`]).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub recheck_texture: bool,
+    /// Its last climb found that only a texture would do, but a group that lights it was still
+    /// analysing (`schedule::texture_waits_for`): it waits, and holds no other group back.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub texture_waiting: bool,
 }
 
 /// What happened to a group in one global iteration.
@@ -196,6 +201,14 @@ pub enum Event {
         to: Level,
         error_before: f32,
         error_after: f32,
+    },
+    /// Algorithm 1's gate held on the group's best uniform level, but level 7 was not tried:
+    /// `behind`, which lights the group, is still analysing (`schedule::texture_waits_for`).
+    /// The group stays analysing at that level and climbs again later.
+    TextureWaits {
+        behind: String,
+        level: Level,
+        error: f32,
     },
     /// A textured group re-asked Algorithm 1's gate ([`GroupState::untexture`]) keeps its
     /// texture: its best uniform level, with that level's ε, noise floor and coherent detail.
@@ -284,6 +297,7 @@ impl GroupState {
             open: 0.0,
             sigma: None,
             recheck_texture: false,
+            texture_waiting: false,
         }
     }
 
@@ -565,24 +579,22 @@ impl GroupState {
         })
     }
 
-    /// One global iteration for this group, given its freshly built cache. `may_climb`: whether
-    /// the group may try the higher levels now (the rest of the scene has settled); `may_move`:
-    /// whether it may also move to one (groups that light each other one at a time, the worst
-    /// first; see `schedule.rs`).
+    /// One global iteration for this group, given its freshly built cache and what the
+    /// schedule allows it (`schedule::Turn`: whether it may try the higher levels now, the
+    /// rest of the scene having settled; whether it may also move to one, groups that light
+    /// each other moving one at a time; whether it must wait before trying level 7).
     /// A try that finds no better level confirms the group; one that finds a better level
     /// without leave to move changes nothing and is tried again later.
     /// `atlas`: the group's texture atlas, for level 7 (None: the group cannot be textured).
-    #[allow(clippy::too_many_arguments)]
     pub fn step(
         &mut self,
         cache: &GroupCache,
         atlas: Option<&Atlas>,
         variant: WardVariant,
         opts: &HierarchyOptions,
-        may_climb: bool,
-        may_move: bool,
+        turn: &Turn,
     ) -> Vec<Event> {
-        let events = self.fit_and_climb(cache, atlas, variant, opts, may_climb, may_move);
+        let events = self.fit_and_climb(cache, atlas, variant, opts, turn);
         // At the level it ends at (a climb fits the new level on this cache too).
         let fits = match (&self.average, self.status) {
             (Some(a), Status::Confirmed) => a.1,
@@ -654,8 +666,7 @@ impl GroupState {
         atlas: Option<&Atlas>,
         variant: WardVariant,
         opts: &HierarchyOptions,
-        may_climb: bool,
-        may_move: bool,
+        turn: &Turn,
     ) -> Vec<Event> {
         let mut events = Vec::new();
         let (fit, texture) = self.fit_current(cache, atlas, variant);
@@ -735,7 +746,7 @@ impl GroupState {
             return events;
         }
         // The count includes this iteration's fit; the rule is on those before it.
-        if !may_climb || !super::schedule::has_settled_at_level(self.iterations_at_level - 1) {
+        if !turn.may_climb || !super::schedule::has_settled_at_level(self.iterations_at_level - 1) {
             return events;
         }
         // Climb on the same cache.
@@ -747,6 +758,8 @@ impl GroupState {
         let mut exhausted = true;
         // The lowest ε of the levels tried and not kept (not the texture's).
         let mut rejected = f32::INFINITY;
+        // Level 7 was not tried because a group that lights this one is still analysing.
+        let mut texture_waits = false;
         while let Some(next) = level.next() {
             // Levels 8 and 10 reshape a lobe: a group on which no specular level earned its
             // place has none to reshape (a wall whose ε is its noise would only fit the noise).
@@ -757,6 +770,16 @@ impl GroupState {
             }
             if next == Level::Textured {
                 if !texture_gate(cache, &best, variant, opts).0 {
+                    break;
+                }
+                if let Some(behind) = &turn.texture_waits_for {
+                    texture_waits = true;
+                    exhausted = false;
+                    events.push(Event::TextureWaits {
+                        behind: behind.clone(),
+                        level: best.level,
+                        error: best.error,
+                    });
                     break;
                 }
                 // Algorithm 1 of the notes: every uniform model failed its threshold. A
@@ -844,7 +867,8 @@ impl GroupState {
         // 10's unbiased cost, the held-out tiles) is a near miss, which a later climb on a
         // settled cache may pass.
         let near_miss = rejected < (1.0 - opts.margin) * best.error;
-        if best.level != self.level && !may_move {
+        self.texture_waiting = texture_waits;
+        if best.level != self.level && !turn.may_move {
             self.waiting += 1;
             self.pending = Some(best.level);
             events.push(Event::Deferred { to: best.level });
@@ -880,7 +904,7 @@ impl GroupState {
                     below_threshold: false,
                 });
             }
-        } else {
+        } else if !texture_waits {
             self.status = Status::Confirmed;
             self.waiting = 0;
             self.pending = None;
@@ -915,7 +939,12 @@ mod tests {
     ) -> (GroupState, Vec<Event>, Vec<Level>) {
         let mut st = GroupState::new(name, Status::Analysing, GroupParams::default());
         st.iterations_at_level = 2;
-        let events = st.step(c, None, WardVariant::Ward1992, opts, true, true);
+        let turn = Turn {
+            may_climb: true,
+            may_move: true,
+            texture_waits_for: None,
+        };
+        let events = st.step(c, None, WardVariant::Ward1992, opts, &turn);
         let tried = events
             .iter()
             .filter_map(|e| match e {
@@ -1017,6 +1046,51 @@ mod tests {
             "{tried:?}"
         );
         assert!(!tried.iter().any(|l| l.is_microfacet()), "{tried:?}");
+    }
+
+    /// A group whose reflectance changes from tile to tile (no uniform level comes within the
+    /// texture threshold) passes Algorithm 1's gate. Told to wait for a neighbour, it does not
+    /// try level 7 and is not confirmed: it stays analysing, marked as waiting, and holds no
+    /// one back. Not told to wait, the same climb ends it (here without an atlas, confirmed).
+    #[test]
+    fn a_group_that_waits_for_a_neighbour_does_not_try_a_texture() {
+        let patchy = synthetic_cache(480, 16, 24, 5, |p, s| {
+            if p.tile % 2 == 0 {
+                0.1 * diffuse(s)
+            } else {
+                0.8 * diffuse(s)
+            }
+        });
+        let opts = HierarchyOptions::default();
+        let step = |waits: Option<&str>| {
+            let mut st = GroupState::new("poster", Status::Analysing, GroupParams::default());
+            st.iterations_at_level = 2;
+            let turn = Turn {
+                may_climb: true,
+                may_move: true,
+                texture_waits_for: waits.map(str::to_string),
+            };
+            let events = st.step(&patchy, None, WardVariant::Ward1992, &opts, &turn);
+            (st, events)
+        };
+        let (st, events) = step(Some("mirror"));
+        assert!(
+            st.error - st.noise_floor >= opts.thresholds.texture_error,
+            "{events:?}"
+        );
+        assert!(
+            events.iter().any(|e| matches!(e,
+                Event::TextureWaits { behind, .. } if behind == "mirror")),
+            "{events:?}"
+        );
+        assert_eq!(st.status, Status::Analysing, "{events:?}");
+        assert!(st.texture_waiting);
+        let (st, events) = step(None);
+        assert!(!events
+            .iter()
+            .any(|e| matches!(e, Event::TextureWaits { .. })));
+        assert_eq!(st.status, Status::Confirmed, "{events:?}");
+        assert!(!st.texture_waiting);
     }
 
     /// A climb that tried every level above the one it moved to (none earned its place) ends

@@ -426,8 +426,11 @@ emission = 5.0
                     None,
                     WardVariant::Ward1992,
                     &HierarchyOptions::default(),
-                    true,
-                    true,
+                    &crate::fit::schedule::Turn {
+                        may_climb: true,
+                        may_move: true,
+                        texture_waits_for: None,
+                    },
                 );
                 let p = st.params;
                 assert!(p.in_bounds(), "{poison} {level:?}: {p:?}");

@@ -692,16 +692,17 @@ impl<'a> RecoveryLoop<'a> {
                     log(&self.line(it, g, event, 0.0));
                 }
             }
+            let turn = schedule::Turn {
+                may_climb: self.settled,
+                may_move: climbers.contains(&g),
+                texture_waits_for: (self.texture_pixels()[g].len() > opts.cache.max_pixels)
+                    .then(|| schedule::texture_waits_for(&self.states, g, &opts.hierarchy))
+                    .flatten()
+                    .map(|h| self.states[h].name.clone()),
+            };
             let st = &mut self.states[g];
             let level_before = st.level;
-            let events = st.step(
-                &cache,
-                atlas,
-                variant,
-                &hierarchy,
-                self.settled,
-                climbers.contains(&g),
-            );
+            let events = st.step(&cache, atlas, variant, &hierarchy, &turn);
             if let (true, Some(r)) = (took, read.as_mut()) {
                 // The unseen groups' derivatives are those of the rendered mirror radiance.
                 cache.swap_mirror(r);

@@ -72,6 +72,52 @@ pub fn climbers(states: &[GroupState], settled: bool, opts: &HierarchyOptions) -
     chosen
 }
 
+/// What the schedule allows one group in a global iteration.
+#[derive(Clone, Debug, Default)]
+pub struct Turn {
+    /// The scene has settled: the group may try the levels above its own.
+    pub may_climb: bool,
+    /// It is its turn: it may also move to a level it found (otherwise it waits).
+    pub may_move: bool,
+    /// The group it must wait for before it may try level 7 ([`texture_waits_for`]).
+    pub texture_waits_for: Option<String>,
+}
+
+/// The group, if any, whose light `g` must see modelled before `g` may try level 7.
+///
+/// A texture is the last resort of the hierarchy: it takes whatever light the group's uniform
+/// models miss, texel by texel, and holds it as reflectance. Tried while a group that lights it
+/// is still analysing above its threshold, it takes that group's missing light too: the office
+/// floor's climb reached level 7 while the mirror beside it was still diffuse, its anisotropic
+/// lobe missed the lights' images in the mirror by ε 0.167, and it became textured; the ceiling
+/// then rose to ρ 1 to make up the floor's lost lobe. So `g` waits for any group that gives it
+/// more than [`INDEPENDENT`] of its light and is analysing with ε at or above its threshold,
+/// unless that group is itself waiting for a texture (two textured neighbours would otherwise
+/// wait for each other). The first such group, by index.
+///
+/// The recovery loop asks this only of a group whose texture would be fitted from more pixels
+/// than a uniform level's cache holds (`CacheOptions::max_pixels`). Waiting has a cost in
+/// iterations: the group settles at its best uniform level first and its neighbour climbs
+/// later. On room-mirror at 160×120 with a Ward floor the mirror then reached its level at
+/// iteration 8 instead of 4 and its ρs was still 0.07 off at the end of 16 iterations. A texture
+/// tried too early is undone by the recheck (`GroupState::untexture`), which is cheap on a small
+/// group; on the 1080p office's floor each textured iteration took 80–190 s.
+pub fn texture_waits_for(
+    states: &[GroupState],
+    g: usize,
+    opts: &HierarchyOptions,
+) -> Option<usize> {
+    let lit_by = &states[g].lit_by;
+    (0..states.len()).find(|&h| {
+        let s = &states[h];
+        h != g
+            && lit_by.get(h).is_some_and(|&x| x > INDEPENDENT)
+            && s.status == Status::Analysing
+            && s.error >= opts.thresholds.of(s.level)
+            && !s.texture_waiting
+    })
+}
+
 /// The first of [`climbers`]: the group whose turn it is.
 pub fn climb_turn(states: &[GroupState], settled: bool, opts: &HierarchyOptions) -> Option<usize> {
     climbers(states, settled, opts).first().copied()
@@ -109,6 +155,32 @@ mod tests {
         use Motion::*;
         assert!(settled(false, &[Steady, Jittering, Steady]));
         assert!(!settled(true, &[Steady]) && !settled(false, &[Steady, Converging]));
+    }
+
+    /// A group waits for a texture on a group that lights it by more than [`INDEPENDENT`] and
+    /// is analysing above its threshold, and on no other: not on one that lights it less, nor
+    /// one that is decided or within its threshold, nor one itself waiting for a texture.
+    #[test]
+    fn a_texture_waits_only_for_an_analysing_neighbour_that_lights_it() {
+        let opts = HierarchyOptions::default(); // diffuse threshold 2%
+        let mut states = vec![
+            group(Status::Analysing, Level::Anisotropic, 0.2, 3), // the would-be texture
+            group(Status::Analysing, Level::Diffuse, 0.2, 3),     // lights it 1%
+            group(Status::Confirmed, Level::Diffuse, 0.2, 3),     // decided
+            group(Status::Analysing, Level::Diffuse, 0.01, 3),    // within its threshold
+            group(Status::Analysing, Level::Diffuse, 0.2, 3),     // lights it 5%
+        ];
+        states[0].lit_by = vec![0.0, 0.01, 0.3, 0.3, 0.05];
+        assert_eq!(texture_waits_for(&states, 0, &opts), Some(4));
+        states[4].texture_waiting = true;
+        assert_eq!(texture_waits_for(&states, 0, &opts), None);
+        states[4].texture_waiting = false;
+        states[4].lit_by = vec![0.05, 0.0, 0.0, 0.0, 0.0];
+        states[0].texture_waiting = true;
+        assert_eq!(texture_waits_for(&states, 4, &opts), None);
+        // Before its first cache a group knows nothing of its light, and waits for no one.
+        states[0].lit_by.clear();
+        assert_eq!(texture_waits_for(&states, 0, &opts), None);
     }
 
     /// Two groups that keep finding a better level: the worse one (higher ε / threshold) climbs
