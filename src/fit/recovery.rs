@@ -695,9 +695,9 @@ impl<'a> RecoveryLoop<'a> {
             let turn = schedule::Turn {
                 may_climb: self.settled,
                 may_move: climbers.contains(&g),
-                texture_waits_for: (self.texture_pixels()[g].len() > opts.cache.max_pixels)
-                    .then(|| schedule::texture_waits_for(&self.states, g, &opts.hierarchy))
-                    .flatten()
+                // The neighbours first: the texture's pixels need the index buffers.
+                texture_waits_for: schedule::texture_waits_for(&self.states, g, &opts.hierarchy)
+                    .filter(|_| self.texture_pixels()[g].len() > opts.cache.max_pixels)
                     .map(|h| self.states[h].name.clone()),
             };
             let st = &mut self.states[g];

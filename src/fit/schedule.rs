@@ -87,21 +87,18 @@ pub struct Turn {
 ///
 /// A texture is the last resort of the hierarchy: it takes whatever light the group's uniform
 /// models miss, texel by texel, and holds it as reflectance. Tried while a group that lights it
-/// is still analysing above its threshold, it takes that group's missing light too: the office
-/// floor's climb reached level 7 while the mirror beside it was still diffuse, its anisotropic
-/// lobe missed the lights' images in the mirror by ε 0.167, and it became textured; the ceiling
-/// then rose to ρ 1 to make up the floor's lost lobe. So `g` waits for any group that gives it
-/// more than [`INDEPENDENT`] of its light and is analysing with ε at or above its threshold,
-/// unless that group is itself waiting for a texture (two textured neighbours would otherwise
-/// wait for each other). The first such group, by index.
+/// is still analysing above its threshold, it takes that group's missing light too (a glossy
+/// floor beside a mirror still modelled diffuse holds the lights' images in the mirror as
+/// texels, and its lobe is lost). So `g` waits for any group that gives it more than
+/// [`INDEPENDENT`] of its light and is analysing with ε at or above its threshold, unless that
+/// group is itself waiting for a texture (two textured neighbours would otherwise wait for each
+/// other). The first such group, by index.
 ///
 /// The recovery loop asks this only of a group whose texture would be fitted from more pixels
-/// than a uniform level's cache holds (`CacheOptions::max_pixels`). Waiting has a cost in
-/// iterations: the group settles at its best uniform level first and its neighbour climbs
-/// later. On room-mirror at 160×120 with a Ward floor the mirror then reached its level at
-/// iteration 8 instead of 4 and its ρs was still 0.07 off at the end of 16 iterations. A texture
-/// tried too early is undone by the recheck (`GroupState::untexture`), which is cheap on a small
-/// group; on the 1080p office's floor each textured iteration took 80–190 s.
+/// than a uniform level's cache holds (`CacheOptions::max_pixels`): waiting costs iterations
+/// (the group settles at its best uniform level first, its neighbour climbs later), while a
+/// texture tried too early on a small group is undone cheaply by the recheck
+/// (`GroupState::untexture`).
 pub fn texture_waits_for(
     states: &[GroupState],
     g: usize,
