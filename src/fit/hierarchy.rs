@@ -26,7 +26,9 @@
 //! Every fit and every level tried becomes an [`Event`] for the log.
 
 use super::cache::{CacheNeeds, GroupCache};
-use super::fitter::{assess, fit_level, fit_level_above, lowers_error, refit_level, LevelFit};
+use super::fitter::{
+    assess, embed, fit_level, fit_level_above, lowers_error, refit_level, LevelFit,
+};
 use super::level::{Level, Thresholds};
 use super::params::GroupParams;
 use super::schedule::Turn;
@@ -202,9 +204,20 @@ pub enum Event {
         error_before: f32,
         error_after: f32,
     },
+    /// The level's fit on this cache ended above the simpler level `from`'s, which it contains
+    /// ([`restart_from_nested`]): it was fitted again from `from`'s optimum, or the group's
+    /// previous answer at the level explained the cache better (`previous_kept`).
+    Restarted {
+        level: Level,
+        from: Level,
+        error_before: f32,
+        error_after: f32,
+        previous_kept: bool,
+    },
     /// Algorithm 1's gate held on the group's best uniform level, but level 7 was not tried:
-    /// `behind`, which lights the group, is still analysing (`schedule::texture_waits_for`).
-    /// The group stays analysing at that level and climbs again later.
+    /// `behind`, which lights the group, is still analysing (`schedule::texture_waits_for`), or
+    /// is the stray light, not yet determined (`recover --stray-light`). The group stays
+    /// analysing at that level and climbs again later.
     TextureWaits {
         behind: String,
         level: Level,
@@ -243,6 +256,48 @@ pub enum Event {
     /// The stray light's estimate after the iteration (`recover --stray-light`; its line's
     /// group is "stray_light").
     StrayLight(super::unseen::StrayEstimate),
+}
+
+/// A level contains the simpler levels it embeds ([`embed`]: anisotropic Ward with αx = αy and
+/// θ = 0 is isotropic Ward), so its best fit on a cache is no worse than theirs in ε. A fit
+/// that ends above one of them is a failed search, and the demotion check would judge the
+/// level by it. The search descends the cross-half cost, which a lobe narrow beside the
+/// spacing of the cache's directions can drive below zero with a few spiky samples (see
+/// `objective::pooled`); ε keeps that noise and decides here. `fit` becomes the lowest ε of:
+/// the level fitted again from the best such simpler fit (which it cannot end above,
+/// [`fit_level_above`]), and `previous`, the group's answer at this level on earlier caches,
+/// assessed on this one. Returns the event, when it did.
+fn restart_from_nested(
+    cache: &GroupCache,
+    fit: &mut LevelFit,
+    nested: &[LevelFit],
+    previous: &GroupParams,
+    variant: WardVariant,
+) -> Option<Event> {
+    let (lower, start) = (nested.iter())
+        .filter(|f| f.error < fit.error)
+        .filter_map(|f| Some((f, embed(f.level, &f.params, fit.level)?)))
+        .min_by(|a, b| a.0.error.total_cmp(&b.0.error))?;
+    let again = fit_level_above(
+        cache,
+        fit.level,
+        &start,
+        std::slice::from_ref(lower),
+        variant,
+    );
+    let kept = assess(cache, fit.level, previous, variant, again.evals + 1);
+    let previous_kept = kept.error < again.error;
+    let mut best = if previous_kept { kept } else { again };
+    let event = Event::Restarted {
+        level: fit.level,
+        from: lower.level,
+        error_before: fit.error,
+        error_after: best.error,
+        previous_kept,
+    };
+    best.evals += fit.evals;
+    *fit = best;
+    Some(event)
 }
 
 /// Fine detail a uniform model leaves that the error's tiles average away (the texture
@@ -656,6 +711,7 @@ impl GroupState {
         self.status = Status::Analysing;
         // What was said of the level it left no longer holds.
         self.note = None;
+        self.texture_waiting = false;
         event
     }
 
@@ -669,7 +725,7 @@ impl GroupState {
         turn: &Turn,
     ) -> Vec<Event> {
         let mut events = Vec::new();
-        let (fit, texture) = self.fit_current(cache, atlas, variant);
+        let (mut fit, texture) = self.fit_current(cache, atlas, variant);
         events.push(Event::Fit {
             level: self.level,
             error: fit.error,
@@ -677,6 +733,25 @@ impl GroupState {
             evals: fit.evals,
         });
         let old = self.params;
+        // A confirmed group's simpler levels on this cache, for the demotion check below.
+        let demotable = self.status == Status::Confirmed
+            && self.level != Level::Diffuse
+            && self.level != Level::Textured;
+        let nested: Vec<LevelFit> = if demotable {
+            let needs = self.cache_needs_for(self.level, false);
+            (Level::FITTED.iter().copied())
+                .filter(|&l| l < self.level)
+                .filter(|&l| {
+                    (!l.has_lobe() || needs.lobe_samples) && (!l.is_mirror() || needs.mirror)
+                })
+                .map(|l| fit_level(cache, l, &old, variant))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        if let Some(e) = restart_from_nested(cache, &mut fit, &nested, &old, variant) {
+            events.push(e);
+        }
         self.take(&fit);
         if self.status == Status::Confirmed {
             self.accumulate(cache.pixels.len().max(1) as f32);
@@ -705,13 +780,7 @@ impl GroupState {
             && self.level != Level::Textured
         {
             // Demotion check: does a simpler level (available in this cache) do as well?
-            let needs = self.cache_needs_for(self.level, false);
-            for lower in Level::FITTED.iter().copied().filter(|&l| l < self.level) {
-                if (lower.has_lobe() && !needs.lobe_samples) || (lower.is_mirror() && !needs.mirror)
-                {
-                    continue;
-                }
-                let f = fit_level(cache, lower, &self.params, variant);
+            for f in &nested {
                 let current = LevelFit {
                     level: self.level,
                     params: self.params,
@@ -721,8 +790,8 @@ impl GroupState {
                     cost: fit.cost,
                     evals: 0,
                 };
-                if !Self::earns(&f, &current, opts).0 {
-                    events.push(self.demote(&f));
+                if !Self::earns(f, &current, opts).0 {
+                    events.push(self.demote(f));
                     break;
                 }
             }
@@ -1034,6 +1103,83 @@ mod tests {
     /// A Lambert surface seen with few samples (ε well above the diffuse threshold, all of it
     /// noise) climbs through the mirror, Ward and plastic levels, but not through 8 and 10: with
     /// no lobe kept there is none to reshape.
+    /// Anisotropic Ward contains isotropic Ward: an anisotropic fit that ended above the
+    /// isotropic one is a failed search (here a lobe far too bright and turned), which the demotion
+    /// check must not take for the photo's verdict. On this cache the pixel-wise search is
+    /// itself led astray (its isotropic fit narrows to α ≈ 0.03 on the sky's few bright
+    /// samples), so the group's previous answer is what restores the lobe; without one, the
+    /// refit from the isotropic optimum can end no worse than it. A fit no worse than the
+    /// simpler one is left alone.
+    #[test]
+    fn a_fit_worse_than_a_level_it_contains_is_restarted() {
+        let v = WardVariant::Ward1992;
+        let lobe = crate::render::bsdf::WardLobe {
+            alpha_x: 0.12,
+            alpha_y: 0.36,
+            variant: v,
+        };
+        let c = synthetic_cache(480, 256, 24, 3, |_, s: &[(Vec3, Vec3, Rgb)]| {
+            let spec = (s.iter()).fold(Rgb::ZERO, |a, &(wo, wi, c)| a + c * lobe.eval(wo, wi));
+            0.3 * diffuse(s) + 0.4 * spec
+        });
+        let truth = GroupParams {
+            rho_d: Rgb::splat(0.3),
+            rho_s: Rgb::splat(0.4),
+            alpha_x: 0.12,
+            alpha_y: 0.36,
+            ..GroupParams::default()
+        };
+        let turned = GroupParams {
+            rho_s: Rgb::splat(0.8),
+            alpha_x: 0.36,
+            alpha_y: 0.12,
+            ..truth
+        };
+        let iso = fit_level(&c, Level::Isotropic, &GroupParams::default(), v);
+        let failed = assess(&c, Level::Anisotropic, &turned, v, 0);
+        assert!(
+            failed.error > iso.error,
+            "{} vs {}",
+            failed.error,
+            iso.error
+        );
+        let nested = std::slice::from_ref(&iso);
+
+        let mut fit = failed.clone();
+        let event = restart_from_nested(&c, &mut fit, nested, &truth, v);
+        let Some(Event::Restarted {
+            from: Level::Isotropic,
+            previous_kept: true,
+            ..
+        }) = event
+        else {
+            panic!("{event:?}");
+        };
+        assert_eq!(fit.level, Level::Anisotropic);
+        let at_truth = assess(&c, Level::Anisotropic, &truth, v, 0).error;
+        assert!(at_truth < 0.5 * iso.error, "{at_truth} vs {}", iso.error);
+        assert_eq!(fit.error, at_truth);
+
+        let mut refit = failed.clone();
+        let event = restart_from_nested(&c, &mut refit, nested, &turned, v);
+        assert!(
+            matches!(
+                event,
+                Some(Event::Restarted {
+                    previous_kept: false,
+                    ..
+                })
+            ),
+            "{event:?}"
+        );
+        assert_eq!(refit.level, Level::Anisotropic);
+        assert!(refit.error <= iso.error, "{} vs {}", refit.error, iso.error);
+
+        let mut good = fit.clone();
+        assert_eq!(restart_from_nested(&c, &mut good, nested, &turned, v), None);
+        assert_eq!(good.error, fit.error);
+    }
+
     #[test]
     fn a_group_with_no_lobe_skips_the_levels_that_reshape_one() {
         let c = synthetic_cache(480, 4, 24, 11, |_, s| 0.5 * diffuse(s));

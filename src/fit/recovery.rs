@@ -31,7 +31,6 @@ use crate::render::PathTracer;
 use crate::scene::atlas::Atlas;
 use crate::scene::texture::{Mapping, Texture};
 use crate::scene::Scene;
-use std::borrow::Cow;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -490,14 +489,6 @@ impl<'a> RecoveryLoop<'a> {
         let hold_textures = opts.stray_light
             && it < opts.max_iterations / 2
             && self.stray.as_ref().is_none_or(|s| s.open && !s.estimated);
-        let hierarchy = if hold_textures {
-            let mut h = opts.hierarchy.clone();
-            h.thresholds.texture_error = f32::MAX;
-            h.thresholds.texture_detail = f32::MAX;
-            Cow::Owned(h)
-        } else {
-            Cow::Borrowed(&opts.hierarchy)
-        };
         let mut shares = Vec::new();
         let mut sums = super::views::ExposureSums::new(self.exposures.len());
         for g in 0..self.states.len() {
@@ -692,17 +683,22 @@ impl<'a> RecoveryLoop<'a> {
                     log(&self.line(it, g, event, 0.0));
                 }
             }
+            // A held group waits as for a neighbour: it is neither textured nor confirmed at a
+            // uniform level that Algorithm 1's gate says is not enough.
+            let held = hold_textures.then(|| STRAY_LIGHT.to_string());
             let turn = schedule::Turn {
                 may_climb: self.settled,
                 may_move: climbers.contains(&g),
                 // The neighbours first: the texture's pixels need the index buffers.
-                texture_waits_for: schedule::texture_waits_for(&self.states, g, &opts.hierarchy)
-                    .filter(|_| self.texture_pixels()[g].len() > opts.cache.max_pixels)
-                    .map(|h| self.states[h].name.clone()),
+                texture_waits_for: held.or_else(|| {
+                    schedule::texture_waits_for(&self.states, g, &opts.hierarchy)
+                        .filter(|_| self.texture_pixels()[g].len() > opts.cache.max_pixels)
+                        .map(|h| self.states[h].name.clone())
+                }),
             };
             let st = &mut self.states[g];
             let level_before = st.level;
-            let events = st.step(&cache, atlas, variant, &hierarchy, &turn);
+            let events = st.step(&cache, atlas, variant, &opts.hierarchy, &turn);
             if let (true, Some(r)) = (took, read.as_mut()) {
                 // The unseen groups' derivatives are those of the rendered mirror radiance.
                 cache.swap_mirror(r);
