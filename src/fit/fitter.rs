@@ -285,6 +285,32 @@ pub fn fit_level_above(
     best
 }
 
+/// Anisotropic Ward fitted as level 10 always is, its shape descended on the error's tiles
+/// rather than per pixel (`objective::pooled`), from around `start`: where a lobe is narrow
+/// beside the spacing of the cache's directions the pixels' cross-half cost leads the search to
+/// a few spiky samples. None at other levels. Not a climb's fit: judged by ε, a shape can also
+/// win by carrying less of the cache's noise (a wider lobe), so only a level already confirmed
+/// asks it, where its own fit failed (`hierarchy::restart_from_nested`).
+pub fn fit_on_tiles(
+    cache: &GroupCache,
+    level: Level,
+    start: &GroupParams,
+    variant: WardVariant,
+) -> Option<LevelFit> {
+    (level == Level::Anisotropic).then(|| {
+        fit_shape(
+            cache,
+            level,
+            start,
+            variant,
+            &DISTRIBUTIONS,
+            false,
+            Free::Both,
+            true,
+        )
+    })
+}
+
 /// Fits `level` to the cache, starting from `start` where the level has a nonlinear part.
 pub fn fit_level(
     cache: &GroupCache,
@@ -379,6 +405,7 @@ fn fit_level_from(
         distributions,
         warm,
         Free::Both,
+        false,
     );
     if !level.is_microfacet() || fit.params.rho_d == Rgb::ZERO {
         return fit;
@@ -391,6 +418,7 @@ fn fit_level_from(
         distributions,
         true,
         Free::Specular,
+        false,
     );
     // ε decides, as for a level (`lowers_error`). But ε holds the model's own noise, and a wide
     // bare lobe is less noisy than the cache's Lambert sum: where the metal's noise floor is
@@ -435,7 +463,9 @@ pub fn lowers_error(
     )
 }
 
-/// One fit of a level's shape, with the reflectances `free` as given.
+/// One fit of a level's shape, with the reflectances `free` as given; `on_tiles`: anisotropic
+/// Ward's descents on the error's tiles, as level 10's always are.
+#[allow(clippy::too_many_arguments)]
 fn fit_shape(
     cache: &GroupCache,
     level: Level,
@@ -444,6 +474,7 @@ fn fit_shape(
     distributions: &[Distribution],
     warm: bool,
     free: Free,
+    on_tiles: bool,
 ) -> LevelFit {
     let alpha = param("alpha_x");
     let (ln_lo, ln_hi) = alpha.solver_bounds();
@@ -577,7 +608,7 @@ fn fit_shape(
             // quarter turns), plus the warm start; keep the best. The microfacet lobe's cost is
             // on tiles (see `objective::pooled`, and the last descent below), and it tries both
             // distributions as level 8.
-            let pool = level == Level::AnisotropicMicrofacet;
+            let pool = level == Level::AnisotropicMicrofacet || on_tiles;
             let distributions = match level {
                 Level::AnisotropicMicrofacet => distributions,
                 _ => &[Distribution::Ggx],

@@ -27,7 +27,7 @@
 
 use super::cache::{CacheNeeds, GroupCache};
 use super::fitter::{
-    assess, embed, fit_level, fit_level_above, lowers_error, refit_level, LevelFit,
+    assess, embed, fit_level, fit_level_above, fit_on_tiles, lowers_error, refit_level, LevelFit,
 };
 use super::level::{Level, Thresholds};
 use super::params::GroupParams;
@@ -145,6 +145,12 @@ pub struct GroupState {
     /// its next step asks Algorithm 1's gate again ([`GroupState::untexture`]).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub recheck_texture: bool,
+    /// Per group of the scene, its level when this group's texture was taken or last re-asked
+    /// (empty when not textured): the recovery loop re-asks the gate when a group that gives
+    /// this one more than 2% of its light is now at another level, measured on this group's
+    /// latest cache, so also a mirror that gave it little light while it was modelled diffuse.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub texture_sources: Vec<Level>,
     /// Its last climb found that only a texture would do, but a group that lights it was still
     /// analysing (`schedule::texture_waits_for`): it waits, and holds no other group back.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
@@ -265,8 +271,9 @@ pub enum Event {
 /// spacing of the cache's directions can drive below zero with a few spiky samples (see
 /// `objective::pooled`); ε keeps that noise and decides here. `fit` becomes the lowest ε of:
 /// the level fitted again from the best such simpler fit (which it cannot end above,
-/// [`fit_level_above`]), and `previous`, the group's answer at this level on earlier caches,
-/// assessed on this one. Returns the event, when it did.
+/// [`fit_level_above`]), the same on the error's tiles ([`fit_on_tiles`]), and `previous`,
+/// the group's answer at this level on earlier caches, assessed on this one. Returns the
+/// event, when it did.
 fn restart_from_nested(
     cache: &GroupCache,
     fit: &mut LevelFit,
@@ -278,13 +285,20 @@ fn restart_from_nested(
         .filter(|f| f.error < fit.error)
         .filter_map(|f| Some((f, embed(f.level, &f.params, fit.level)?)))
         .min_by(|a, b| a.0.error.total_cmp(&b.0.error))?;
-    let again = fit_level_above(
+    let mut again = fit_level_above(
         cache,
         fit.level,
         &start,
         std::slice::from_ref(lower),
         variant,
     );
+    if let Some(t) = fit_on_tiles(cache, fit.level, &start, variant) {
+        let evals = again.evals + t.evals;
+        if t.error < again.error {
+            again = t;
+        }
+        again.evals = evals;
+    }
     let kept = assess(cache, fit.level, previous, variant, again.evals + 1);
     let previous_kept = kept.error < again.error;
     let mut best = if previous_kept { kept } else { again };
@@ -352,6 +366,7 @@ impl GroupState {
             open: 0.0,
             sigma: None,
             recheck_texture: false,
+            texture_sources: Vec::new(),
             texture_waiting: false,
         }
     }
@@ -1107,9 +1122,9 @@ mod tests {
     /// isotropic one is a failed search (here a lobe far too bright and turned), which the demotion
     /// check must not take for the photo's verdict. On this cache the pixel-wise search is
     /// itself led astray (its isotropic fit narrows to α ≈ 0.03 on the sky's few bright
-    /// samples), so the group's previous answer is what restores the lobe; without one, the
-    /// refit from the isotropic optimum can end no worse than it. A fit no worse than the
-    /// simpler one is left alone.
+    /// samples, and the anisotropic search from there ends above it): the group's previous
+    /// answer, where it explains the cache, or else the search on the error's tiles finds the
+    /// lobe (αy/αx = 3, θ = 0). A fit no worse than the simpler one is left alone.
     #[test]
     fn a_fit_worse_than_a_level_it_contains_is_restarted() {
         let v = WardVariant::Ward1992;
@@ -1173,7 +1188,16 @@ mod tests {
             "{event:?}"
         );
         assert_eq!(refit.level, Level::Anisotropic);
-        assert!(refit.error <= iso.error, "{} vs {}", refit.error, iso.error);
+        assert!(
+            refit.error < 0.5 * iso.error,
+            "{} vs {}",
+            refit.error,
+            iso.error
+        );
+        let p = refit.params;
+        let turn = p.theta.rem_euclid(std::f32::consts::PI);
+        let aligned = turn.min(std::f32::consts::PI - turn) < 0.1;
+        assert!(aligned && p.alpha_y > 1.5 * p.alpha_x, "{p:?}");
 
         let mut good = fit.clone();
         assert_eq!(restart_from_nested(&c, &mut good, nested, &turned, v), None);

@@ -350,6 +350,24 @@ impl<'a> RecoveryLoop<'a> {
             .get_or_init(|| crate::render::aov::index_buffers(self.scene, &self.scene.camera))
     }
 
+    /// After a textured group's cache: re-asks Algorithm 1's gate of it when a group that now
+    /// lights it has changed level since its texture ([`schedule::texture_sources_changed`]);
+    /// the trigger when a group changes level reads the textured group's shares from before.
+    fn note_texture_sources(&mut self, g: usize) {
+        if self.states[g].level != Level::Textured {
+            self.states[g].texture_sources.clear();
+            return;
+        }
+        let levels: Vec<Level> = self.states.iter().map(|s| s.level).collect();
+        let st = &mut self.states[g];
+        if schedule::texture_sources_changed(&st.texture_sources, &st.lit_by, &levels) {
+            st.recheck_texture = true;
+            st.texture_sources = levels;
+        } else if st.texture_sources.len() != levels.len() {
+            st.texture_sources = levels;
+        }
+    }
+
     /// Per group, the pixels a texture of it is fitted from ([`texture_pixels`]).
     fn texture_pixels(&self) -> &[Vec<usize>] {
         self.texture_pixels
@@ -711,6 +729,7 @@ impl<'a> RecoveryLoop<'a> {
             shares.extend(super::unseen::shares(&cache, g, &self.states[g], variant));
             self.states[g].lit_by = cache.light_from.clone();
             self.states[g].open = cache.open;
+            self.note_texture_sources(g);
             if self.states[g].level != level_before {
                 for (h, st) in self.states.iter_mut().enumerate() {
                     if h != g

@@ -12,6 +12,7 @@
 //! group still analysing is decided (`GroupState::decide_at_end`).
 
 use super::hierarchy::{GroupState, HierarchyOptions, Motion, Status};
+use super::level::Level;
 
 /// Whether the scene has settled after a global iteration: no group changed level, and every
 /// fitted group's parameters are steady (moved less than the settle tolerance) or jittering
@@ -115,6 +116,17 @@ pub fn texture_waits_for(
     })
 }
 
+/// Whether a textured group must ask Algorithm 1's gate again: a group that gives it more than
+/// [`INDEPENDENT`] of its light (`lit_by`, from its latest cache) is at another level `now` than
+/// `then`, when its texture was taken or last re-asked (`GroupState::texture_sources`). The
+/// shares are today's, not those from before the change: a mirror modelled diffuse gives a
+/// floor little light, a specular one sends it the lights' images. Nothing is known (false)
+/// while `then` does not cover the scene's groups.
+pub fn texture_sources_changed(then: &[Level], lit_by: &[f32], now: &[Level]) -> bool {
+    then.len() == now.len()
+        && (lit_by.iter().zip(now).zip(then)).any(|((&x, a), b)| x > INDEPENDENT && a != b)
+}
+
 /// The first of [`climbers`]: the group whose turn it is.
 pub fn climb_turn(states: &[GroupState], settled: bool, opts: &HierarchyOptions) -> Option<usize> {
     climbers(states, settled, opts).first().copied()
@@ -178,6 +190,33 @@ mod tests {
         // Before its first cache a group knows nothing of its light, and waits for no one.
         states[0].lit_by.clear();
         assert_eq!(texture_waits_for(&states, 0, &opts), None);
+    }
+
+    /// A textured group is re-asked when a group that lights it by more than 2% today has
+    /// changed level since its texture, however little it lit it before: not for a change in a
+    /// group that lights it little, nor before its first snapshot of the levels.
+    #[test]
+    fn a_texture_is_reasked_when_a_group_that_lights_it_now_changed_level() {
+        use Level::*;
+        let then = [Textured, Diffuse, Diffuse, Diffuse];
+        // The mirror (1) turned specular and now gives 6%; the wall (2) climbed but gives 1%.
+        let now = [Textured, Specular, Isotropic, Diffuse];
+        assert!(texture_sources_changed(
+            &then,
+            &[0.0, 0.06, 0.01, 0.3],
+            &now
+        ));
+        assert!(!texture_sources_changed(
+            &then,
+            &[0.0, 0.01, 0.01, 0.3],
+            &now
+        ));
+        assert!(!texture_sources_changed(
+            &then,
+            &[0.0, 0.06, 0.01, 0.3],
+            &then
+        ));
+        assert!(!texture_sources_changed(&[], &[0.0, 0.06, 0.01, 0.3], &now));
     }
 
     /// Two groups that keep finding a better level: the worse one (higher ε / threshold) climbs
