@@ -543,6 +543,14 @@ impl GroupState {
         self.noise_floor = f.noise_floor;
     }
 
+    /// Whether a confirmed level `current` still lowers the error of the simpler `lower` on
+    /// the same cache: by the margin, and on at least one half of the samples.
+    fn holds(lower: &LevelFit, current: &LevelFit, opts: &HierarchyOptions) -> bool {
+        let gain = lower.error - current.error;
+        let mut halves = (0..2).map(|k| lower.halves[k] - current.halves[k]);
+        gain > opts.margin * lower.error && halves.any(|g| g > 0.0)
+    }
+
     /// Whether `better` lowers the error of `base` by a clear margin on the same cache.
     fn earns(base: &LevelFit, better: &LevelFit, opts: &HierarchyOptions) -> (bool, f32) {
         lowers_error(base, better, opts.margin, opts.noise_factor)
@@ -794,7 +802,10 @@ impl GroupState {
             && self.level != Level::Diffuse
             && self.level != Level::Textured
         {
-            // Demotion check: does a simpler level (available in this cache) do as well?
+            // Demotion check: does a simpler level (available in this cache) do as well? The
+            // level keeps its place while it lowers ε by the margin and on at least one half of
+            // the samples: a climb's noise test asks for evidence of a gain, and one noisy cache
+            // would otherwise undo a level that the photo showed on the ones before.
             for f in &nested {
                 let current = LevelFit {
                     level: self.level,
@@ -805,7 +816,7 @@ impl GroupState {
                     cost: fit.cost,
                     evals: 0,
                 };
-                if !Self::earns(f, &current, opts).0 {
+                if !Self::holds(f, &current, opts) {
                     events.push(self.demote(f));
                     break;
                 }
@@ -1202,6 +1213,32 @@ mod tests {
         let mut good = fit.clone();
         assert_eq!(restart_from_nested(&c, &mut good, nested, &turned, v), None);
         assert_eq!(good.error, fit.error);
+    }
+
+    /// A confirmed level keeps its place on a cache where its gain is clear but noisy (the
+    /// halves disagree by more than a climb accepts), and loses it where the gain is below
+    /// the margin or both halves prefer the simpler level.
+    #[test]
+    fn a_confirmed_level_holds_on_a_noisy_gain_and_not_on_a_small_one() {
+        let opts = HierarchyOptions::default();
+        let fit = |level, error: f32, halves| LevelFit {
+            level,
+            params: GroupParams::default(),
+            error,
+            noise_floor: 0.0,
+            halves,
+            cost: 0.0,
+            evals: 0,
+        };
+        let iso = fit(Level::Isotropic, 0.059, [0.059, 0.059]);
+        // 28% lower, but the halves' gains differ by more than a third of it.
+        let noisy = fit(Level::Anisotropic, 0.043, [0.030, 0.056]);
+        assert!(!GroupState::earns(&iso, &noisy, &opts).0);
+        assert!(GroupState::holds(&iso, &noisy, &opts));
+        let small = fit(Level::Anisotropic, 0.053, [0.052, 0.054]);
+        assert!(!GroupState::holds(&iso, &small, &opts));
+        let worse_on_both = fit(Level::Anisotropic, 0.043, [0.060, 0.061]);
+        assert!(!GroupState::holds(&iso, &worse_on_both, &opts));
     }
 
     #[test]
