@@ -798,10 +798,7 @@ impl GroupState {
                 }
             }
         }
-        if self.status == Status::Confirmed
-            && self.level != Level::Diffuse
-            && self.level != Level::Textured
-        {
+        if demotable {
             // Demotion check: does a simpler level (available in this cache) do as well? The
             // level keeps its place while it lowers ε by the margin and on at least one half of
             // the samples: a climb's noise test asks for evidence of a gain, and one noisy cache
@@ -1126,9 +1123,6 @@ mod tests {
         assert!(!ok && held[1] > held[0], "{held:?}");
     }
 
-    /// A Lambert surface seen with few samples (ε well above the diffuse threshold, all of it
-    /// noise) climbs through the mirror, Ward and plastic levels, but not through 8 and 10: with
-    /// no lobe kept there is none to reshape.
     /// Anisotropic Ward contains isotropic Ward: an anisotropic fit that ended above the
     /// isotropic one is a failed search (here a lobe far too bright and turned), which the demotion
     /// check must not take for the photo's verdict. On this cache the pixel-wise search is
@@ -1241,6 +1235,9 @@ mod tests {
         assert!(!GroupState::holds(&iso, &worse_on_both, &opts));
     }
 
+    /// A Lambert surface seen with few samples (ε well above the diffuse threshold, all of it
+    /// noise) climbs through the mirror, Ward and plastic levels, but not through 8 and 10: with
+    /// no lobe kept there is none to reshape.
     #[test]
     fn a_group_with_no_lobe_skips_the_levels_that_reshape_one() {
         let c = synthetic_cache(480, 4, 24, 11, |_, s| 0.5 * diffuse(s));
