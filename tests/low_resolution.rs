@@ -92,7 +92,7 @@ fn an_aligned_128x96_photo_is_not_shifted_and_the_back_wall_is_recovered() {
     let opts = RecoverOptions {
         progress: false,
         seed: 5,
-        final_spp: 4,
+        final_spp: Some(4),
         ..Default::default()
     };
     let rec = recover(&scene, &prep.photo, &prep.mask, &opts, |_| {}).unwrap();

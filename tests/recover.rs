@@ -70,7 +70,7 @@ pub(crate) fn run_keeping_photo(
     let opts = RecoverOptions {
         progress: false,
         seed: 5,
-        final_spp: 16,
+        final_spp: Some(16),
         ..opts
     };
     let mut log = Vec::new();

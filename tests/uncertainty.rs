@@ -58,7 +58,7 @@ fn z_scores(scene: &Scene, seed: u64, lines: &mut String) -> Vec<f32> {
     let opts = RecoverOptions {
         progress: false,
         seed,
-        final_spp: 4,
+        final_spp: Some(4),
         ..Default::default()
     };
     let rec = recover(scene, &photo, &mask, &opts, |_| {}).unwrap();

@@ -25,7 +25,7 @@ fn run(scene: &Scene, photo: &Photo, estimate: bool) -> Recovery {
     let mut opts = RecoverOptions {
         progress: false,
         seed: 5,
-        final_spp: 4,
+        final_spp: Some(4),
         ..Default::default()
     };
     opts.unseen.enabled = estimate;

@@ -474,8 +474,9 @@ pub struct FitArgs {
     #[arg(long, value_name = "N", default_value_t = 1500)]
     first_pixels: usize,
     /// Samples per pixel of the final render (at least 2: its two halves give the noise floor).
-    #[arg(long, value_name = "N", default_value_t = 64, value_parser = clap::value_parser!(u32).range(2..))]
-    final_spp: u32,
+    /// [default: 64 up to 960×540 pixels; above, the same 2^25 samples in all, at least 16]
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(2..))]
+    final_spp: Option<u32>,
     /// Give groups no usable pixel shows (a ceiling out of view) white, ρd 1 (the notes'
     /// footnote 5), instead of estimating their diffuse reflectance from the light they reflect
     /// onto the seen groups (the default).
@@ -540,7 +541,7 @@ impl FitArgs {
         matfit::fit::RecoverOptions {
             seed: self.seed,
             max_iterations: self.max_iterations.max(1),
-            final_spp: self.final_spp.max(2),
+            final_spp: self.final_spp.map(|n| n.max(2)),
             first_pixels: self.first_pixels,
             pseudo_textures: !self.no_pseudo_textures,
             mirror_views: !self.no_mirror_views,

@@ -256,7 +256,7 @@ fn quick_fit_poses(
     quick.max_iterations = QUICK_ITERATIONS;
     quick.cache.max_pixels = quick.cache.max_pixels.min(QUICK_PIXELS);
     quick.first_pixels = quick.first_pixels.min(QUICK_PIXELS);
-    quick.final_spp = 2;
+    quick.final_spp = Some(2);
     let rec = recover_resumable(
         &through[0],
         &prepared[0].photo,

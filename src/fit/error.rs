@@ -7,7 +7,7 @@
 //! missing highlight) stays. The **noise floor** is the same metric between two independent
 //! halves of the synthetic image's samples, halved (each half has twice the variance of the
 //! whole; their difference four times). The tiling is the caller's: the cache's tiles grow with
-//! the group (`cache::choose_pixels`); the final render uses [`BLOCK`]-pixel squares.
+//! the group (`cache::choose_pixels`); the final render uses squares of [`block_side`] pixels.
 
 use crate::math::Rgb;
 
@@ -29,18 +29,30 @@ pub struct PixelTerms {
     pub halves: [Rgb; 2],
 }
 
-/// Side in pixels of the square tiles of an image-space error.
+/// Side in pixels of the square tiles of a 64-spp image's error.
 pub const BLOCK: usize = 4;
 
-/// The tile of image pixel `i` among [`BLOCK`]-pixel squares of an image `width` wide, numbered
-/// row by row, and how many such tiles the image has.
-pub fn block_tile(i: usize, width: usize) -> usize {
-    (i / width / BLOCK) * width.div_ceil(BLOCK) + (i % width) / BLOCK
+/// Side in pixels of the error's tiles on an image of `spp` samples per pixel: [`BLOCK`] from 64
+/// spp up, larger below so that a tile still holds BLOCK²·64 = 1,024 samples or more. The noise
+/// that a tile's sum leaves in ε then does not grow as the samples per pixel fall, so ε and its
+/// noise floor mean the same at any spp.
+pub fn block_side(spp: u32) -> usize {
+    let mut k = 1;
+    while (k * k) as u64 * (spp as u64) < 64 {
+        k += 1;
+    }
+    BLOCK * k
+}
+
+/// The tile of image pixel `i` among `side`-pixel squares of an image `width` wide, numbered
+/// row by row.
+pub fn block_tile(i: usize, width: usize, side: usize) -> usize {
+    (i / width / side) * width.div_ceil(side) + (i % width) / side
 }
 
 /// The number of [`block_tile`]s of a `width` × `height` image.
-pub fn block_tiles(width: usize, height: usize) -> usize {
-    width.div_ceil(BLOCK) * height.div_ceil(BLOCK)
+pub fn block_tiles(width: usize, height: usize, side: usize) -> usize {
+    width.div_ceil(side) * height.div_ceil(side)
 }
 
 /// ε, the noise floor and the halves' ε of `pixels` (each with its tile index, below `n_tiles`).
@@ -123,13 +135,35 @@ mod tests {
     #[test]
     fn block_tiles_number_every_square_once() {
         let (w, h) = (10, 7);
-        let n = block_tiles(w, h);
+        let n = block_tiles(w, h, BLOCK);
         assert_eq!(n, 3 * 2);
         let mut seen = vec![0; n];
         for i in 0..w * h {
-            seen[block_tile(i, w)] += 1;
+            seen[block_tile(i, w, BLOCK)] += 1;
         }
         // 4×4, 4×4, 2×4 on the first row of tiles; 4×3, 4×3, 2×3 on the second.
         assert_eq!(seen, [16, 16, 8, 12, 12, 6]);
+        // 8-pixel squares: 8×7 and 2×7.
+        let mut seen = vec![0; block_tiles(w, h, 8)];
+        for i in 0..w * h {
+            seen[block_tile(i, w, 8)] += 1;
+        }
+        assert_eq!(seen, [56, 14]);
+    }
+
+    #[test]
+    fn a_tile_holds_at_least_a_64_spp_blocks_samples() {
+        for spp in 1..200u32 {
+            let side = block_side(spp);
+            let samples = side * side * spp as usize;
+            assert!(samples >= BLOCK * BLOCK * 64, "{spp} spp: side {side}");
+            // The smallest such square (of a whole multiple of BLOCK).
+            let smaller = (side - BLOCK).pow(2) * spp as usize;
+            assert!(
+                side == BLOCK || smaller < BLOCK * BLOCK * 64,
+                "{spp} spp: side {side}"
+            );
+        }
+        assert_eq!((block_side(64), block_side(16), block_side(2)), (4, 8, 24));
     }
 }

@@ -92,8 +92,8 @@ pub struct RecoverOptions {
     /// materials, as one more unknown of the unseen groups' joint fit (`unseen.rs`).
     #[serde(default)]
     pub stray_light: bool,
-    /// Samples per pixel of the final render.
-    pub final_spp: u32,
+    /// Samples per pixel of the final render (None: [`auto_final_spp`]).
+    pub final_spp: Option<u32>,
     pub seed: u64,
     pub progress: bool,
     /// The grey card the first photo's exposure was calibrated from, if any. The calibration
@@ -129,12 +129,22 @@ impl Default for RecoverOptions {
             pseudo_textures: true,
             mirror_views: true,
             stray_light: false,
-            final_spp: 64,
+            final_spp: None,
             seed: 0,
             progress: true,
             grey_card: None,
         }
     }
+}
+
+/// Samples per pixel of the final render when none is asked for: 64 up to 2^19 pixels (960×540
+/// and below); above, the same 2^25 samples spread over the image, but at least 16. Its error's
+/// tiles grow as the spp falls (`error::block_side`), so 1920×1080 at 16 spp has as many tiles
+/// as 960×540 at 64, each holding as many samples: its ε is as certain for a quarter of the
+/// render. The synthetic image itself is noisier per pixel; `--final-spp` asks for more.
+pub fn auto_final_spp(pixels: usize) -> u32 {
+    let spp = (1u64 << 25) / pixels.max(1) as u64;
+    spp.clamp(16, 64) as u32 & !1
 }
 
 /// Cached pixels per group in global iteration `it` (see `RecoverOptions::first_pixels`).
@@ -187,6 +197,10 @@ pub struct Recovery {
     /// The fitting's share of `total_s`: everything before the final render.
     pub fit_s: f64,
     pub final_render_s: f64,
+    /// The final render's samples per pixel, and the side in pixels of its error's tiles
+    /// (`error::block_side`).
+    pub final_spp: u32,
+    pub error_tile: usize,
     /// Per photo (the first included) when several were fitted together; else empty.
     pub views: Vec<ViewFit>,
     /// The first photo's exposure factor against the recovered scene, relative to the exposure
@@ -295,6 +309,20 @@ mod tests {
     use crate::render::aov::index_buffers;
     use crate::scene::WardVariant;
 
+    #[test]
+    fn the_final_renders_samples_shrink_with_the_image_to_a_floor() {
+        let spp = |w: usize, h: usize| auto_final_spp(w * h);
+        assert_eq!((spp(512, 384), spp(960, 540)), (64, 64));
+        assert_eq!(
+            (spp(1280, 720), spp(1920, 1080), spp(4000, 3000)),
+            (36, 16, 16)
+        );
+        // Between the two bounds the image's samples stay at 2^25 (to the pixel's even spp).
+        let n = 1280 * 720;
+        assert!((n * spp(1280, 720) as usize).abs_diff(1 << 25) < 2 * n);
+        assert_eq!(spp(0, 0), 64);
+    }
+
     const SCENE: &str = r#"
 [camera]
 width = 32
@@ -344,7 +372,7 @@ emission = 5.0
         let opts = RecoverOptions {
             progress: false,
             max_iterations: 4,
-            final_spp: 2,
+            final_spp: Some(2),
             cache: CacheOptions {
                 light_samples: 4,
                 indirect_samples: 4,

@@ -12,7 +12,7 @@
 
 use super::cache::{build, choose_pixels, CacheOptions, Primary, UnseenProbe, STRAY_LIGHT};
 use super::checkpoint::{Checkpoint, CHECKPOINT_VERSION};
-use super::error::{block_tile, tiled_error, PixelTerms};
+use super::error::{block_side, block_tile, tiled_error, PixelTerms};
 use super::hierarchy::{Event, GroupState, Motion, Status};
 use super::level::Level;
 use super::params::{largest_move, GroupParams};
@@ -950,7 +950,12 @@ impl<'a> RecoveryLoop<'a> {
         if !opts.stray_light && self.current.outside_light_is_none() && open > OPEN_SCENE {
             tracing::warn!("{}", open_scene_warning(open));
         }
-        let half = (opts.final_spp / 2).max(1);
+        let (width, height) = (self.mask.width, self.photo.image.height);
+        let spp = opts
+            .final_spp
+            .unwrap_or_else(|| super::recover::auto_final_spp(width * height));
+        let half = (spp / 2).max(1);
+        let tile = block_side(2 * half);
         let render_half = |seed: u64| {
             render(
                 &self.current,
@@ -985,7 +990,7 @@ impl<'a> RecoveryLoop<'a> {
             .mask
             .pixels_by_group(self.states.len())
             .iter()
-            .map(|px| image_error(self.mask.width, px, &syn_e, &a_e, &b_e, &self.photo.image))
+            .map(|px| image_error(width, tile, px, &syn_e, &a_e, &b_e, &self.photo.image))
             .collect();
         let views = if self.extra.is_empty() {
             Vec::new()
@@ -1037,6 +1042,8 @@ impl<'a> RecoveryLoop<'a> {
             total_s,
             fit_s,
             final_render_s,
+            final_spp: 2 * half,
+            error_tile: tile,
             views,
             exposure_factor: e0,
         }
@@ -1181,19 +1188,20 @@ pub fn texture_stem(g: usize, name: &str) -> String {
 }
 
 /// ε of one group between a rendered image and the photo over its usable pixels `pixels`
-/// (row-major indices in an image `width` wide), on `error::BLOCK`-pixel tiles, and the noise
+/// (row-major indices in an image `width` wide), on `side`-pixel square tiles, and the noise
 /// floor from the two half renders `a`, `b`. Only the group's own tiles are summed, in the
 /// order of their index in the image: the same sums as over all of the image's tiles (the
 /// others are zero) without a pass over the image per group.
 pub fn image_error(
     width: usize,
+    side: usize,
     pixels: &[usize],
     syn: &Image,
     a: &Image,
     b: &Image,
     photo: &Image,
 ) -> Option<(f32, f32)> {
-    let tile: Vec<usize> = pixels.iter().map(|&i| block_tile(i, width)).collect();
+    let tile: Vec<usize> = pixels.iter().map(|&i| block_tile(i, width, side)).collect();
     let mut tiles = tile.clone();
     tiles.sort_unstable();
     tiles.dedup();
@@ -1229,7 +1237,7 @@ mod tests {
         let (syn, a, b, photo) = (img(1), img(2), img(3), img(4));
         // Two groups interleaved in irregular runs, so their tiles are not visited in order.
         let group: Vec<i32> = (0..w * h).map(|i| (mix(i as u32) % 3) as i32 - 1).collect();
-        for g in 0..2 {
+        for (g, side) in [(0, 4), (1, 4), (0, 8)] {
             let px: Vec<usize> = (0..w * h).filter(|&i| group[i] == g).collect();
             let all = px.iter().map(|&i| {
                 let t = PixelTerms {
@@ -1237,13 +1245,14 @@ mod tests {
                     photo: photo.data[i],
                     halves: [a.data[i], b.data[i]],
                 };
-                (block_tile(i, w), t)
+                (block_tile(i, w, side), t)
             });
-            let reference = tiled_error(block_tiles(w, h), all).map(|e| (e.error, e.noise_floor));
+            let reference =
+                tiled_error(block_tiles(w, h, side), all).map(|e| (e.error, e.noise_floor));
             assert!(reference.is_some());
-            assert_eq!(image_error(w, &px, &syn, &a, &b, &photo), reference);
+            assert_eq!(image_error(w, side, &px, &syn, &a, &b, &photo), reference);
         }
-        assert_eq!(image_error(w, &[], &syn, &a, &b, &photo), None);
+        assert_eq!(image_error(w, 4, &[], &syn, &a, &b, &photo), None);
     }
 
     fn mix(x: u32) -> u32 {

@@ -180,6 +180,7 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
         embedded(dir, "error.png"),
     );
     let bar = colour_bar(scale);
+    let (spp, tile) = (res.timing.final_spp, res.timing.error_tile_px);
     let inputs = match &res.inputs {
         Some(i) => {
             let reg = i.registration.as_ref().map_or("off".to_string(), |r| {
@@ -235,9 +236,9 @@ table{{border-collapse:collapse}} td,th{{border:1px solid #ccc;padding:4px 8px;f
 {views}
 {convergence}
 {textures}
-<p>{} global iterations, {} cache builds, {} objective evaluations; total {:.1} s: fitting {:.1} s, final render {:.1} s; Ward variant {}.</p>
+<p>{} global iterations, {} cache builds, {} objective evaluations; total {:.1} s: fitting {:.1} s, final render {:.1} s ({spp} spp); Ward variant {}.</p>
 {inputs}
-<p>ε: Σ|synthetic − photo| / Σ photo over the group's usable pixels and channels, final render; noise floor: the same between two independent halves of its samples. A note's <i>fit ε</i> (a fraction) is the same metric on the fitter's cache at its last fit, what the hierarchy decided on (results.json <code>fit_error</code>).</p>
+<p>ε: Σ|synthetic − photo| / Σ photo over the group's usable pixels and channels of the final render, each image first summed over {tile}×{tile}-pixel squares (at least 1,024 samples each, so that noise averages out and a model's systematic error stays); noise floor: the same between two independent halves of its samples. A note's <i>fit ε</i> (a fraction) is the same metric on the fitter's cache at its last fit, what the hierarchy decided on (results.json <code>fit_error</code>).</p>
 <p>The log of every decision is <a href="log.jsonl">log.jsonl</a>; the recovered scene is <a href="recovered.toml">recovered.toml</a>.</p>
 <script>
 // The slider uncovers the synthetic image over the photo.

@@ -80,6 +80,9 @@ pub struct Timing {
     /// Everything before the final render (the inverse problem's cost).
     pub fit_s: f64,
     pub final_render_s: f64,
+    /// The final render's samples per pixel and the side in pixels of its error's tiles.
+    pub final_spp: u32,
+    pub error_tile_px: usize,
 }
 
 /// What a recovery was run on and with: enough to run it again.
@@ -216,6 +219,8 @@ pub fn results(rec: &Recovery) -> Results {
             total_s: rec.total_s,
             fit_s: rec.fit_s,
             final_render_s: rec.final_render_s,
+            final_spp: rec.final_spp,
+            error_tile_px: rec.error_tile,
         },
         iterations: rec.iterations,
         cache_builds: rec.cache_builds,
