@@ -170,10 +170,11 @@ pub const DERIVATIVE_STRIDE: usize = 2;
 /// An unseen group a cache build measures the derivative along: the path tracer of the scene
 /// with the group's ρd moved by `step` (per channel, nonzero). Or the stray light
 /// (`group` = [`STRAY_LIGHT`]): the scene with it moved by `step`, which is also the change of
-/// what an indirect ray that leaves the scene at once sees.
+/// what an indirect ray that leaves the scene at once sees. `moved` None: this cache does not
+/// measure it (`unseen::worth_probing`), and its derivative along the group is zero.
 pub struct UnseenProbe<'a> {
     pub group: usize,
-    pub moved: &'a PathTracer<'a>,
+    pub moved: Option<&'a PathTracer<'a>>,
     pub step: Rgb,
 }
 
@@ -570,10 +571,10 @@ pub fn build(
                     });
                 }
             }
-            let moved: Vec<Vec<Rgb>> = unseen
+            let moved: Vec<Option<Vec<Rgb>>> = unseen
                 .iter()
                 .filter(|_| probed)
-                .map(|u| indirect_radiance(u.moved, rays.clone()))
+                .map(|u| u.moved.map(|m| indirect_radiance(m, rays.clone())))
                 .collect();
             let traced = indirect_radiance(pt, rays);
             let mut rows: [Vec<(u32, Rgb)>; 2] = [Vec::new(), Vec::new()];
@@ -598,6 +599,7 @@ pub fn build(
                         first = from;
                         dc.fill(Rgb::ZERO);
                         for (d, (m, u)) in dc.iter_mut().zip(moved.iter().zip(unseen)) {
+                            let Some(m) = m else { continue };
                             // Emission at the first hit is not in the traced radiance; of what
                             // the probes move, only the stray light is (weight 1: not sampled).
                             let escape = if from == u32::MAX && u.group == STRAY_LIGHT {
@@ -687,9 +689,9 @@ pub fn build(
                     if l.is_finite() {
                         mirror_half[half] += l;
                         for (d, u) in dmirror.iter_mut().zip(unseen) {
+                            let Some(moved) = u.moved else { continue };
                             let lm =
-                                u.moved
-                                    .trace_from(reflected, first, &mut before.clone(), 1, true);
+                                moved.trace_from(reflected, first, &mut before.clone(), 1, true);
                             if lm.is_finite() {
                                 d[half] += (lm - l) / u.step;
                             }
@@ -1073,7 +1075,7 @@ irradiance = 2.0
         );
         let probe = [UnseenProbe {
             group: STRAY_LIGHT,
-            moved: &pt_moved,
+            moved: Some(&pt_moved),
             step,
         }];
         let build_in = |s: &Scene, pt: &PathTracer, probes: &[UnseenProbe]| {

@@ -569,6 +569,13 @@ impl<'a> RecoveryLoop<'a> {
                 usable: &self.mask.group,
                 photo: self.photo_in_cache_units(),
             });
+            let probe: Vec<bool> = tracked
+                .iter()
+                .map(|&u| {
+                    u == STRAY_LIGHT
+                        || super::unseen::worth_probing(&self.states[g], needs, u, &self.states[u])
+                })
+                .collect();
             let view_cache = |current: &Scene,
                               primary: Primary,
                               (px, tiles, n_tiles): (&[usize], &[u32], usize),
@@ -583,15 +590,18 @@ impl<'a> RecoveryLoop<'a> {
                         u => super::unseen::moved_scene(current, &self.states[u]),
                     })
                     .collect();
-                let moved_pt: Vec<PathTracer> =
-                    moved.iter().map(|(s, _)| PathTracer::new(s)).collect();
+                let moved_pt: Vec<Option<PathTracer>> = moved
+                    .iter()
+                    .zip(&probe)
+                    .map(|((s, _), &p)| p.then(|| PathTracer::new(s)))
+                    .collect();
                 let probes: Vec<UnseenProbe> = tracked
                     .iter()
                     .zip(&moved)
                     .zip(&moved_pt)
                     .map(|((&group, (_, step)), pt)| UnseenProbe {
                         group,
-                        moved: pt,
+                        moved: pt.as_ref(),
                         step: *step,
                     })
                     .collect();

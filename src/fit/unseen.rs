@@ -35,7 +35,7 @@
 //! its given value). Where no ray leaves the scene its column is empty, and the channel is
 //! solved without it, so a closed room's unseen groups come out as without the option.
 
-use super::cache::{GroupCache, Sample, STRAY_LIGHT};
+use super::cache::{CacheNeeds, GroupCache, Sample, STRAY_LIGHT};
 use super::hierarchy::{GroupState, Status};
 use super::level::Level;
 use super::objective::Spec;
@@ -520,6 +520,29 @@ pub fn unseen_groups(states: &[GroupState]) -> Vec<usize> {
     (0..states.len())
         .filter(|&g| states[g].status == Status::Default)
         .collect()
+}
+
+/// A cache that holds only diffuse light measures its derivative along an unseen group only if
+/// its group's last cache took at least this share of its light from that group per unit of
+/// the group's ρd. Below it the derivative cannot inform the estimate (a group whose light is
+/// known to 0.3% would put it at ±0.6 from such a cache), and measuring it retraces the
+/// cache's indirect rays: the 1920×1080 office's hidden book row took at most 0.1% of any
+/// group's light per unit ρd, and cost every cache build of every iteration.
+pub const PROBE_SHARE: f32 = 0.005;
+
+/// Whether the next cache of a group (state `s`, needing `needs`) measures its light's
+/// derivative along unseen group `su`'s ρd. Always where the group's model can read more than
+/// its diffuse light (a lobe or a mirror reflection can be all that group, whatever its share
+/// of the diffuse light) or before its first cache; else where the group's last cache took
+/// [`PROBE_SHARE`] of its light or more from `su` per unit of its ρd (its smallest channel,
+/// from 0.05 up: a dark estimate must not hide a strong influence).
+pub fn worth_probing(s: &GroupState, needs: CacheNeeds, u: usize, su: &GroupState) -> bool {
+    if needs.lobe_samples || needs.mirror {
+        return true;
+    }
+    // Unknown before the first cache (`lit_by` empty).
+    let share = s.lit_by.get(u).copied().unwrap_or(f32::INFINITY);
+    share >= PROBE_SHARE * su.params.rho_d.min_element().max(0.05)
 }
 
 /// The scene with unseen group `u`'s ρd moved by the step its cache derivative is measured
@@ -1086,6 +1109,44 @@ mod tests {
             }
         }
         assert!(solve_channel(&flat, 2, 0, Tiles::All).is_none());
+    }
+
+    /// The probe rule: a Lambert-only cache skips an unseen group that gave its group's last
+    /// cache under 0.5% of its light per unit ρd (a dark estimate counts as 0.05), and probes
+    /// before any cache, or wherever a lobe or a mirror reflection may read the group.
+    #[test]
+    fn an_unseen_group_is_probed_only_where_its_light_can_inform_the_fit() {
+        use crate::fit::cache::CacheNeeds;
+        use crate::fit::hierarchy::{GroupState, Status};
+        use crate::fit::params::GroupParams;
+        let mut seen = GroupState::new("wall", Status::Confirmed, GroupParams::default());
+        let mut unseen = GroupState::new("ceiling", Status::Default, GroupParams::default());
+        unseen.params.rho_d = Rgb::new(0.8, 0.6, 0.4);
+        let diffuse = CacheNeeds::default();
+        assert!(worth_probing(&seen, diffuse, 1, &unseen), "no cache yet");
+        // 0.5% per unit of the smallest channel (0.4): the bound is 0.002.
+        seen.lit_by = vec![0.0, 0.0021];
+        assert!(worth_probing(&seen, diffuse, 1, &unseen));
+        seen.lit_by = vec![0.0, 0.0019];
+        assert!(!worth_probing(&seen, diffuse, 1, &unseen));
+        for needs in [
+            CacheNeeds {
+                lobe_samples: true,
+                ..diffuse
+            },
+            CacheNeeds {
+                mirror: true,
+                ..diffuse
+            },
+        ] {
+            assert!(worth_probing(&seen, needs, 1, &unseen), "{needs:?}");
+        }
+        // A near-black estimate must not hide an influence: ρd is taken as at least 0.05.
+        unseen.params.rho_d = Rgb::splat(0.0);
+        seen.lit_by = vec![0.0, 0.0003];
+        assert!(worth_probing(&seen, diffuse, 1, &unseen));
+        seen.lit_by = vec![0.0, 0.0002];
+        assert!(!worth_probing(&seen, diffuse, 1, &unseen));
     }
 
     /// A derivative proportional to a group's own light is that group's reflectance, not the
