@@ -17,8 +17,8 @@
 //! `scatter` or its eight-lane copy here for Lambert, Ward and mirror surfaces) and draws its
 //! random numbers from its own pixel's sampler in the same order, and the eight-lane
 //! arithmetic repeats the scalar one operation for operation (Rust never fuses a·b + c; the
-//! Ward lobe's exp is one polynomial written for f32 and f32x8, its ln and sin/cos are the
-//! scalar functions called lane by lane: `bsdf::Lobes8`). So every sample — and every pixel,
+//! Ward lobe's exp, ln and sin/cos are polynomials written for f32 and f32x8 alike:
+//! `bsdf::Lobes8`). So every sample — and every pixel,
 //! whose samples are summed in sample order — is the scalar integrator's to the bit; a test
 //! holds the two to that. A flat-shaded Lambert or Ward triangle goes from the BVH's hit
 //! straight into the eight-lane arrays (`flat_lambert`, `flat_ward`), without the hit record
@@ -41,7 +41,7 @@ use super::lights::{punctual_sample, LightSample, Lights};
 use crate::geometry::packet::LANES;
 use crate::geometry::{Hit, Ray};
 use crate::math::{transpose, warp, Frame, Rgb, Sampler, Vec2, Vec3, INV_PI, PI};
-use crate::scene::{Camera, Material, Object, Punctual, WardVariant};
+use crate::scene::{Camera, Material, Object, Punctual};
 use wide::{f32x8, CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
 /// A path to trace: its state before its next segment (`st.ray`), that segment's hit if the
@@ -131,7 +131,7 @@ pub fn trace_jobs(
                     } else if let Some(w) = flat_ward(pt, obj, hit, lane.st.ray.d) {
                         let (p, j) = (pt.scene.hit_point(hit), gathered.n);
                         gathered.push(i, pt, p, w.ng, &w.frame, w.rho_d, lane);
-                        gathered.push_ward(j, w.wo, w.rho_d, w.rho_s, w.lobe);
+                        gathered.push_ward(j, w.wo, w.rho_s, w.lobe);
                         true
                     } else {
                         match pt.vertex(&lane.st, hit, obj) {
@@ -144,7 +144,7 @@ pub fn trace_jobs(
                                 Bsdf::Ward { rho_d, rho_s, lobe } if gathers_ward(pt, v.wo.z) => {
                                     let j = gathered.n;
                                     gathered.push(i, pt, v.p, v.ng, &v.frame, rho_d, lane);
-                                    gathered.push_ward(j, v.wo, rho_d, rho_s, lobe);
+                                    gathered.push_ward(j, v.wo, rho_s, lobe);
                                     true
                                 }
                                 Bsdf::DiffuseMirror { rho_d, rho_s }
@@ -418,19 +418,15 @@ type WardLanes = ([f32x8; 3], Lobes8, f32x8, [f32x8; 3]);
 /// What a Ward vertex adds to its lane's `Row` (`ward_row::*` gives the layout).
 #[derive(Clone, Copy, Default)]
 #[repr(align(32))]
-struct WardRow([f32; 16]);
+struct WardRow([f32; 8]);
 
 /// Where each value sits in a `WardRow`.
 mod ward_row {
     pub const RHO_S: usize = 0;
     pub const ALPHA_X: usize = 3;
     pub const ALPHA_Y: usize = 4;
-    /// 1 for `WardVariant::Balanced`, 0 for `Ward1992`.
-    pub const BALANCED: usize = 5;
-    /// `Bsdf::diffuse_prob`.
-    pub const PD: usize = 6;
     /// ωo in the shading frame (a mirror's: the reflected direction).
-    pub const WO: usize = 7;
+    pub const WO: usize = 5;
 }
 
 /// One lane of `SmoothLanes`: four groups of eight floats.
@@ -550,16 +546,16 @@ impl SmoothLanes {
         r[ward_row::WO..ward_row::WO + 3].copy_from_slice(&wi.to_array());
     }
 
-    /// Makes lane `j`, just pushed with reflectance `rho_d`, the Ward BSDF (ρd, ρs, `lobe`)
-    /// seen from `wo` (in the shading frame, above the surface).
-    fn push_ward(&mut self, j: usize, wo: Vec3, rho_d: Rgb, rho_s: Rgb, lobe: WardLobe) {
+    /// Makes lane `j`, just pushed with its ρd as the reflectance, the Ward BSDF (ρd, ρs,
+    /// `lobe`) seen from `wo` (in the shading frame, above the surface). Its normalisation is
+    /// the scene's (`Scene::render`), which `scatter` gives all its lanes' lobes, and its
+    /// `Bsdf::diffuse_prob` is computed there on the eight lanes.
+    fn push_ward(&mut self, j: usize, wo: Vec3, rho_s: Rgb, lobe: WardLobe) {
         self.ward |= 1 << j;
         let r = &mut self.ward_rows[j].0;
         r[ward_row::RHO_S..ward_row::RHO_S + 3].copy_from_slice(&rho_s.to_array());
         r[ward_row::ALPHA_X] = lobe.alpha_x;
         r[ward_row::ALPHA_Y] = lobe.alpha_y;
-        r[ward_row::BALANCED] = f32::from(u8::from(lobe.variant == WardVariant::Balanced));
-        r[ward_row::PD] = Bsdf::diffuse_prob(rho_d, rho_s);
         r[ward_row::WO..ward_row::WO + 3].copy_from_slice(&wo.to_array());
     }
 
@@ -652,16 +648,16 @@ impl SmoothLanes {
         // The Ward vertices' lobes: ρs, the lobe, `Bsdf::diffuse_prob`, ωo (local); the
         // mirrors' directions.
         let (wardm, mirrorm) = (lanes_of(self.ward), lanes_of(self.mirror));
-        let y: Option<[f32x8; 16]> = ((self.ward | self.mirror) != 0)
+        let y: Option<[f32x8; 8]> = ((self.ward | self.mirror) != 0)
             .then(|| transpose(std::array::from_fn(|j| &self.ward_rows[j].0)));
         let ward: Option<WardLanes> = y.filter(|_| self.ward != 0).map(|y| {
-            let lobes = Lobes8 {
-                alpha_x: y[ward_row::ALPHA_X],
-                alpha_y: y[ward_row::ALPHA_Y],
-                balanced: y[ward_row::BALANCED].cmp_gt(zero),
-            };
-            let wo = vec(&y, ward_row::WO);
-            (vec(&y, ward_row::RHO_S), lobes, y[ward_row::PD], wo)
+            let lobes = Lobes8::new(
+                y[ward_row::ALPHA_X],
+                y[ward_row::ALPHA_Y],
+                pt.scene.render.ward_variant,
+            );
+            let (wo, rho_s) = (vec(&y, ward_row::WO), vec(&y, ward_row::RHO_S));
+            (rho_s, lobes, Bsdf::diffuse_prob8(&rho, &rho_s), wo)
         });
 
         // Next-event estimation, in `scatter`'s order: the area light (`Lights::sample`, then
@@ -759,7 +755,7 @@ impl SmoothLanes {
             // part, then the whole BSDF's density and f cos θi / pdf.
             let lobe = wardm & !x[row::U_CHOICE].cmp_lt(*pd);
             let (u0, u1) = (x[row::U_BSDF], x[row::U_BSDF + 1]);
-            let (w, _) = lobes.sample(wo, u0, u1, (live & lobe).move_mask() as u32);
+            let (w, _) = lobes.sample(wo, u0, u1);
             for k in 0..3 {
                 wi[k] = lobe.blend(w[k], wi[k]);
             }
@@ -767,8 +763,9 @@ impl SmoothLanes {
             let gauss = lobes.gaussian(wo, &wi);
             let pdf = Bsdf::ward_pdf8(*pd, lobes, wo, &wi, gauss);
             let f = Bsdf::ward_eval8(&rho, rho_s, lobes, wo, &wi, gauss);
+            let cos_over_pdf = wi[2] / pdf;
             for k in 0..3 {
-                weight[k] = wardm.blend(f[k] * wi[2] / pdf, weight[k]);
+                weight[k] = wardm.blend(f[k] * cos_over_pdf, weight[k]);
             }
             bsdf_pdf = wardm.blend(pdf, bsdf_pdf);
             ok &= pdf.cmp_gt(zero) | !wardm;

@@ -4,22 +4,25 @@
 //! renderer's eight-lane path loop.
 
 use super::half_vector::{HalfVector, LobeParams};
-use crate::math::{exp_neg_poly8, lanewise, Rgb, Vec3, PI};
+use crate::math::warp::sin_cos_turn_x8;
+use crate::math::{exp_neg_poly8, ln_poly8, Rgb, Vec3, PI};
+use crate::scene::WardVariant;
 use wide::{f32x8, CmpGt};
 
-/// Eight Ward lobes, one a lane: [`super::WardLobe`]'s `eval`, `pdf` and `sample` repeated
-/// operation for operation on eight lanes (Rust never fuses a·b + c), with the same exp
-/// (`exp_neg_poly8`), and `sample`'s ln and sin/cos computed lane by lane by the scalar
-/// functions, for the lanes of its `mask` only (the others' results are unspecified). So each
-/// lane's result is the scalar one to the bit (the eight-lane path loop, `render::batch`,
-/// relies on it; a test holds them together). ωo (and for `eval` and `pdf`, ωi) must be in the
-/// upper hemisphere, where the scalar functions do their arithmetic rather than return 0.
+/// Eight Ward lobes, one a lane, of one normalisation (a scene's): [`super::WardLobe`]'s
+/// `eval`, `pdf` and `sample` repeated operation for operation on eight lanes (Rust never fuses
+/// a·b + c), with the same exp, ln and sin/cos polynomials (`exp_neg_poly8`, `ln_poly8`,
+/// `sin_cos_turn_x8`). So each lane's result is the scalar one to the bit (the eight-lane path
+/// loop, `render::batch`, relies on it; a test holds them together). ωo (and for `eval` and
+/// `pdf`, ωi) must be in the upper hemisphere, where the scalar functions do their arithmetic
+/// rather than return 0.
 #[derive(Clone, Copy, Debug)]
 pub struct Lobes8 {
     pub alpha_x: f32x8,
     pub alpha_y: f32x8,
-    /// All ones where the lobe is `WardVariant::Balanced`, zero where it is `Ward1992`.
-    pub balanced: f32x8,
+    /// 1 / αx and 1 / αy, which every exponent takes (`WardLobe::exponent`).
+    inv_alpha: [f32x8; 2],
+    pub variant: WardVariant,
 }
 
 type V8 = [f32x8; 3];
@@ -33,10 +36,20 @@ fn add8(a: &V8, b: &V8) -> V8 {
 }
 
 impl Lobes8 {
+    #[inline(always)]
+    pub fn new(alpha_x: f32x8, alpha_y: f32x8, variant: WardVariant) -> Lobes8 {
+        Lobes8 {
+            alpha_x,
+            alpha_y,
+            inv_alpha: [f32x8::ONE / alpha_x, f32x8::ONE / alpha_y],
+            variant,
+        }
+    }
+
     /// `WardLobe::exponent`.
     #[inline(always)]
     fn exponent(&self, h: &V8) -> f32x8 {
-        let (a, b) = (h[0] / self.alpha_x, h[1] / self.alpha_y);
+        let (a, b) = (h[0] * self.inv_alpha[0], h[1] * self.inv_alpha[1]);
         (a * a + b * b) / (h[2] * h[2])
     }
 
@@ -51,49 +64,34 @@ impl Lobes8 {
     #[inline(always)]
     pub fn eval(&self, wo: &V8, wi: &V8, e: f32x8) -> f32x8 {
         let splat = f32x8::splat;
-        let h = add8(wi, wo);
         let (ax, ay) = (self.alpha_x, self.alpha_y);
-        let ward1992 = e / (splat(4.0 * PI) * ax * ay * (wi[2] * wo[2]).sqrt());
-        let hz2 = h[2] * h[2];
-        let balanced = e * dot8(&h, &h) / (splat(PI) * ax * ay * hz2 * hz2);
-        self.balanced.blend(balanced, ward1992)
+        match self.variant {
+            WardVariant::Ward1992 => e / (splat(4.0 * PI) * ax * ay * (wi[2] * wo[2]).sqrt()),
+            WardVariant::Balanced => {
+                let h = add8(wi, wo);
+                let hz2 = h[2] * h[2];
+                e * dot8(&h, &h) / (splat(PI) * ax * ay * hz2 * hz2)
+            }
+        }
     }
 
     /// `WardLobe::pdf`, given `e` = `gaussian(wo, wi)`.
     #[inline(always)]
     pub fn pdf(&self, wo: &V8, wi: &V8, e: f32x8) -> f32x8 {
-        let splat = f32x8::splat;
-        let s = add8(wi, wo);
-        // glam's `normalize`: times 1 / length.
-        let inv = f32x8::ONE / dot8(&s, &s).sqrt();
-        let h = s.map(|c| c * inv);
-        let cos_d = h[2];
-        e / (splat(PI)
-            * self.alpha_x
-            * self.alpha_y
-            * cos_d
-            * cos_d
-            * cos_d
-            * splat(4.0)
-            * dot8(wo, &h).abs())
+        let h = add8(wi, wo);
+        e * dot8(&h, &h)
+            / (f32x8::splat(2.0 * PI) * self.alpha_x * self.alpha_y * h[2] * h[2] * h[2])
     }
 
-    /// `WardLobe::sample` from (u0, u1): ωi, and where it is above the surface (elsewhere
-    /// the scalar function returns None).
+    /// `WardLobe::sample` from (u0, u1) on every lane: ωi, and where it is above the surface
+    /// (elsewhere the scalar function returns None).
     #[inline(always)]
-    pub fn sample(&self, wo: &V8, u0: f32x8, u1: f32x8, mask: u32) -> (V8, f32x8) {
+    pub fn sample(&self, wo: &V8, u0: f32x8, u1: f32x8) -> (V8, f32x8) {
         let splat = f32x8::splat;
         let one = f32x8::ONE;
         let m = (one - u0).max(splat(f32::MIN_POSITIVE));
-        let r = (-lanewise(m, mask, f32::ln)).sqrt();
-        let (a, mut s, mut c) = ((splat(2.0 * PI) * u1).to_array(), [0.0; 8], [0.0; 8]);
-        let mut bits = mask;
-        while bits != 0 {
-            let j = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            (s[j], c[j]) = a[j].sin_cos();
-        }
-        let (s, c) = (f32x8::from(s), f32x8::from(c));
+        let r = (-ln_poly8(m)).sqrt();
+        let (s, c) = sin_cos_turn_x8(u1);
         let v = [self.alpha_x * r * c, self.alpha_y * r * s, one];
         let inv = one / dot8(&v, &v).sqrt();
         let h = v.map(|x| x * inv);
@@ -268,18 +266,20 @@ mod tests {
         };
         let bits = |v: f32x8| v.to_array().map(f32::to_bits);
         let (mut lobe_samples, mut above) = (0, 0);
-        for _ in 0..2000 {
+        for i in 0..2000 {
+            // One normalisation for the eight, as in a scene.
+            let variant = if i % 2 == 0 {
+                WardVariant::Ward1992
+            } else {
+                WardVariant::Balanced
+            };
             let lobes: [WardLobe; 8] = std::array::from_fn(|_| {
                 let ax = 0.01 + rng.f32() * 0.6;
                 let iso = rng.f32() < 0.3;
                 WardLobe {
                     alpha_x: ax,
                     alpha_y: if iso { ax } else { 0.01 + rng.f32() * 0.6 },
-                    variant: if rng.f32() < 0.5 {
-                        WardVariant::Ward1992
-                    } else {
-                        WardVariant::Balanced
-                    },
+                    variant,
                 }
             });
             let rho_d: [Rgb; 8] = std::array::from_fn(|_| rng.vec3());
@@ -289,22 +289,31 @@ mod tests {
             let u: [Vec2; 8] = std::array::from_fn(|_| Vec2::new(rng.f32(), rng.f32()));
             let x8 = |f: &dyn Fn(usize) -> f32| f32x8::from(std::array::from_fn(f));
             let v8 = |v: &[Vec3; 8]| [0, 1, 2].map(|k| x8(&|j| v[j][k]));
-            let l8 = Lobes8 {
-                alpha_x: x8(&|j| lobes[j].alpha_x),
-                alpha_y: x8(&|j| lobes[j].alpha_y),
-                balanced: x8(&|j| f32::from(u8::from(lobes[j].variant == WardVariant::Balanced)))
-                    .cmp_gt(f32x8::ZERO),
-            };
+            let l8 = Lobes8::new(
+                x8(&|j| lobes[j].alpha_x),
+                x8(&|j| lobes[j].alpha_y),
+                variant,
+            );
             let (wo8, wi8) = (v8(&wo), v8(&wi));
             let g = l8.gaussian(&wo8, &wi8);
             let (e, p) = (l8.eval(&wo8, &wi8, g), l8.pdf(&wo8, &wi8, g));
-            let (ws, ok) = l8.sample(&wo8, x8(&|j| u[j].x), x8(&|j| u[j].y), 0xff);
+            let (ws, ok) = l8.sample(&wo8, x8(&|j| u[j].x), x8(&|j| u[j].y));
             let bsdfs: [Bsdf; 8] = std::array::from_fn(|j| Bsdf::Ward {
                 rho_d: rho_d[j],
                 rho_s: rho_s[j],
                 lobe: lobes[j],
             });
-            let pd = x8(&|j| Bsdf::diffuse_prob(rho_d[j], rho_s[j]));
+            let pd = Bsdf::diffuse_prob8(&v8(&rho_d), &v8(&rho_s));
+            for j in 0..8 {
+                let scalar = Bsdf::diffuse_prob(rho_d[j], rho_s[j]);
+                assert_eq!(
+                    bits(pd)[j],
+                    scalar.to_bits(),
+                    "{:?} {:?}",
+                    rho_d[j],
+                    rho_s[j]
+                );
+            }
             let f8 = Bsdf::ward_eval8(&v8(&rho_d), &v8(&rho_s), &l8, &wo8, &wi8, g);
             let p8 = Bsdf::ward_pdf8(pd, &l8, &wo8, &wi8, g);
             for j in 0..8 {
@@ -328,6 +337,12 @@ mod tests {
             }
         }
         assert!(above > lobe_samples / 2, "{above} of {lobe_samples}");
+        let black = [f32x8::ZERO; 3];
+        let pd = Bsdf::diffuse_prob8(&black, &black).to_array()[0];
+        assert_eq!(
+            pd.to_bits(),
+            Bsdf::diffuse_prob(Rgb::ZERO, Rgb::ZERO).to_bits()
+        );
     }
 
     /// Σ c·g and Σ c·2∂g of `samples` by `ward_at`, one sample at a time in order.

@@ -16,7 +16,10 @@
 //! Walter's φh = atan(αy/αx · tan 2πu2), tan²δ = −ln u1 / (cos²φh/αx² + sin²φh/αy²). The half
 //! vector's density per solid angle is exactly
 //!
-//!   p(ĥ) = exp(−E) / (π αx αy cos³δ),   and   p(ωi) = p(ĥ) / (4 |ωo·ĥ|).
+//!   p(ĥ) = exp(−E) / (π αx αy cos³δ),   and   p(ωi) = p(ĥ) / (4 |ωo·ĥ|),
+//!
+//! which with cos δ = hz/|h| and ωo·ĥ = |h|/2 (for unit ωo, ωi, |h|² = 2 + 2 ωo·ωi = 2 ωo·h)
+//! is p(ωi) = exp(−E) · (h·h) / (2π αx αy hz³): no normalisation, one division.
 //!
 //! All values here are per unit ρs: the caller multiplies by ρs (the fitter relies on that).
 //!
@@ -30,7 +33,8 @@ pub mod lanes;
 pub use half_vector::{ward_at, HalfVector, LobeParams};
 pub use lanes::{lanes8, lobe_sums, LobeSample, Lobes8};
 
-use crate::math::{exp_neg_poly, Vec2, Vec3, PI};
+use crate::math::warp::sin_cos_turn;
+use crate::math::{exp_neg_poly, ln_poly, Vec2, Vec3, PI};
 use crate::scene::WardVariant;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -41,10 +45,12 @@ pub struct WardLobe {
 }
 
 impl WardLobe {
-    /// The exponent E of the module comment, and hz, from the unnormalised half vector.
+    /// The exponent E of the module comment, from the unnormalised half vector. By the
+    /// reciprocals of the roughnesses, which the eight-lane code computes once for all the
+    /// lobes it evaluates at a vertex.
     #[inline]
     fn exponent(&self, h: Vec3) -> f32 {
-        let (a, b) = (h.x / self.alpha_x, h.y / self.alpha_y);
+        let (a, b) = (h.x * (1.0 / self.alpha_x), h.y * (1.0 / self.alpha_y));
         (a * a + b * b) / (h.z * h.z)
     }
 
@@ -73,19 +79,20 @@ impl WardLobe {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return 0.0;
         }
-        // E from the unnormalised half vector, as `eval` takes it (the same number).
-        let e = exp_neg_poly(self.exponent(wi + wo));
-        let h = (wi + wo).normalize();
-        let cos_d = h.z;
-        e / (PI * self.alpha_x * self.alpha_y * cos_d * cos_d * cos_d * 4.0 * wo.dot(h).abs())
+        // E from the unnormalised half vector, as `eval` takes it (the same number); the
+        // density in the module comment's last form.
+        let h = wi + wo;
+        let e = exp_neg_poly(self.exponent(h));
+        e * h.length_squared() / (2.0 * PI * self.alpha_x * self.alpha_y * h.z * h.z * h.z)
     }
 
     /// Draws ωi by sampling the half vector; None when the reflected direction is below the
-    /// surface (the sample is then lost, which `pdf` accounts for by not renormalising).
+    /// surface (the sample is then lost, which `pdf` accounts for by not renormalising). Its ln
+    /// and sin/cos are polynomials the eight lanes share (`ln_poly`, `sin_cos_turn`).
     #[inline]
     pub fn sample(&self, wo: Vec3, u: Vec2) -> Option<Vec3> {
-        let r = (-(1.0 - u.x).max(f32::MIN_POSITIVE).ln()).sqrt();
-        let (s, c) = (2.0 * PI * u.y).sin_cos();
+        let r = (-ln_poly((1.0 - u.x).max(f32::MIN_POSITIVE))).sqrt();
+        let (s, c) = sin_cos_turn(u.y);
         let h = Vec3::new(self.alpha_x * r * c, self.alpha_y * r * s, 1.0).normalize();
         let wi = 2.0 * wo.dot(h) * h - wo;
         (wi.z > 0.0 && wo.z > 0.0).then_some(wi)
