@@ -155,6 +155,10 @@ pub struct GroupState {
     /// analysing (`schedule::texture_waits_for`): it waits, and holds no other group back.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub texture_waiting: bool,
+    /// The simpler level that explained the last cache as well as the confirmed one
+    /// ([`Event::Doubted`]); None once the level held again.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub doubted: Option<Level>,
 }
 
 /// What happened to a group in one global iteration.
@@ -202,8 +206,17 @@ pub enum Event {
         error: f32,
         below_threshold: bool,
     },
-    /// A simpler level explains the photo as well as the current one on today's cache: the
-    /// group goes back to it (the current level no longer earns its place).
+    /// A simpler level explained this cache as well as the confirmed one: the group keeps its
+    /// level and its mean of earlier fits (this cache's fit does not join it), and is demoted
+    /// if the next cache says the same ([`GroupState::doubted`]).
+    Doubted {
+        level: Level,
+        lower: Level,
+        error: f32,
+        error_lower: f32,
+    },
+    /// A simpler level explains the photo as well as the current one on two caches in a row:
+    /// the group goes back to it (the current level no longer earns its place).
     Demoted {
         from: Level,
         to: Level,
@@ -368,6 +381,7 @@ impl GroupState {
             recheck_texture: false,
             texture_sources: Vec::new(),
             texture_waiting: false,
+            doubted: None,
         }
     }
 
@@ -727,6 +741,7 @@ impl GroupState {
         self.level = f.level;
         self.take(f);
         self.texture = None;
+        self.doubted = None;
         self.iterations_at_level = 0;
         self.moves.clear();
         self.last_step = None;
@@ -775,6 +790,34 @@ impl GroupState {
         if let Some(e) = restart_from_nested(cache, &mut fit, &nested, &old, variant) {
             events.push(e);
         }
+        // Demotion check: does a simpler level (available in this cache) do as well? The
+        // level keeps its place while it lowers ε by the margin and on at least one half of
+        // the samples: a climb's noise test asks for evidence of a gain, and one noisy cache
+        // would otherwise undo a level that the photo showed on the ones before. So it goes
+        // back only when two caches in a row say so; a cache that says so once is an outlier
+        // (its fit, often a search that ended near the simpler level, stays out of the mean).
+        let doubt = (nested.iter())
+            .find(|f| !Self::holds(f, &fit, opts))
+            .cloned();
+        if let Some(lower) = &doubt {
+            self.iterations_at_level += 1;
+            if self.doubted.is_some() {
+                self.take(&fit);
+                events.push(self.demote(lower));
+            } else {
+                self.doubted = Some(lower.level);
+                self.error = fit.error;
+                self.noise_floor = fit.noise_floor;
+                events.push(Event::Doubted {
+                    level: self.level,
+                    lower: lower.level,
+                    error: fit.error,
+                    error_lower: lower.error,
+                });
+            }
+            return events;
+        }
+        self.doubted = None;
         self.take(&fit);
         if self.status == Status::Confirmed {
             self.accumulate(cache.pixels.len().max(1) as f32);
@@ -799,25 +842,6 @@ impl GroupState {
             }
         }
         if demotable {
-            // Demotion check: does a simpler level (available in this cache) do as well? The
-            // level keeps its place while it lowers ε by the margin and on at least one half of
-            // the samples: a climb's noise test asks for evidence of a gain, and one noisy cache
-            // would otherwise undo a level that the photo showed on the ones before.
-            for f in &nested {
-                let current = LevelFit {
-                    level: self.level,
-                    params: self.params,
-                    error: self.error,
-                    noise_floor: self.noise_floor,
-                    halves: fit.halves,
-                    cost: fit.cost,
-                    evals: 0,
-                };
-                if !Self::holds(f, &current, opts) {
-                    events.push(self.demote(f));
-                    break;
-                }
-            }
             return events;
         }
         if self.status != Status::Analysing {
@@ -1233,6 +1257,57 @@ mod tests {
         assert!(!GroupState::holds(&iso, &small, &opts));
         let worse_on_both = fit(Level::Anisotropic, 0.043, [0.060, 0.061]);
         assert!(!GroupState::holds(&iso, &worse_on_both, &opts));
+    }
+
+    /// A confirmed level goes back to a simpler one only when two caches in a row find that
+    /// one as good: after one such cache it keeps its level and its mean (that cache's fit
+    /// stays out of it), and a cache on which it holds again clears the doubt.
+    #[test]
+    fn a_confirmed_level_is_demoted_only_by_two_caches_in_a_row() {
+        let opts = HierarchyOptions::default();
+        let v = WardVariant::Ward1992;
+        let matte = |seed| synthetic_cache(480, 64, 24, seed, |_, s| 0.5 * diffuse(s));
+        let glossy = |seed| {
+            synthetic_cache(480, 64, 24, seed, |_, s: &[(Vec3, Vec3, Rgb)]| {
+                let lobe = (s.iter()).fold(Rgb::ZERO, |a, &(wo, wi, c)| a + c * ward(wo, wi, 0.2));
+                0.5 * diffuse(s) + 0.3 * lobe
+            })
+        };
+        let confirmed = GroupParams {
+            rho_d: Rgb::splat(0.5),
+            rho_s: Rgb::splat(0.3),
+            alpha_x: 0.2,
+            alpha_y: 0.2,
+            ..GroupParams::default()
+        };
+        let mut st = GroupState::new("desk", Status::Confirmed, confirmed);
+        st.level = Level::Isotropic;
+        let turn = Turn {
+            may_climb: true,
+            may_move: true,
+            texture_waits_for: None,
+        };
+        let step = |st: &mut GroupState, c: &GroupCache| st.step(c, None, v, &opts, &turn);
+        let doubted = |e: &[Event]| e.iter().any(|e| matches!(e, Event::Doubted { .. }));
+        let demoted = |e: &[Event]| e.iter().any(|e| matches!(e, Event::Demoted { .. }));
+
+        let e = step(&mut st, &matte(1));
+        assert!(doubted(&e) && !demoted(&e), "{e:?}");
+        assert_eq!(
+            (st.level, st.status, st.params),
+            (Level::Isotropic, Status::Confirmed, confirmed)
+        );
+        let e = step(&mut st, &glossy(2));
+        assert!(!doubted(&e) && !demoted(&e), "{e:?}");
+        assert_eq!((st.level, st.doubted), (Level::Isotropic, None));
+        let e = step(&mut st, &matte(3));
+        assert!(doubted(&e) && !demoted(&e), "{e:?}");
+        let e = step(&mut st, &matte(4));
+        assert!(demoted(&e), "{e:?}");
+        assert_eq!(
+            (st.level, st.status, st.doubted),
+            (Level::Diffuse, Status::Analysing, None)
+        );
     }
 
     /// A Lambert surface seen with few samples (ε well above the diffuse threshold, all of it
