@@ -157,7 +157,8 @@ fn a_stray_light_is_fitted_with_the_materials_through_the_binary() {
         d,
     );
     assert_eq!(code, 0, "{out}{err}");
-    assert!(out.contains("stray light (0.05"), "{out}");
+    // The summary states the estimate (its value is checked in results.json below).
+    assert!(out.contains("stray light (0.0"), "{out}");
     let json = results(&d.join("out"));
     let s = &json["stray_light"];
     let want = [0.05, 0.05, 0.06];
