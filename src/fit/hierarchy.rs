@@ -796,15 +796,12 @@ impl GroupState {
         // would otherwise undo a level that the photo showed on the ones before. So it goes
         // back only when two caches in a row say so; a cache that says so once is an outlier
         // (its fit, often a search that ended near the simpler level, stays out of the mean).
-        let doubt = (nested.iter())
-            .find(|f| !Self::holds(f, &fit, opts))
-            .cloned();
-        if let Some(lower) = &doubt {
-            self.iterations_at_level += 1;
+        if let Some(lower) = nested.iter().find(|f| !Self::holds(f, &fit, opts)) {
             if self.doubted.is_some() {
                 self.take(&fit);
                 events.push(self.demote(lower));
             } else {
+                self.iterations_at_level += 1;
                 self.doubted = Some(lower.level);
                 self.error = fit.error;
                 self.noise_floor = fit.noise_floor;
