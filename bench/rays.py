@@ -1,9 +1,13 @@
 """Ray casting alone, matfit vs Mitsuba 3 (Embree) on the same rays, one thread each.
 
     source bench/mitsuba_env.sh && python bench/rays.py [--matfit PATH] [--rays N] [--repeat K]
+        [--scene figure6|office]
 
-The scene is the benchmark's figure6 with a diffuse floor (its 38 triangles), exported to
-Mitsuba by `matfit export mitsuba`. Rays: N origins uniform in the room (1 cm inside its walls),
+The scene is the benchmark's figure6 with a diffuse floor (its 38 triangles), or with
+`--scene office` the big mesh of `compare.py` (scenes/office-large made all diffuse by its
+generator, 1.2M triangles), exported to Mitsuba by `matfit export mitsuba`. Rays: N origins
+uniform in the room (1 cm inside its walls; for the office, inside the scene's bounding box,
+so some start inside furniture),
 directions uniform on the sphere, and for shadow queries a length of half the distance to the
 closest hit: none is blocked, so each walks the tree to the end as a lit point's shadow ray
 does; seed 1. matfit
@@ -38,6 +42,7 @@ def main():
     ap.add_argument("--matfit", default=None)
     ap.add_argument("--rays", type=int, default=1 << 20)
     ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--scene", choices=["figure6", "office"], default="figure6")
     a = ap.parse_args()
     exe = cc.find_matfit(a.matfit)
     import drjit as dr
@@ -46,13 +51,24 @@ def main():
     dr.set_thread_count(1)
 
     with tempfile.TemporaryDirectory() as d:
-        scene = cc.figure6_variant(d, '{ type = "diffuse", rho_d = [0.2, 0.3, 0.4] }', 256, 192)
+        lo, hi = ROOM_LO, ROOM_HI
+        if a.scene == "office":
+            subprocess.run([sys.executable, os.path.join(HERE, "..", "scenes", "office-large",
+                                                         "make_scene.py"),
+                            "--out", d, "--width", "480", "--height", "270", "--diffuse",
+                            "--triangles", "1.2e6"], check=True, capture_output=True)
+            scene = os.path.join(d, "scene.toml")
+        else:
+            scene = cc.figure6_variant(d, '{ type = "diffuse", rho_d = [0.2, 0.3, 0.4] }',
+                                       256, 192)
         subprocess.run([exe, "export", "mitsuba", scene, "-o", os.path.join(d, "mi")],
                        check=True, capture_output=True)
         ms = mi.load_file(os.path.join(d, "mi", "scene.xml"), optimize=False)
+        if a.scene == "office":
+            lo, hi = np.array(ms.bbox().min), np.array(ms.bbox().max)
         rng = np.random.default_rng(1)
         n = a.rays
-        o = ROOM_LO + 0.01 + (ROOM_HI - ROOM_LO - 0.02) * rng.random((n, 3))
+        o = lo + 0.01 + (hi - lo - 0.02) * rng.random((n, 3))
         dirs = rng.normal(size=(n, 3))
         dirs /= np.linalg.norm(dirs, axis=1)[:, None]
         o, dirs = o.astype(np.float32), dirs.astype(np.float32)
@@ -87,7 +103,8 @@ def main():
         m8 = re.search(r"packets of 8: BVH query ([0-9.]+) ns, shadow ([0-9.]+) ns", out)
         mf_bvh8, mf_shadow8 = float(m8.group(1)), float(m8.group(2))
 
-    print(f"{n} rays in figure6 (diffuse floor), 1 thread, ns per ray (median of {a.repeat})\n")
+    what = "figure6 (diffuse floor)" if a.scene == "figure6" else "office-large (diffuse, 1.2M triangles)"
+    print(f"{n} rays in {what}, 1 thread, ns per ray (median of {a.repeat})\n")
     print("| query | matfit | Mitsuba 3 llvm_ad_rgb (Embree) | matfit / Mitsuba |")
     print("|---|---:|---:|---:|")
     for name, m, s in [("closest hit + hit record", mf_full, mi_full),
