@@ -1,12 +1,15 @@
 """Where a sample's time goes, matfit vs Mitsuba 3, path depth by path depth.
 
     source bench/mitsuba_env.sh && python bench/depth.py [--matfit PATH] [--spp N] [--reps K]
+        [--scene figure6|office]
 
 The benchmark's scene (figure6 with a diffuse floor, 256x192, exported to Mitsuba by `matfit
-export mitsuba`) rendered with max_depth 1 (the camera ray and what it sees), 2 (plus direct
+export mitsuba`; with `--scene office`, compare.py's big mesh: office-large all diffuse, 1.2M
+triangles, 480x270) rendered with max_depth 1 (the camera ray and what it sees), 2 (plus direct
 light: one shadow ray and one BSDF ray), 3 and 8 (the benchmark's), one thread each, N spp.
-matfit: its own "rendered in" (BVH build + render, no loading or image writing); Mitsuba
-`llvm_ad_rgb`: `mi.render` on a second call (kernels compiled by the first), medians of K runs.
+matfit: its own "rendered in" (the render alone: the BVH is built as the scene loads; no image
+writing); Mitsuba `llvm_ad_rgb`: `mi.render` on a second call (kernels compiled by the first),
+medians of K runs.
 Prints ns per sample (pixels x spp) at each depth and the cost of the segments each step adds,
 and the ratio: where matfit's per-sample cost exceeds Mitsuba's. 1-2 min.
 """
@@ -31,6 +34,7 @@ def main():
     ap.add_argument("--matfit", default=None)
     ap.add_argument("--spp", type=int, default=64)
     ap.add_argument("--reps", type=int, default=3)
+    ap.add_argument("--scene", choices=["figure6", "office"], default="figure6")
     a = ap.parse_args()
     exe = cc.find_matfit(a.matfit)
     import drjit as dr
@@ -38,16 +42,25 @@ def main():
     mi.set_variant("llvm_ad_rgb")
     mi.set_log_level(mi.LogLevel.Error)
     dr.set_thread_count(1)
-    w, h = 256, 192
+    w, h = (256, 192) if a.scene == "figure6" else (480, 270)
     samples = w * h * a.spp
     rows = []
     with tempfile.TemporaryDirectory() as d:
-        base = cc.figure6_variant(d, '{ type = "diffuse", rho_d = [0.2, 0.3, 0.4] }', w, h)
+        if a.scene == "office":
+            # Its meshes are named relative to the scene file, so each depth's scene (below)
+            # sits beside it.
+            subprocess.run([sys.executable, os.path.join(HERE, "..", "scenes", "office-large",
+                                                         "make_scene.py"),
+                            "--out", d, "--width", str(w), "--height", str(h), "--diffuse",
+                            "--triangles", "1.2e6"], check=True, capture_output=True)
+            base = os.path.join(d, "scene.toml")
+        else:
+            base = cc.figure6_variant(d, '{ type = "diffuse", rho_d = [0.2, 0.3, 0.4] }', w, h)
         text = open(base).read()
         for depth in DEPTHS:
             sub = os.path.join(d, f"d{depth}")
             os.makedirs(sub)
-            scene = os.path.join(sub, "scene.toml")
+            scene = os.path.join(d, f"scene_d{depth}.toml")
             t, n = re.subn(r"^max_depth = \d+$", f"max_depth = {depth}", text, flags=re.M)
             assert n == 1, "figure6 has no max_depth line"
             open(scene, "w").write(t)
@@ -72,8 +85,8 @@ def main():
             rows.append((depth, statistics.median(mf) / samples * 1e9,
                          statistics.median(mt[1:]) / samples * 1e9))
 
-    print(f"figure6 (diffuse floor) {w}x{h}, {a.spp} spp, 1 thread, medians of {a.reps}; "
-          "ns per sample\n")
+    what = "figure6 (diffuse floor)" if a.scene == "figure6" else "office-large (diffuse)"
+    print(f"{what} {w}x{h}, {a.spp} spp, 1 thread, medians of {a.reps}; ns per sample\n")
     print("| max_depth | matfit | Mitsuba llvm_ad_rgb | ratio | added by this step: matfit | "
           "Mitsuba | ratio |")
     print("|---:|---:|---:|---:|---:|---:|---:|")
