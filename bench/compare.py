@@ -402,11 +402,7 @@ def forward_big(mf, ms, big, d):
     px = w * h
     os.makedirs(d, exist_ok=True)
     log(f"forward, big mesh: office-large (diffuse), {w}×{h}, {spp} spp ...")
-    r = run([sys.executable, os.path.join(ROOT, "scenes", "office-large", "make_scene.py"),
-             "--out", d, "--width", str(w), "--height", str(h), "--diffuse",
-             "--triangles", f"{big['triangles']:g}"])
-    triangles = int(r.stdout.split(" groups, ")[1].split()[0])
-    scene = os.path.join(d, "scene.toml")
+    scene, triangles = cc.office_diffuse(d, w, h, big["triangles"])
     xml, ids, names = export_case(mf, d, scene)
     _, t_load = ms.scene("llvm_ad_rgb", xml)
     first = ms.render("llvm_ad_rgb", xml, spp, seed=1)

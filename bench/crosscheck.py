@@ -206,6 +206,19 @@ def figure6_variant(dst_dir, floor_material, width, height):
     return path
 
 
+def office_diffuse(dst_dir, width, height, triangles=1.2e6):
+    """scenes/office-large made all diffuse by its generator (`make_scene.py --diffuse`), the
+    benchmarks' big mesh, written to `dst_dir`: (scene path, its triangle count). Its meshes are
+    named relative to the scene file, so a variant of the scene must be written beside it."""
+    cmd = [sys.executable, os.path.join(ROOT, "scenes", "office-large", "make_scene.py"),
+           "--out", dst_dir, "--width", str(width), "--height", str(height), "--diffuse",
+           "--triangles", f"{triangles:g}"]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit(f"{' '.join(cmd)} failed ({r.returncode}):\n{r.stdout}{r.stderr}")
+    return os.path.join(dst_dir, "scene.toml"), int(r.stdout.split(" groups, ")[1].split()[0])
+
+
 def ball_made_diffuse(name, dst_dir, ortho=False):
     """scenes/NAME/scene.toml with its one Ward material made diffuse, written beside the
     original so that the files it names resolve; `ortho`: its camera made orthographic."""

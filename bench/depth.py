@@ -47,19 +47,14 @@ def main():
     rows = []
     with tempfile.TemporaryDirectory() as d:
         if a.scene == "office":
-            # Its meshes are named relative to the scene file, so each depth's scene (below)
-            # sits beside it.
-            subprocess.run([sys.executable, os.path.join(HERE, "..", "scenes", "office-large",
-                                                         "make_scene.py"),
-                            "--out", d, "--width", str(w), "--height", str(h), "--diffuse",
-                            "--triangles", "1.2e6"], check=True, capture_output=True)
-            base = os.path.join(d, "scene.toml")
+            base, _ = cc.office_diffuse(d, w, h)
         else:
             base = cc.figure6_variant(d, '{ type = "diffuse", rho_d = [0.2, 0.3, 0.4] }', w, h)
         text = open(base).read()
         for depth in DEPTHS:
             sub = os.path.join(d, f"d{depth}")
             os.makedirs(sub)
+            # Beside the base scene, whose files it names relative to itself.
             scene = os.path.join(d, f"scene_d{depth}.toml")
             t, n = re.subn(r"^max_depth = \d+$", f"max_depth = {depth}", text, flags=re.M)
             assert n == 1, "figure6 has no max_depth line"

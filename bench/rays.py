@@ -53,11 +53,7 @@ def main():
     with tempfile.TemporaryDirectory() as d:
         lo, hi = ROOM_LO, ROOM_HI
         if a.scene == "office":
-            subprocess.run([sys.executable, os.path.join(HERE, "..", "scenes", "office-large",
-                                                         "make_scene.py"),
-                            "--out", d, "--width", "480", "--height", "270", "--diffuse",
-                            "--triangles", "1.2e6"], check=True, capture_output=True)
-            scene = os.path.join(d, "scene.toml")
+            scene, _ = cc.office_diffuse(d, 480, 270)
         else:
             scene = cc.figure6_variant(d, '{ type = "diffuse", rho_d = [0.2, 0.3, 0.4] }',
                                        256, 192)
@@ -103,7 +99,8 @@ def main():
         m8 = re.search(r"packets of 8: BVH query ([0-9.]+) ns, shadow ([0-9.]+) ns", out)
         mf_bvh8, mf_shadow8 = float(m8.group(1)), float(m8.group(2))
 
-    what = "figure6 (diffuse floor)" if a.scene == "figure6" else "office-large (diffuse, 1.2M triangles)"
+    what = ("figure6 (diffuse floor)" if a.scene == "figure6"
+            else "office-large (diffuse, 1.2M triangles)")
     print(f"{n} rays in {what}, 1 thread, ns per ray (median of {a.repeat})\n")
     print("| query | matfit | Mitsuba 3 llvm_ad_rgb (Embree) | matfit / Mitsuba |")
     print("|---|---:|---:|---:|")
