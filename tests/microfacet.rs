@@ -3,12 +3,12 @@
 //! `roughconductor` with `material = "none"`) and its big block a red plastic (ρd (0.7, 0.05,
 //! 0.05) under a GGX coat of IOR 1.49, α 0.1: Mitsuba's `roughplastic`), the photo rendered by
 //! matfit at half size and recovered blind. The blocks must end at their levels with their
-//! parameters, every other group diffuse, and with the GGX levels switched off the best Ward
-//! lobes must leave clearly larger errors. bench/nonward.py does the same from Mitsuba's photos
-//! and scores the predictions.
+//! parameters, every other group diffuse, and where the climb tried the GGX levels the best Ward
+//! lobes on the same cache must leave clearly larger errors. bench/nonward.py does the same from
+//! Mitsuba's photos and scores the predictions.
 
 use crate::recover::{run_keeping_photo, scaled, truth};
-use matfit::fit::hierarchy::HierarchyOptions;
+use matfit::fit::hierarchy::Event;
 use matfit::fit::{Level, RecoverOptions};
 use matfit::math::Rgb;
 use matfit::render::bsdf::plastic::{fresnel_dielectric, DEFAULT_ETA};
@@ -57,17 +57,7 @@ fn a_rough_metal_and_a_plastic_are_recovered_at_the_ggx_levels() {
             distribution: Distribution::Ggx,
         },
     );
-    let fit = |ggx: bool| {
-        let opts = RecoverOptions {
-            hierarchy: HierarchyOptions {
-                microfacet: ggx,
-                ..Default::default()
-            },
-            ..Default::default()
-        };
-        run_keeping_photo(&scene, 256, opts).0
-    };
-    let rec = fit(true);
+    let (rec, _, log) = run_keeping_photo(&scene, 256, RecoverOptions::default());
     let mut table = String::new();
     for s in rec.groups.iter().filter(|s| s.is_fitted()) {
         table += &format!(
@@ -107,25 +97,45 @@ fn a_rough_metal_and_a_plastic_are_recovered_at_the_ggx_levels() {
             assert_eq!(s.level, Level::Diffuse, "{}\n{table}", s.name);
         }
     }
-    // What the GGX levels buy: the best Ward (or mirror) models leave clearly larger errors.
-    let ward = fit(false);
-    for g in [metal, plastic] {
-        let (w, with) = (&ward.groups[g], &rec.groups[g]);
-        eprintln!(
-            "without the GGX levels: {} {} ε {:.4} (with: {:.4})",
-            w.name,
-            w.level.name(),
-            w.error,
-            with.error
-        );
-        assert!(
-            w.error > 1.5 * with.error,
-            "{}: {} vs {}",
-            w.name,
-            w.error,
-            with.error
-        );
+    // What the GGX levels buy: on the cache where the climb tried them, the best Ward (or
+    // mirror) models leave clearly larger errors. (Measured 2026-12-02: the metal's best Ward
+    // ε 0.086 against GGX's 0.038, the plastic's 0.150 against 0.034; a second recovery with the
+    // GGX levels switched off ended at 0.091 and 0.144 against the final 0.011 and 0.019.)
+    for (g, level) in [(metal, Level::Microfacet), (plastic, Level::Plastic)] {
+        let name = &rec.groups[g].name;
+        let (ward, with) = climb_errors(&log, name, level);
+        eprintln!("climb of {name}: best Ward or mirror ε {ward:.4}, {level:?} {with:.4}");
+        assert!(ward > 1.5 * with, "{name}: {ward} vs {with}\n{table}");
     }
+}
+
+/// In the last climb of `group` that tried `level`, on one cache: the lowest ε of the Ward and
+/// mirror levels it tried, and the ε of `level`.
+fn climb_errors(log: &[(String, Event)], group: &str, level: Level) -> (f32, f32) {
+    let tries: Vec<(Level, f32)> = log
+        .iter()
+        .filter(|(g, _)| g == group)
+        .filter_map(|(_, e)| match e {
+            Event::Tried {
+                level, error_after, ..
+            } => Some((*level, *error_after)),
+            _ => None,
+        })
+        .collect();
+    let at = tries
+        .iter()
+        .rposition(|t| t.0 == level)
+        .expect("the level was tried");
+    let start = tries[..at]
+        .iter()
+        .rposition(|t| t.0 <= Level::Specular)
+        .unwrap_or(0);
+    let ward = tries[start..at]
+        .iter()
+        .filter(|t| t.0 < Level::Microfacet)
+        .map(|t| t.1)
+        .fold(f32::INFINITY, f32::min);
+    (ward, tries[at].1)
 }
 
 /// Level 10 and the Beckmann distribution: figure6 with a diffuse floor and big block, its
