@@ -508,13 +508,17 @@ fn poster_scene_textures_are_recovered_as_reflectance() {
     // alone).
     // Per texel-sized tile, over the texels the photo saw, the uniform groups and the desk are
     // within the noise of a 64-spp render; the poster and the books are not (detail near the
-    // pixel's scale: 1.1–3.0 times the noise), and are only printed.
+    // pixel's scale): the poster within twice the noise (2.2–2.6 when the smoothing was chosen
+    // by the texel values), the books 1.5–3.0, only printed.
     for which in [&f.same, &f.view, &f.lit] {
         for (g, e, q) in which {
             assert!(e.abs() < 0.02, "{g}: {e}");
-            if g != "poster" && g != "books" {
-                assert!(*q < 1.0, "{g}: error per tile {q} × the noise");
-            }
+            let bound = match g.as_str() {
+                "books" => f32::INFINITY,
+                "poster" => 2.0,
+                _ => 1.0,
+            };
+            assert!(*q < bound, "{g}: error per tile {q} × the noise");
         }
     }
 }
