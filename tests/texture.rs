@@ -38,26 +38,32 @@ fn recovered(
 /// The true reflectance of `group` box-filtered onto `atlas`: per texel the mean and the number
 /// of samples that landed in it.
 fn reference(truth: &Scene, group: usize, atlas: &Atlas) -> (Vec<Rgb>, Vec<u32>) {
-    area_means(truth, group, atlas, |_, _, _, tex, uv| tex(uv))
+    area_means(truth, group, atlas, |object, _, _, uv| {
+        let obj = &truth.objects[object as usize];
+        let Material::Textured { texture, scale, .. } = &obj.material else {
+            panic!("{}: the truth is not textured", obj.name)
+        };
+        *scale * texture.lookup(uv)
+    })
 }
 
 /// The mean over each texel's square of an atlas texture as the renderer reads it (bilinearly,
 /// [`Atlas::lookup`]), sampled where [`reference`] samples the truth: a texel's value is not
 /// the mean reflectance of its square, since its neighbours reach into it.
 fn rendered_means(truth: &Scene, group: usize, atlas: &Atlas, texels: &[Rgb]) -> Vec<Rgb> {
-    area_means(truth, group, atlas, |oi, p, ng, _, _| {
-        atlas.lookup(texels, oi, p, ng)
+    area_means(truth, group, atlas, |object, p, ng, _| {
+        atlas.lookup(texels, object, p, ng)
     })
     .0
 }
 
-/// Per texel of `atlas`, the mean of `f(object, point, normal, true texture, uv)` over points
-/// stratified uniformly on `group`'s triangles (at least 16 per texel), and their number.
+/// Per texel of `atlas`, the mean of `f(object, point, normal, uv)` over points stratified
+/// uniformly on `group`'s triangles (at least 16 per texel), and their number.
 fn area_means(
     truth: &Scene,
     group: usize,
     atlas: &Atlas,
-    f: impl Fn(u32, Vec3, Vec3, &dyn Fn(Vec2) -> Rgb, Vec2) -> Rgb,
+    f: impl Fn(u32, Vec3, Vec3, Vec2) -> Rgb,
 ) -> (Vec<Rgb>, Vec<u32>) {
     let g = &*truth.geometry;
     let n = atlas.width * atlas.height;
@@ -66,10 +72,6 @@ fn area_means(
         if obj.group != group {
             continue;
         }
-        let Material::Textured { texture, scale, .. } = &obj.material else {
-            panic!("{}: the truth is not textured", obj.name)
-        };
-        let tex = |uv: Vec2| *scale * texture.lookup(uv);
         for tri in &g.tris[obj.tri_range.start as usize..obj.tri_range.end as usize] {
             let [a, b, c] = tri.v.map(|i| i as usize);
             let (pa, pb, pc) = (g.positions[a], g.positions[b], g.positions[c]);
@@ -85,7 +87,7 @@ fn area_means(
                     let p = pa * wa + pb * wb + pc * wc;
                     let uv = ua * wa + ub * wb + uc * wc;
                     if let Some(x) = atlas.texel_at(oi as u32, p, ng) {
-                        sum[x as usize] += f(oi as u32, p, ng, &tex, uv);
+                        sum[x as usize] += f(oi as u32, p, ng, uv);
                         count[x as usize] += 1;
                     }
                 }
@@ -508,8 +510,7 @@ fn poster_scene_textures_are_recovered_as_reflectance() {
     // alone).
     // Per texel-sized tile, over the texels the photo saw, the uniform groups and the desk are
     // within the noise of a 64-spp render; the poster and the books are not (detail near the
-    // pixel's scale): the poster within twice the noise (2.2–2.6 when the smoothing was chosen
-    // by the texel values), the books 1.5–3.0, only printed.
+    // pixel's scale): the poster within twice the noise, the books only printed.
     for which in [&f.same, &f.view, &f.lit] {
         for (g, e, q) in which {
             assert!(e.abs() < 0.02, "{g}: {e}");

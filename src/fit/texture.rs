@@ -45,10 +45,9 @@ pub const SEEN_FRACTION: f32 = 0.1;
 /// Weight of the smoothness penalty relative to each texel's own data weight (`solve`): less
 /// leaves stripes where pixel and texel grids beat and lets the photo's noise through, more
 /// blurs edges. Chosen by the texture as it renders (per texel, the mean of its bilinear lookup
-/// over the texel's square) against the truth, and by renders from new views: on the poster
-/// scene's 1024-spp photo 0.01 is best, on the facing-mirrors room's 512-spp one 0.03. Scored
-/// by the texel values alone, which the lookup blurs, 0.1 looked best (the sweeps are in the
-/// message of the commit that set it).
+/// over the texel's square) against the truth and by renders from new views, on the poster
+/// scene and the facing-mirrors room: the value that does well on both (the sweep is in
+/// 2c4ce38's message). The texel values alone, which the lookup blurs, would ask for more.
 pub const SMOOTHING: f32 = 0.03;
 
 /// ISRA iterations per global iteration (warm-started from the previous texture).
