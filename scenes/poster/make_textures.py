@@ -5,8 +5,11 @@ own: the same files as in the repository come out of
 
     python3 scenes/poster/make_textures.py
 
-Pure Python (zlib, struct): nothing to install. Each texture has fine detail (one-texel lines),
-saturated colour and dark regions, as issue 21 asks.
+Pure Python (zlib, struct): nothing to install. Each texture has fine detail (one-texel lines,
+one-texel checks), saturated colour and dark regions, as issue 21 asks. The poster's and the
+books' texels are sized to the photo: at the scene's 480×360 a texel spans about two pixels, the
+finest detail one photo resolves (a one-texel line, a period of four pixels). Finer detail
+than that no single photo holds; at half the resolution (the CI test) a texel is one pixel.
 """
 import math
 import os
@@ -50,12 +53,12 @@ def hash01(x, y, k=0):
 
 
 def poster(x, y):
-    w, h = 128, 96
+    w, h = 64, 48
     u, v = (x + 0.5) / w, (y + 0.5) / h
     c = (0.72 - 0.2 * v, 0.66 - 0.15 * v, 0.50 - 0.1 * v)  # cream, darkening downwards
     if (u - 0.3) ** 2 + ((v - 0.38) * 0.75) ** 2 < 0.2 ** 2:  # a saturated red sun
         c = (0.75, 0.06, 0.04)
-    if 0.55 < u < 0.92 and 0.12 < v < 0.55:  # a blue block with a yellow frame
+    if 0.55 < u < 0.92 and 0.12 < v < 0.55:  # a blue block with a one-texel yellow frame
         c = (0.04, 0.10, 0.55)
         if u < 0.57 or u > 0.90 or v < 0.14 or v > 0.53:
             c = (0.85, 0.70, 0.05)
@@ -64,7 +67,7 @@ def poster(x, y):
     if v > 0.68:  # a black band with white "text": one-texel strokes
         c = (0.02, 0.02, 0.025)
         row = y - int(0.72 * h)
-        if 0 <= row < 20 and row % 5 in (1, 3) and 6 < x < 122 and hash01(x // 3, y // 5) > 0.35:
+        if 0 <= row < 10 and row % 5 in (1, 3) and 3 < x < 61 and hash01(x // 2, y // 5) > 0.35:
             c = (0.82, 0.82, 0.80)
     if 0.06 < u < 0.5 and 0.60 < v < 0.66:  # a green stripe
         c = (0.05, 0.45, 0.12)
@@ -84,14 +87,14 @@ BOOKS = [
 def book(k):
     base = BOOKS[k]
     gold = (0.80, 0.60, 0.15)
-    w, h = 40, 96
+    w, h = 10, 24
 
     def px(x, y):
-        if y in (6, 7, 88, 89) or (k % 2 == 0 and y in (10, 84)):
+        if y in (1, 22) or (k % 2 == 0 and y in (3, 20)):  # one-texel gold bands
             return gold
-        if 24 <= y < 64 and 4 <= x < w - 4:  # title label
+        if 6 <= y < 16 and 1 <= x < w - 1:  # title label with one-texel lines of "text"
             label = tuple(min(1.0, 0.2 + 1.6 * c) for c in base) if k != 4 else (0.75, 0.72, 0.6)
-            if (y - 24) % 4 == 2 and hash01(x, y, k) > 0.3:
+            if (y - 6) % 3 == 1 and hash01(x, y, k) > 0.3:
                 return (0.02, 0.02, 0.02)
             return label
         g = 0.9 + 0.1 * hash01(x, y, 7 + k)  # cloth weave
@@ -111,7 +114,7 @@ def desk(x, y):
 
 
 if __name__ == "__main__":
-    write_png("poster.png", 128, 96, poster)
+    write_png("poster.png", 64, 48, poster)
     for k in range(len(BOOKS)):
-        write_png(f"book{k}.png", 40, 96, book(k))
+        write_png(f"book{k}.png", 10, 24, book(k))
     write_png("desk.png", 128, 80, desk)
