@@ -178,14 +178,21 @@ pub(crate) fn scores(
     let (truth_texels, count) = reference(truth, g, &atlas);
     let cut = cut_from_photo(truth, photo, g, &atlas);
     let means = rendered_means(truth, g, &atlas, &texels);
-    // MATFIT_TEXTURE_DUMP=dir: per group, recovered (as it renders) | true | mask (white: seen;
-    // blue: on the surface) side by side, 4× enlarged, to look at.
+    let mut counts: Vec<u32> = count.iter().copied().filter(|&c| c > 0).collect();
+    counts.sort_unstable();
+    let full = counts[counts.len() / 2] * 9 / 10;
+    let scored: Vec<bool> = (0..texels.len())
+        .map(|t| seen[t] && count[t] >= full && cut[t].is_some())
+        .collect();
+    // MATFIT_TEXTURE_DUMP=dir: per group, recovered (as it renders) | true | mask (light blue:
+    // scored; dark blue: on the surface, not scored) side by side, 4× enlarged, to look at
+    // (.png) and to measure (.pfm).
     if let Some(dir) = std::env::var_os("MATFIT_TEXTURE_DUMP") {
         let k = 4;
         let mut img = Image::new(atlas.width * 3 * k, atlas.height * k);
         for t in 0..texels.len() {
             let (x, y) = (t % atlas.width, t / atlas.width);
-            let seen_c = if seen[t] { Rgb::ONE } else { Rgb::ZERO };
+            let mark = if scored[t] { Rgb::ONE } else { Rgb::ZERO };
             for i in 0..k * k {
                 let (xx, yy) = (x * k + i % k, y * k + i / k);
                 img.set(xx, yy, means[t]);
@@ -194,22 +201,18 @@ pub(crate) fn scores(
                     xx + 2 * atlas.width * k,
                     yy,
                     if count[t] > 0 {
-                        seen_c * 0.5 + Rgb::new(0.0, 0.0, 0.5)
+                        mark * 0.5 + Rgb::new(0.0, 0.0, 0.5)
                     } else {
-                        seen_c
+                        mark
                     },
                 );
             }
         }
-        img.write(&std::path::Path::new(&dir).join(format!("{name}.png")))
-            .unwrap();
+        for ext in ["png", "pfm"] {
+            img.write(&std::path::Path::new(&dir).join(format!("{name}.{ext}")))
+                .unwrap();
+        }
     }
-    let mut counts: Vec<u32> = count.iter().copied().filter(|&c| c > 0).collect();
-    counts.sort_unstable();
-    let full = counts[counts.len() / 2] * 9 / 10;
-    let scored: Vec<bool> = (0..texels.len())
-        .map(|t| seen[t] && count[t] >= full && cut[t].is_some())
-        .collect();
     let keep: Vec<usize> = (0..texels.len()).filter(|&t| scored[t]).collect();
     let pairs = |values: &[Rgb]| -> Vec<(Rgb, Rgb)> {
         keep.iter().map(|&t| (values[t], truth_texels[t])).collect()
@@ -408,8 +411,10 @@ fn poster_scene(scale: f32, spp: u32) -> Figures {
         .filter(|&name| state(&rec, name).level == Level::Textured)
         .map(|name| {
             let s = scores(&scene, &photo, &rec, name);
+            let smoothing = state(&rec, name).texture.as_ref().unwrap().smoothing;
             eprintln!(
-                "{name:<7} recovered {:?}\n{name:<7} 2×2       {:?}\n{name:<7} cut       {:?}",
+                "{name:<7} recovered {:?}\n{name:<7} 2×2       {:?}\n{name:<7} cut       {:?}\n\
+                 {name:<7} smoothing {smoothing} (cross-validated)",
                 s.texel, s.nyquist, s.cut
             );
             (name, s)
@@ -463,8 +468,9 @@ fn poster_scene(scale: f32, spp: u32) -> Figures {
 /// about one photo pixel: detail at the pixel's own scale. Measured (the textures as they render,
 /// [`scores`]): poster 29.9 dB, Σ|Δ|/Σ 4.9% per texel, 38.2 dB and 2.0% per 2×2 texels, mean
 /// within 0.7% (cut from the photo: 19.9 dB, 19.8%, mean off by 11–20%); desk 44.8 dB, 1.3%,
-/// varnish ρs 0.089–0.096 (true 0.1), α 0.0809 (true 0.08); books 24.8 dB per texel (cut
-/// 21.7), 35.8 dB and 3.2% per 2×2; renders of the recovered scene from the photo's viewpoint,
+/// varnish ρs 0.089–0.096 (true 0.1), α 0.0809 (true 0.08); books 24.5 dB per texel (cut
+/// 21.7), 35.6 dB and 2.7% per 2×2 (cross-validated smoothing: poster 0.03, books 0.01, desk
+/// 0.1); renders of the recovered scene from the photo's viewpoint,
 /// a new one and under a moved lamp within 0.8% per group; per texel-sized tile over seen
 /// texels, the error over a 64-spp render's noise: uniform groups and desk 0.00, poster
 /// 1.9–2.1, books 3.3–4.3 (at full resolution, where a texel spans two pixels, all 0.00).
@@ -558,9 +564,11 @@ fn poster_scene_textures_are_recovered_as_reflectance() {
 /// or book texel spans about two photo pixels (its finest detail, a one-texel line, is the
 /// finest one photo resolves); a few minutes on two cores:
 ///   cargo test --profile ci --test tests texture::poster_scene_at_full_resolution -- --ignored --nocapture
-/// Measured: poster 37.3 dB, Σ|Δ|/Σ 1.77% per texel; 44.9 dB, 0.96% per 2×2 texels; books
-/// 32.1 dB, 3.3% per texel, 43.3 dB, 1.44% per 2×2; desk 50.7 dB, 0.71% (54.5 dB, 0.48%),
-/// varnish ρs 0.096–0.098, α 0.0797; cut from the photo: 20.6, 22.1 and 29.6 dB. Every group of
+/// Measured: poster 38.1 dB, Σ|Δ|/Σ 1.79% per texel; 48.3 dB, 0.67% per 2×2 texels; books
+/// 33.2 dB, 2.85% per texel, 45.6 dB, 1.05% per 2×2; desk 50.7 dB, 0.71% (54.5 dB, 0.48%),
+/// varnish ρs 0.096–0.098, α 0.0797; cut from the photo: 20.6, 22.1 and 29.6 dB (smoothing
+/// cross-validated: 0.003, 0.003, 0.03; with 0.03 for all, as before it was chosen per group,
+/// the poster and books were 0.96% and 1.44% per 2×2). Every group of
 /// the renders from the photo's view, a new one and under a moved lamp within 0.7% of the
 /// truth's mean and within the noise per texel-sized tile.
 ///
@@ -579,12 +587,12 @@ fn poster_scene_at_full_resolution() {
     let poster = f.texture("poster");
     assert!(poster.texel.psnr >= 35.0, "{poster:?}");
     assert!(
-        poster.nyquist.psnr >= 35.0 && poster.nyquist.rel_l1 < 0.01,
+        poster.nyquist.psnr >= 35.0 && poster.nyquist.rel_l1 < 0.008,
         "{poster:?}"
     );
     let books = f.texture("books");
     assert!(
-        books.nyquist.psnr >= 35.0 && books.nyquist.rel_l1 < 0.02,
+        books.nyquist.psnr >= 35.0 && books.nyquist.rel_l1 < 0.0125,
         "{books:?}"
     );
     let desk = f.texture("desk");

@@ -513,8 +513,7 @@ impl GroupState {
     ) -> (LevelFit, Option<TextureState>) {
         if self.level == Level::Textured {
             if let (Some(a), Some(t)) = (atlas, &self.texture) {
-                let start = Some(t.texels.as_slice());
-                if let Some(r) = fit_textured(cache, a, t.base, &self.params, start, variant) {
+                if let Some(r) = fit_textured(cache, a, t.base, &self.params, Some(t), variant) {
                     return (r.0, Some(r.1));
                 }
             }
@@ -546,6 +545,8 @@ impl GroupState {
                     *s |= *x;
                 }
                 t.base = new.base;
+                t.smoothing = new.smoothing;
+                t.smoothing_settled = new.smoothing_settled;
             }
             _ => self.texture = Some(new),
         }

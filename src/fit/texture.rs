@@ -42,13 +42,20 @@ use crate::scene::{Scene, WardVariant};
 /// little light the photo shows of it, and below this its value would be mostly noise.
 pub const SEEN_FRACTION: f32 = 0.1;
 
-/// Weight of the smoothness penalty relative to each texel's own data weight (`solve`): less
-/// leaves stripes where pixel and texel grids beat and lets the photo's noise through, more
-/// blurs edges. Chosen by the texture as it renders (per texel, the mean of its bilinear lookup
-/// over the texel's square) against the truth and by renders from new views, on the poster
-/// scene and the facing-mirrors room: the value that does well on both (the sweep is in
-/// 2c4ce38's message). The texel values alone, which the lookup blurs, would ask for more.
-pub const SMOOTHING: f32 = 0.03;
+/// The weights of the smoothness penalty (relative to each texel's own data weight, `solve`)
+/// among which each textured group's is chosen by cross-validation ([`choose_smoothing`]).
+/// Less leaves stripes where pixel and texel grids beat and lets the photo's noise through,
+/// more blurs edges, and which wins depends on how the texture's detail compares with the
+/// photo's pixels: on the poster scene at 480×360, where a texel of the truth spans two pixels,
+/// 0.01 beats 0.03 (the constant used before, chosen on a truth at one pixel a texel) by 0.3%
+/// per 2×2 texels on the poster and 0.4% on the books; on the facing-mirrors room at 512 spp
+/// 0.03 is best (sweeps in 2c4ce38's message and this list's commit).
+pub const SMOOTHING_CHOICES: [f32; 6] = [0.001, 0.003, 0.01, 0.03, 0.1, 0.3];
+
+/// The folds of [`choose_smoothing`]'s cross-validation: each fit leaves out one pixel in this
+/// many, which keeps the fits close to the whole cache's (every texel still seen by most of its
+/// pixels) while every pixel is predicted once.
+pub const FOLDS: usize = 4;
 
 /// ISRA iterations per global iteration (warm-started from the previous texture).
 pub const ITERATIONS: usize = 40;
@@ -67,6 +74,19 @@ pub struct TextureState {
     pub seen: Vec<bool>,
     /// Texels inside the charts (the rest are the gaps between them).
     pub charted: usize,
+    /// The smoothness weight the texture was solved with ([`choose_smoothing`]).
+    #[serde(default = "default_smoothing")]
+    pub smoothing: f32,
+    /// Whether that weight was chosen on a cache of the textured level (whose pixels draw
+    /// [`super::recovery::TEXTURED_SAMPLES`] times the samples) and is kept from then on; the
+    /// climb's is chosen on the uniform level's cache.
+    #[serde(default)]
+    pub smoothing_settled: bool,
+}
+
+/// What a checkpoint written before the smoothing was chosen per group was solved with.
+fn default_smoothing() -> f32 {
+    0.03
 }
 
 impl TextureState {
@@ -249,15 +269,17 @@ pub fn textured_model(
 }
 
 /// Fits level 7 on the cache: the `base` level's uniform lobe (none for diffuse), then the
-/// texture under it from `start` (the previous texture) or, on a climb, from the lobe fit's
-/// uniform ρd. The fit's ρd is the mean of the seen texels (what a report or an exporter that
-/// cannot take the texture shows). None if the cache has no texel rows.
+/// texture under it from the `previous` texture or, on a climb, from the lobe fit's uniform
+/// ρd. The smoothness weight is the previous one once settled, else chosen on this cache
+/// ([`choose_smoothing`]; settled when there was a previous texture). The fit's ρd is the mean
+/// of the seen texels (what a report or an exporter that cannot take the texture shows). None
+/// if the cache has no texel rows.
 pub fn fit_textured(
     cache: &GroupCache,
     atlas: &Atlas,
     base: Level,
     params: &GroupParams,
-    start: Option<&[Rgb]>,
+    previous: Option<&TextureState>,
     variant: WardVariant,
 ) -> Option<(LevelFit, TextureState)> {
     let rows = cache.texels.as_ref()?;
@@ -275,12 +297,27 @@ pub fn fit_textured(
         )
     };
     let (mut spec, mut spec_half) = specular(cache, base, &lobe, variant);
-    let (start, iterations) = match start {
-        Some(t) if t.len() == n => (t.to_vec(), ITERATIONS),
-        _ => (vec![lobe.rho_d; n], FIRST_ITERATIONS),
+    let uniform = vec![lobe.rho_d; n];
+    let previous = previous.filter(|t| t.texels.len() == n);
+    let (start, iterations) = match previous {
+        Some(t) => (t.texels.clone(), ITERATIONS),
+        None => (uniform.clone(), FIRST_ITERATIONS),
     };
     let charts = atlas.chart_rects();
-    let mut texels = solve(cache, rows, &spec, &start, iterations, &charts, atlas.width);
+    let smoothing = match previous {
+        Some(t) if t.smoothing_settled => t.smoothing,
+        _ => choose_smoothing(cache, rows, &spec, &uniform, &charts, atlas.width).0,
+    };
+    let mut texels = solve(
+        cache,
+        rows,
+        &spec,
+        &start,
+        iterations,
+        &charts,
+        atlas.width,
+        smoothing,
+    );
     if base.is_ward() {
         // One alternation: the lobe refitted on what the texture leaves (the photo minus the
         // texture's diffuse radiance: its ρd comes out near zero), then the texture under it.
@@ -306,7 +343,8 @@ pub fn fit_textured(
             }
             rest
         };
-        let (without, hot) = texture_without_highlight(cache, rows, &spec, &texels, atlas);
+        let (without, hot) =
+            texture_without_highlight(cache, rows, &spec, &texels, atlas, smoothing);
         let rest = residual(&without);
         let mut f = fit_level(&rest, base, &lobe, variant);
         let share = explained_share(&rest, &hot, base, &f.params, variant);
@@ -328,6 +366,7 @@ pub fn fit_textured(
             ITERATIONS,
             &charts,
             atlas.width,
+            smoothing,
         );
     }
     let seen = seen_texels(&column_weights(rows, n));
@@ -339,6 +378,8 @@ pub fn fit_textured(
         texels: Vec::new(),
         seen,
         charted: charts.iter().map(|r| r[2] * r[3]).sum(),
+        smoothing,
+        smoothing_settled: previous.is_some(),
     };
     state.texels = texels;
     let mean = state.mean();
@@ -392,6 +433,7 @@ fn texture_without_highlight(
     spec: &[Rgb],
     start: &[Rgb],
     atlas: &Atlas,
+    smoothing: f32,
 ) -> (Vec<Rgb>, Vec<bool>) {
     let sum = |c: Rgb| c.x + c.y + c.z;
     let mut without = TexelRows {
@@ -417,6 +459,7 @@ fn texture_without_highlight(
         ITERATIONS,
         &charts,
         atlas.width,
+        smoothing,
     );
     (texels, hot)
 }
@@ -493,7 +536,7 @@ fn seen_texels(weights: &[f32]) -> Vec<bool> {
 }
 
 /// Solves the texture on the cache by ISRA from `start`, with `spec[p]` (all samples) the
-/// specular radiance of each cached pixel, and a smoothness penalty of weight [`SMOOTHING`]
+/// specular radiance of each cached pixel, and a smoothness penalty of weight `smoothing`
 /// between texels that are neighbours in `chart` (a list of texel rectangles; none: no
 /// penalty).
 ///
@@ -501,7 +544,7 @@ fn seen_texels(weights: &[f32]) -> Vec<bool> {
 /// texel is invisible to a pixel that straddles two texels, so where the pixel grid runs half a
 /// texel off the texel grid the photo does not determine it, and unpenalised it grows freely
 /// (stripes beating with the two grids). Minimising |Aρ − y|² + Σ_t λ_t Σ_{n ~ t} (ρ_t − ρ_n)²
-/// with λ_t = SMOOTHING · max((AᵀA)_tt, the median texel's), the one-step-late multiplicative form
+/// with λ_t = smoothing · max((AᵀA)_tt, the median texel's), the one-step-late multiplicative form
 ///   ρ_t ← ρ_t (Aᵀy + λ_t Σ_n ρ_n)_t / (AᵀAρ + λ_t deg_t ρ_t)_t
 /// keeps ρ ≥ 0 and has the penalised normal equations as its fixed point.
 pub fn solve(
@@ -512,6 +555,7 @@ pub fn solve(
     iterations: usize,
     charts: &[[usize; 4]],
     width: usize,
+    smoothing: f32,
 ) -> Vec<Rgb> {
     let n = start.len();
     let mut rho: Vec<Rgb> = start
@@ -547,7 +591,7 @@ pub fn solve(
     let floor = seen_diag.get(seen_diag.len() / 2).copied().unwrap_or(0.0) / 3.0;
     let lambda: Vec<Rgb> = diag
         .iter()
-        .map(|d| d.max(Rgb::splat(floor)) * SMOOTHING)
+        .map(|d| d.max(Rgb::splat(floor)) * smoothing)
         .collect();
     // Neighbours within each chart (4-connected).
     let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); n];
@@ -599,6 +643,74 @@ pub fn solve(
         }
     }
     rho
+}
+
+/// The smoothness weight among [`SMOOTHING_CHOICES`] whose texture best predicts pixels it was
+/// not solved from: K-fold cross-validation over the cached pixels (Stone 1974; for the weight
+/// of a roughness penalty, Wahba & Wold 1975). The pixels are dealt into [`FOLDS`] folds by a
+/// hash of their index; for each weight and fold the texture is solved (by `solve`, from the
+/// uniform `start`) with that fold's rows emptied, and the fold's pixels are predicted; the
+/// weight with the least summed squared prediction error wins. A weight too small lets the
+/// texels a left-out pixel straddles alternate freely (nothing else pins the pattern the pixel
+/// would have seen) or follow the photo's noise; one too large blurs edges the remaining pixels
+/// do pin. Returns the weight and, per weight, the held-out error relative to the best.
+pub fn choose_smoothing(
+    cache: &GroupCache,
+    rows: &TexelRows,
+    spec: &[Rgb],
+    start: &[Rgb],
+    charts: &[[usize; 4]],
+    width: usize,
+) -> (f32, Vec<f32>) {
+    use rayon::prelude::*;
+    let fold = |p: usize| (crate::math::sampler::hash_seed(&[p as u64]) % FOLDS as u64) as usize;
+    let runs: Vec<(usize, usize)> = (0..SMOOTHING_CHOICES.len())
+        .flat_map(|c| (0..FOLDS).map(move |k| (c, k)))
+        .collect();
+    // Each (weight, fold) alone, in parallel; summed in their order (deterministic).
+    let errors: Vec<f64> = runs
+        .par_iter()
+        .map(|&(c, k)| {
+            let mut kept = TexelRows {
+                ranges: rows.ranges.clone(),
+                rows: rows.rows.clone(),
+            };
+            for (p, r) in kept.ranges.iter_mut().enumerate() {
+                if fold(p) == k {
+                    *r = [r[0]; 3];
+                }
+            }
+            let texels = solve(
+                cache,
+                &kept,
+                spec,
+                start,
+                FIRST_ITERATIONS,
+                charts,
+                width,
+                SMOOTHING_CHOICES[c],
+            );
+            (0..cache.pixels.len())
+                .filter(|&p| fold(p) == k)
+                .map(|p| {
+                    let [h0, h1] = model(rows, &texels, p);
+                    let d = h0 + h1 + spec[p] - cache.pixels[p].photo;
+                    (d.x * d.x + d.y * d.y + d.z * d.z) as f64
+                })
+                .sum()
+        })
+        .collect();
+    let per_weight: Vec<f64> = (0..SMOOTHING_CHOICES.len())
+        .map(|c| errors[c * FOLDS..(c + 1) * FOLDS].iter().sum())
+        .collect();
+    let best = (0..per_weight.len())
+        .min_by(|&a, &b| per_weight[a].total_cmp(&per_weight[b]))
+        .unwrap_or(0);
+    let relative = per_weight
+        .iter()
+        .map(|&e| (e / per_weight[best].max(1e-30)) as f32)
+        .collect();
+    (SMOOTHING_CHOICES[best], relative)
 }
 
 /// ε, the noise floor and the halves' ε of a texture (plus specular terms) on the cache.
@@ -777,24 +889,21 @@ mod tests {
     /// of each neighbour (a blur), under an irradiance that varies along the row: ISRA recovers a
     /// texture with sharp detail and dark texels exactly, which dividing the photo by the
     /// irradiance pixel by pixel does not (the blur).
-    #[test]
-    fn isra_divides_the_irradiance_out_and_undoes_the_blur() {
-        let n = 40;
-        let truth: Vec<Rgb> = (0..n)
-            .map(|i| match i % 7 {
-                0 | 1 => Rgb::new(0.9, 0.1, 0.05),
-                3 => Rgb::splat(0.03),
-                _ => Rgb::new(0.2, 0.5, 0.7),
-            })
-            .collect();
-        let irradiance = |p: usize| Rgb::new(1.0 + p as f32 / 20.0, 1.2, 0.8 - p as f32 / 100.0);
+    /// A 1-D "image" of one pixel per texel over `truth`, each pixel reading 0.6 of its own
+    /// texel and 0.2 of each neighbour (a blur) under `irradiance(p)`, its photo value scaled by
+    /// `1 + noise(p)`.
+    fn one_d(
+        truth: &[Rgb],
+        irradiance: impl Fn(usize) -> Rgb,
+        noise: impl Fn(usize) -> f32,
+    ) -> (GroupCache, TexelRows) {
+        let n = truth.len();
         let mut rows = TexelRows::default();
         let mut cache = GroupCache {
             tiles: 4,
             ..Default::default()
         };
         for p in 0..n {
-            let p: usize = p;
             let start = rows.rows.len() as u32;
             let mut photo = Rgb::ZERO;
             for (t, f) in [(p.wrapping_sub(1), 0.2f32), (p, 0.6), (p + 1, 0.2)] {
@@ -811,7 +920,7 @@ mod tests {
             rows.ranges.push([start, mid, rows.rows.len() as u32]);
             cache.pixels.push(CachePixel {
                 pixel: p as u32,
-                photo,
+                photo: photo * (1.0 + noise(p)),
                 d: Rgb::ZERO,
                 d_half: [Rgb::ZERO; 2],
                 mirror: Rgb::ZERO,
@@ -822,6 +931,29 @@ mod tests {
                 tile: (p * 4 / n) as u32,
             });
         }
+        (cache, rows)
+    }
+
+    /// The test texture: saturated red bands, dark single texels, blue between.
+    fn bands(n: usize) -> Vec<Rgb> {
+        (0..n)
+            .map(|i| match i % 7 {
+                0 | 1 => Rgb::new(0.9, 0.1, 0.05),
+                3 => Rgb::splat(0.03),
+                _ => Rgb::new(0.2, 0.5, 0.7),
+            })
+            .collect()
+    }
+
+    /// 40 pixels over 40 texels under an irradiance that varies along the row: ISRA recovers a
+    /// texture with sharp detail and dark texels exactly, which dividing the photo by the
+    /// irradiance pixel by pixel does not (the blur).
+    #[test]
+    fn isra_divides_the_irradiance_out_and_undoes_the_blur() {
+        let n = 40;
+        let truth = bands(n);
+        let irradiance = |p: usize| Rgb::new(1.0 + p as f32 / 20.0, 1.2, 0.8 - p as f32 / 100.0);
+        let (cache, rows) = one_d(&truth, irradiance, |_| 0.0);
         let zero = vec![Rgb::ZERO; n];
         let got = solve(
             &cache,
@@ -831,6 +963,7 @@ mod tests {
             2000,
             &[],
             n,
+            0.0,
         );
         let worst = got
             .iter()
@@ -844,6 +977,53 @@ mod tests {
         // several times too bright.
         let naive = (cache.pixels[3].photo / irradiance(3)).x;
         assert!(naive > 3.0 * truth[3].x, "{naive}");
+    }
+
+    /// Cross-validation asks for little smoothing where the pixels pin every texel (detail two
+    /// texels wide, a clean photo) and for much where they show only noise (a uniform texture
+    /// under a photo with up to ±10% noise per pixel), and the weight it picks recovers each
+    /// texture better than the other end of the range would.
+    #[test]
+    fn cross_validation_smooths_noise_and_keeps_detail() {
+        let n = 120;
+        let charts = [[0, 0, n, 1]];
+        let zero = vec![Rgb::ZERO; n];
+        let start = vec![Rgb::splat(0.4); n];
+        let rms = |got: &[Rgb], truth: &[Rgb]| {
+            let s: f32 = got
+                .iter()
+                .zip(truth)
+                .map(|(g, t)| (*g - *t).length_squared())
+                .sum();
+            (s / n as f32).sqrt()
+        };
+        let solved = |cache: &GroupCache, rows: &TexelRows, w: f32| {
+            solve(cache, rows, &zero, &start, FIRST_ITERATIONS, &charts, n, w)
+        };
+        let (lo, hi) = (
+            SMOOTHING_CHOICES[0],
+            SMOOTHING_CHOICES[SMOOTHING_CHOICES.len() - 1],
+        );
+
+        // Its bands two texels wide: detail the pixels resolve.
+        let sharp: Vec<Rgb> = (0..n).map(|i| bands(n)[i / 2]).collect();
+        let (cache, rows) = one_d(&sharp, |_| Rgb::ONE, |_| 0.0);
+        let (w, cv) = choose_smoothing(&cache, &rows, &zero, &start, &charts, n);
+        assert!(w <= 0.003, "sharp, clean: chose {w} ({cv:?})");
+        let e = rms(&solved(&cache, &rows, w), &sharp);
+        assert!(e < 0.5 * rms(&solved(&cache, &rows, hi), &sharp), "{e}");
+
+        let flat = vec![Rgb::new(0.5, 0.4, 0.3); n];
+        let noise = |p: usize| {
+            0.1 * (2.0 * (crate::math::sampler::hash_seed(&[p as u64, 7]) >> 40) as f32
+                / (1u64 << 24) as f32
+                - 1.0)
+        };
+        let (cache, rows) = one_d(&flat, |_| Rgb::ONE, noise);
+        let (w, cv) = choose_smoothing(&cache, &rows, &zero, &start, &charts, n);
+        assert!(w >= 0.1, "flat, noisy: chose {w} ({cv:?})");
+        let e = rms(&solved(&cache, &rows, w), &flat);
+        assert!(e < 0.5 * rms(&solved(&cache, &rows, lo), &flat), "{e}");
     }
 
     #[test]

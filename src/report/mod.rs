@@ -70,6 +70,9 @@ pub struct TextureResult {
     /// filled by pull–push from the seen texels of their chart.
     pub texels: usize,
     pub texels_seen: usize,
+    /// The smoothness penalty's weight the texture was solved with, chosen by cross-validation
+    /// on the photo's pixels (`fit::texture::choose_smoothing`).
+    pub smoothing: f32,
     /// The uniform lobe on top of the texture: "none", or the Ward level it came from.
     pub lobe: &'static str,
 }
@@ -243,6 +246,7 @@ fn texture_result(g: usize, s: &crate::fit::hierarchy::GroupState) -> Option<Tex
         texel_size: t.texel,
         texels: t.charted,
         texels_seen: t.seen_count(),
+        smoothing: t.smoothing,
         lobe: if t.base.is_ward() {
             t.base.name()
         } else {
