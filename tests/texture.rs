@@ -470,7 +470,7 @@ fn poster_scene(scale: f32, spp: u32) -> Figures {
 /// within 0.7% (cut from the photo: 19.9 dB, 19.8%, mean off by 11–20%); desk 44.8 dB, 1.3%,
 /// varnish ρs 0.089–0.096 (true 0.1), α 0.0809 (true 0.08); books 24.5 dB per texel (cut
 /// 21.7), 35.6 dB and 2.7% per 2×2 (cross-validated smoothing: poster 0.03, books 0.01, desk
-/// 0.1); renders of the recovered scene from the photo's viewpoint,
+/// 0.03); renders of the recovered scene from the photo's viewpoint,
 /// a new one and under a moved lamp within 0.8% per group; per texel-sized tile over seen
 /// texels, the error over a 64-spp render's noise: uniform groups and desk 0.00, poster
 /// 1.9–2.1, books 3.3–4.3 (at full resolution, where a texel spans two pixels, all 0.00).
