@@ -16,10 +16,10 @@ fn facing_mirrors_are_confirmed_and_the_book_textured() {
     // and (0.702, 0.701, 0.700); walls and floor within 0.004; the book 30.7 dB over 2681 seen
     // texels (cut from the photo: 23.5 dB; its own pixels alone, `--no-mirror-views`: 29.9),
     // the painting 31.0 dB (23.6; alone 30.1), each also fitted from its image in the left
-    // mirror (2008 and 858 pixels); their cross-validated smoothing 0.03 and 0.1 (with 0.03
-    // the painting was 30.4 dB; the "alone" figures were measured with 0.03). The left
-    // mirror's first fit as a mirror: ε 0.027 with the book, painting, walls and right mirror
-    // rendered, 0.016 read from the photo.
+    // mirror (2008 and 858 pixels); their cross-validated smoothing 0.03 and 0.1 (the
+    // "alone" figures were measured with 0.03 for both). The left mirror's first fit as a
+    // mirror: ε 0.027 with the book, painting, walls and right mirror rendered, 0.016 read
+    // from the photo.
     let scene = scaled("scenes/facing-mirrors/scene.toml", 1.0);
     let (rec, photo, log) = run_keeping_photo(&scene, 512, Default::default());
     let mut table = String::new();

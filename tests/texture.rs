@@ -473,7 +473,7 @@ fn poster_scene(scale: f32, spp: u32) -> Figures {
 /// 0.03); renders of the recovered scene from the photo's viewpoint,
 /// a new one and under a moved lamp within 0.8% per group; per texel-sized tile over seen
 /// texels, the error over a 64-spp render's noise: uniform groups and desk 0.00, poster
-/// 1.9–2.1, books 3.3–4.3 (at full resolution, where a texel spans two pixels, all 0.00).
+/// 1.9–2.1, books 2.6–3.9 (at full resolution, where a texel spans two pixels, all 0.00).
 #[test]
 fn poster_scene_textures_are_recovered_as_reflectance() {
     let f = poster_scene(0.5, 256);
@@ -567,8 +567,7 @@ fn poster_scene_textures_are_recovered_as_reflectance() {
 /// Measured: poster 38.1 dB, Σ|Δ|/Σ 1.79% per texel; 48.3 dB, 0.67% per 2×2 texels; books
 /// 33.2 dB, 2.85% per texel, 45.6 dB, 1.05% per 2×2; desk 50.7 dB, 0.71% (54.5 dB, 0.48%),
 /// varnish ρs 0.096–0.098, α 0.0797; cut from the photo: 20.6, 22.1 and 29.6 dB (smoothing
-/// cross-validated: 0.003, 0.003, 0.03; with 0.03 for all, as before it was chosen per group,
-/// the poster and books were 0.96% and 1.44% per 2×2). Every group of
+/// cross-validated: 0.003, 0.003, 0.03). Every group of
 /// the renders from the photo's view, a new one and under a moved lamp within 0.7% of the
 /// truth's mean and within the noise per texel-sized tile.
 ///

@@ -46,11 +46,9 @@ pub const SEEN_FRACTION: f32 = 0.1;
 /// among which each textured group's is chosen by cross-validation ([`choose_smoothing`]).
 /// Less leaves stripes where pixel and texel grids beat and lets the photo's noise through,
 /// more blurs edges, and which wins depends on how the texture's detail compares with the
-/// photo's pixels: on the poster scene at 480×360, where a texel of the truth spans two pixels,
-/// 0.01 beats 0.03 (the constant used before, chosen on a truth at one pixel a texel) by 0.3%
-/// per 2×2 texels on the poster and 0.4% on the books; on the facing-mirrors room at 512 spp
-/// the book does best at 0.03 and the painting at 0.1 (31.0 dB; 30.4 at 0.03, 28.9 at 0.01).
-/// Sweeps in 2c4ce38's message and in the message of the commit that made this list.
+/// photo's pixels, so no one weight suits every texture (the poster scene's full-size poster
+/// asks for 0.003, the facing-mirrors room's painting for 0.1). The sweeps are in 2c4ce38's
+/// message and in the message of the commit that made this list.
 pub const SMOOTHING_CHOICES: [f32; 6] = [0.001, 0.003, 0.01, 0.03, 0.1, 0.3];
 
 /// The folds of [`choose_smoothing`]'s cross-validation: each fit leaves out one pixel in this
@@ -886,10 +884,6 @@ mod tests {
     use super::*;
     use crate::fit::cache::CachePixel;
 
-    /// A 1-D "image" of 40 pixels over 40 texels, each pixel reading 0.6 of its own texel and 0.2
-    /// of each neighbour (a blur), under an irradiance that varies along the row: ISRA recovers a
-    /// texture with sharp detail and dark texels exactly, which dividing the photo by the
-    /// irradiance pixel by pixel does not (the blur).
     /// A 1-D "image" of one pixel per texel over `truth`, each pixel reading 0.6 of its own
     /// texel and 0.2 of each neighbour (a blur) under `irradiance(p)`, its photo value scaled by
     /// `1 + noise(p)`.
@@ -1007,7 +1001,7 @@ mod tests {
         );
 
         // Its bands two texels wide: detail the pixels resolve.
-        let sharp: Vec<Rgb> = (0..n).map(|i| bands(n)[i / 2]).collect();
+        let sharp: Vec<Rgb> = bands(n).iter().flat_map(|&b| [b, b]).take(n).collect();
         let (cache, rows) = one_d(&sharp, |_| Rgb::ONE, |_| 0.0);
         let (w, cv) = choose_smoothing(&cache, &rows, &zero, &start, &charts, n);
         assert!(w <= 0.003, "sharp, clean: chose {w} ({cv:?})");
