@@ -105,6 +105,26 @@ pub struct CachePixel {
     pub tile: u32,
 }
 
+impl CachePixel {
+    /// Pixel `pixel` with photo value `photo` and nothing cached (for tests that fill in what
+    /// they need).
+    #[cfg(test)]
+    pub(crate) fn bare(pixel: u32, photo: Rgb) -> CachePixel {
+        CachePixel {
+            pixel,
+            photo,
+            d: Rgb::ZERO,
+            d_half: [Rgb::ZERO; 2],
+            mirror: Rgb::ZERO,
+            mirror_half: [Rgb::ZERO; 2],
+            start: 0,
+            mid: 0,
+            end: 0,
+            tile: 0,
+        }
+    }
+}
+
 /// The cache of one group.
 #[derive(Clone, Debug, Default)]
 pub struct GroupCache {
@@ -191,6 +211,77 @@ pub struct TexelRows {
     /// (texel, weight per channel), raw sums over the half's samples (D = both halves' sum;
     /// a half alone estimates D as twice its sum, as `CachePixel::d_half`).
     pub rows: Vec<(u32, Rgb)>,
+    /// Per cached pixel and half, the factor that takes its rows to its neighbourhood's
+    /// irradiance (`irradiance.rs`; empty: none). The texture is solved on the rows so
+    /// scaled; the error that decides levels reads the rows as sampled, whose noise is that
+    /// of every other level's model.
+    pub scale: Vec<[Rgb; 2]>,
+}
+
+impl TexelRows {
+    /// The rows with each pixel's halves multiplied by their `scale` (a copy as they are
+    /// where there is none).
+    pub fn smoothed(&self) -> TexelRows {
+        let mut out = TexelRows {
+            ranges: self.ranges.clone(),
+            rows: self.rows.clone(),
+            scale: Vec::new(),
+        };
+        for (r, s) in self.ranges.iter().zip(&self.scale) {
+            for h in 0..2 {
+                for row in &mut out.rows[r[h] as usize..r[h + 1] as usize] {
+                    row.1 *= s[h];
+                }
+            }
+        }
+        out
+    }
+}
+
+/// The cached pixels of one image as a grid: a cache's pixels are every `stride`-th usable
+/// pixel of the image, and a pixel's neighbours are those `stride` pixels away.
+pub struct PixelGrid {
+    at: std::collections::HashMap<u32, usize>,
+    pixel: Vec<u32>,
+    width: i64,
+    /// Image pixels between neighbouring cached pixels.
+    pub stride: i64,
+}
+
+impl PixelGrid {
+    /// The grid of `pixels` (all of one image `width` pixels wide).
+    pub fn new(pixels: &[CachePixel], width: usize) -> PixelGrid {
+        let stride = pixels
+            .windows(2)
+            .filter(|w| w[1].pixel / width as u32 == w[0].pixel / width as u32)
+            .map(|w| (w[1].pixel - w[0].pixel) as i64)
+            .min()
+            .unwrap_or(1)
+            .max(1);
+        PixelGrid {
+            at: pixels
+                .iter()
+                .enumerate()
+                .map(|(k, p)| (p.pixel, k))
+                .collect(),
+            pixel: pixels.iter().map(|p| p.pixel).collect(),
+            width: width.max(1) as i64,
+            stride,
+        }
+    }
+
+    /// The cached pixel `dx`, `dy` grid steps from cached pixel `k`, if there is one.
+    pub fn neighbour(&self, k: usize, dx: i64, dy: i64) -> Option<usize> {
+        let p = self.pixel[k] as i64;
+        let (x, y) = (
+            p % self.width + dx * self.stride,
+            p / self.width + dy * self.stride,
+        );
+        if x < 0 || y < 0 || x >= self.width {
+            return None;
+        }
+        self.at.get(&((y * self.width + x) as u32)).copied()
+    }
 }
 
 impl GroupCache {
@@ -235,6 +326,12 @@ impl GroupCache {
         self.stray += other.stray;
         self.texels = match (self.texels.take(), other.texels) {
             (Some(mut a), Some(b)) => {
+                let (na, nb) = (a.ranges.len(), b.ranges.len());
+                if !(a.scale.is_empty() && b.scale.is_empty()) {
+                    a.scale.resize(na, [Rgb::ONE; 2]);
+                    a.scale.extend(b.scale);
+                    a.scale.resize(na + nb, [Rgb::ONE; 2]);
+                }
                 a.ranges
                     .extend(b.ranges.iter().map(|r| r.map(|i| i + rows)));
                 a.rows.extend(b.rows);
@@ -306,6 +403,11 @@ pub struct CacheNeeds {
     pub mirror_fitted: bool,
     /// The texel rows of D (a textured group, or one that may climb to the textured level).
     pub texels: bool,
+    /// The rows' smoothing factors (`TexelRows::scale`): a group at the textured level. A
+    /// climb's cache has none: there the varnish is weighed against the bare texture, and a
+    /// bare texture solved on smoothed rows fits a highlight so much better than the varnish
+    /// under a climb cache's noisy lobe refit that the varnish would always lose.
+    pub smoothed_irradiance: bool,
 }
 
 impl CacheNeeds {
@@ -471,6 +573,8 @@ pub fn build(
             // Σ cos θ / (pdf n) over the indirect rays that leave the scene at once (× 1/π:
             // the open share of the cosine-weighted hemisphere).
             let mut open = 0.0f32;
+            // Primary hits per half that read the atlas (the share of the pixel on the group).
+            let mut tapped = [0u32; 2];
             for (half, k) in (0..2usize).flat_map(|h| (0..hl + hi).map(move |k| (h, k))) {
                 let mut sampler = Sampler::new(seed ^ (0x9E37_79B9 * (half as u64 + 1)), p as u64);
                 sampler.start_sample(k);
@@ -481,6 +585,7 @@ pub fn build(
                 };
                 let wo_world = -ray.d;
                 let taps = atlas.and_then(|a| a.taps(hit.object, hit.p, hit.ng));
+                tapped[half] += taps.is_some() as u32;
                 let (frame, ng) = facing(hit.frame, hit.ng, wo_world);
                 let wo = frame.to_local(wo_world);
                 let mix = super::mixture::Mixture::at(cw, &images, hit.p, frame);
@@ -723,7 +828,10 @@ pub fn build(
                 px,
                 samples,
                 stray,
-                rows.map(merge_rows),
+                (
+                    rows.map(merge_rows),
+                    tapped.map(|t| t as f32 / (hl + hi) as f32),
+                ),
                 (shares.collect(), dcs, probed, dmirror),
                 (light_from, light_total, open * INV_PI),
                 read,
@@ -745,6 +853,7 @@ pub fn build(
     cache.light_from = vec![0.0; scene.groups.len()];
     let mut read_mirror = pseudo.map(|_| PseudoMirror::default());
     let mut read_samples = 0u64;
+    let mut coverage: Vec<[f32; 2]> = Vec::new();
     let mirror_samples = if needs.mirror {
         2 * needs.mirror_samples_per_half(opts) as u64
     } else {
@@ -754,7 +863,7 @@ pub fn build(
         mut px,
         [s0, s1],
         stray,
-        [r0, r1],
+        ([r0, r1], covered),
         (shares, [t0, t1], probed, dm),
         (from, total, open),
         (rh, rn, rg),
@@ -794,6 +903,7 @@ pub fn build(
             let b = t.rows.len() as u32;
             t.rows.extend(r1);
             t.ranges.push([a, b, t.rows.len() as u32]);
+            coverage.push(covered);
         }
         px.start = samples.len() as u32;
         samples.extend(s0);
@@ -805,6 +915,9 @@ pub fn build(
     }
     cache.samples = samples.into();
     cache.open /= cache.pixels.len().max(1) as f32;
+    if let Some(t) = cache.texels.as_mut().filter(|_| needs.smoothed_irradiance) {
+        t.scale = super::irradiance::smoothing_scale(t, &cache.pixels, &coverage, w);
+    }
     if let Some(mut r) = read_mirror {
         r.groups.sort_unstable();
         r.share = read_samples as f32 / (mirror_samples * cache.pixels.len() as u64).max(1) as f32;
@@ -826,7 +939,7 @@ type BuiltPixel = (
     CachePixel,
     [Vec<Sample>; 2],
     usize,
-    [Vec<(u32, Rgb)>; 2],
+    ([Vec<(u32, Rgb)>; 2], [f32; 2]),
     (Vec<[Rgb; 2]>, [Vec<Rgb>; 2], bool, Vec<[Rgb; 2]>),
     (Vec<f32>, f32, f32),
     ([Rgb; 2], u32, Vec<u32>),

@@ -475,6 +475,7 @@ impl GroupState {
             mirror: may_climb || level.is_mirror(),
             mirror_fitted: level.is_mirror(),
             texels: may_climb || textured,
+            smoothed_irradiance: textured,
         }
     }
 

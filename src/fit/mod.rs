@@ -6,6 +6,7 @@ pub mod checkpoint;
 pub mod error;
 pub mod fitter;
 pub mod hierarchy;
+pub mod irradiance;
 pub mod level;
 pub mod mirror_images;
 pub mod mixture;

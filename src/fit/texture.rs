@@ -27,7 +27,7 @@
 //! mean of its object's seen texels away from them; a chart seen nowhere gets that mean (or the
 //! group's).
 
-use super::cache::{GroupCache, TexelRows};
+use super::cache::{GroupCache, PixelGrid, TexelRows};
 use super::error::{tiled_error, ErrorStats, PixelTerms};
 use super::fitter::{fit_level, spec_of, LevelFit};
 use super::level::Level;
@@ -154,39 +154,17 @@ pub fn footprint(scene: &Scene, pixels: &[usize]) -> Option<f32> {
 /// span neighbouring pixels, remain. The error metric cannot see this: its tiles average fine
 /// detail away. Neighbours are those of the cache's pixel grid (every `stride`-th pixel).
 pub fn coherent_detail(cache: &GroupCache, model: &[Rgb], width: usize) -> f32 {
-    use std::collections::HashMap;
     // Neighbours are those of one image: a cache of several photos is judged on its first.
     let n = cache.first_view().len();
     if n < 16 {
         return 0.0;
     }
-    let at: HashMap<u32, usize> = cache
-        .first_view()
-        .iter()
-        .enumerate()
-        .map(|(k, p)| (p.pixel, k))
-        .collect();
-    let stride = cache
-        .first_view()
-        .windows(2)
-        .filter(|w| w[1].pixel / width as u32 == w[0].pixel / width as u32)
-        .map(|w| (w[1].pixel - w[0].pixel) as usize)
-        .min()
-        .unwrap_or(1)
-        .max(1);
+    let grid = PixelGrid::new(cache.first_view(), width);
     let lum = |c: Rgb| (c.x + c.y + c.z) / 3.0;
     let e: Vec<f32> = (0..n)
         .map(|k| lum(cache.pixels[k].photo - model[k]))
         .collect();
-    let neighbour = |k: usize, dx: i64, dy: i64| -> Option<usize> {
-        let p = cache.pixels[k].pixel as i64;
-        let (x, y) = (p % width as i64, p / width as i64);
-        let (nx, ny) = (x + dx * stride as i64, y + dy * stride as i64);
-        if nx < 0 || ny < 0 || nx >= width as i64 {
-            return None;
-        }
-        at.get(&((ny * width as i64 + nx) as u32)).copied()
-    };
+    let neighbour = |k: usize, dx: i64, dy: i64| grid.neighbour(k, dx, dy);
     let h: Vec<f32> = (0..n)
         .map(|k| {
             let (mut sum, mut m) = (0.0f32, 0usize);
@@ -281,7 +259,15 @@ pub fn fit_textured(
     previous: Option<&TextureState>,
     variant: WardVariant,
 ) -> Option<(LevelFit, TextureState)> {
-    let rows = cache.texels.as_ref()?;
+    // Solved on the smoothed rows, judged on the rows as sampled (`TexelRows::scale`).
+    let sampled = cache.texels.as_ref()?;
+    let smoothed;
+    let rows = if sampled.scale.is_empty() {
+        sampled
+    } else {
+        smoothed = sampled.smoothed();
+        &smoothed
+    };
     let n = atlas.width * atlas.height;
     let (mut lobe, mut evals) = if base.is_ward() {
         let f = fit_level(cache, base, params, variant);
@@ -383,7 +369,7 @@ pub fn fit_textured(
     state.texels = texels;
     let mean = state.mean();
     fill_unseen(atlas, &mut state.texels, &state.seen, mean);
-    let st = error(cache, rows, &state.texels, &spec, &spec_half);
+    let st = error(cache, sampled, &state.texels, &spec, &spec_half);
     let fit = LevelFit {
         level: Level::Textured,
         params: GroupParams {
@@ -438,6 +424,7 @@ fn texture_without_highlight(
     let mut without = TexelRows {
         ranges: rows.ranges.clone(),
         rows: rows.rows.clone(),
+        scale: Vec::new(),
     };
     let hot: Vec<bool> = cache
         .pixels
@@ -673,6 +660,7 @@ pub fn choose_smoothing(
             let mut kept = TexelRows {
                 ranges: rows.ranges.clone(),
                 rows: rows.rows.clone(),
+                scale: Vec::new(),
             };
             for (p, r) in kept.ranges.iter_mut().enumerate() {
                 if fold(p) == k {
@@ -914,16 +902,8 @@ mod tests {
             rows.rows.extend(copy);
             rows.ranges.push([start, mid, rows.rows.len() as u32]);
             cache.pixels.push(CachePixel {
-                pixel: p as u32,
-                photo: photo * (1.0 + noise(p)),
-                d: Rgb::ZERO,
-                d_half: [Rgb::ZERO; 2],
-                mirror: Rgb::ZERO,
-                mirror_half: [Rgb::ZERO; 2],
-                start: 0,
-                mid: 0,
-                end: 0,
                 tile: (p * 4 / n) as u32,
+                ..CachePixel::bare(p as u32, photo * (1.0 + noise(p)))
             });
         }
         (cache, rows)

@@ -109,18 +109,7 @@ mod tests {
     use crate::fit::cache::CachePixel;
 
     fn pixel(photo: f32) -> CachePixel {
-        CachePixel {
-            pixel: 0,
-            photo: Rgb::splat(photo),
-            d: Rgb::ZERO,
-            d_half: [Rgb::ZERO; 2],
-            mirror: Rgb::ZERO,
-            mirror_half: [Rgb::ZERO; 2],
-            start: 0,
-            mid: 0,
-            end: 0,
-            tile: 0,
-        }
+        CachePixel::bare(0, Rgb::splat(photo))
     }
 
     /// Three photos whose true exposures are 1.1, 0.9 and 1.0 (relative), of a surface the model
