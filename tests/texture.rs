@@ -7,6 +7,7 @@
 //! the one factor that best fits the truth) shows what dividing the light out buys.
 
 use crate::recover::{run_keeping_photo, scaled, state};
+use matfit::fit::hierarchy::Event;
 use matfit::fit::Level;
 use matfit::io::image::Image;
 use matfit::math::{Rgb, Vec2, Vec3};
@@ -385,7 +386,7 @@ impl Figures {
 fn poster_scene(scale: f32, spp: u32) -> Figures {
     let path = "scenes/poster/scene.toml";
     let scene = scaled(path, scale);
-    let (rec, photo, _) = run_keeping_photo(&scene, spp, Default::default());
+    let (rec, photo, events) = run_keeping_photo(&scene, spp, Default::default());
     for name in [
         "poster",
         "books",
@@ -412,9 +413,28 @@ fn poster_scene(scale: f32, spp: u32) -> Figures {
         .map(|name| {
             let s = scores(&scene, &photo, &rec, name);
             let smoothing = state(&rec, name).texture.as_ref().unwrap().smoothing;
+            // The log says how the weight was chosen: the last choice is the weight kept, with
+            // the least held-out error.
+            let chosen = events.iter().rev().find_map(|(g, e)| match e {
+                Event::Smoothing {
+                    weight,
+                    choices,
+                    held_out,
+                } if g == name => Some((*weight, choices.clone(), held_out.clone())),
+                _ => None,
+            });
+            let (weight, choices, held_out) = chosen.expect("a smoothing event");
+            assert_eq!(weight, smoothing, "{name}");
+            let k = choices.iter().position(|&c| c == weight).expect("a choice");
+            assert!(
+                held_out.len() == choices.len() && held_out[k] == 1.0,
+                "{held_out:?}"
+            );
+            assert!(held_out.iter().all(|&e| e >= 1.0), "{name}: {held_out:?}");
             eprintln!(
                 "{name:<7} recovered {:?}\n{name:<7} 2×2       {:?}\n{name:<7} cut       {:?}\n\
-                 {name:<7} smoothing {smoothing} (cross-validated)",
+                 {name:<7} smoothing {smoothing} (cross-validated; held-out error per weight \
+                 {choices:?}: {held_out:?})",
                 s.texel, s.nyquist, s.cut
             );
             (name, s)

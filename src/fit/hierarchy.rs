@@ -242,6 +242,14 @@ pub enum Event {
         level: Level,
         error: f32,
     },
+    /// The textured group's smoothness weight was chosen by cross-validation
+    /// (`texture::choose_smoothing`): the weight, and per weight tried its held-out error
+    /// relative to the chosen one's.
+    Smoothing {
+        weight: f32,
+        choices: Vec<f32>,
+        held_out: Vec<f32>,
+    },
     /// A textured group re-asked Algorithm 1's gate ([`GroupState::untexture`]) keeps its
     /// texture: its best uniform level, with that level's ε, noise floor and coherent detail.
     TextureKept {
@@ -355,6 +363,15 @@ fn texture_gate(
     let gross = best.error - best.noise_floor >= opts.thresholds.texture_error;
     let detail = uniform_detail(cache, best.level, &best.params, variant);
     (gross || detail >= opts.thresholds.texture_detail, detail)
+}
+
+/// The [`Event::Smoothing`] of a texture whose fit chose its smoothness weight.
+fn smoothing_event(t: &TextureState) -> Option<Event> {
+    (!t.held_out.is_empty()).then(|| Event::Smoothing {
+        weight: t.smoothing,
+        choices: super::texture::SMOOTHING_CHOICES.to_vec(),
+        held_out: t.held_out.clone(),
+    })
 }
 
 impl GroupState {
@@ -828,6 +845,7 @@ impl GroupState {
             self.last_step = None;
         }
         if let Some(new) = texture {
+            events.extend(smoothing_event(&new));
             self.take_texture(new);
         }
         self.iterations_at_level += 1;
@@ -996,6 +1014,9 @@ impl GroupState {
             });
             self.level = best.level;
             self.take(&best);
+            if let Some(t) = &texture {
+                events.extend(smoothing_event(t));
+            }
             self.texture = texture;
             self.iterations_at_level = 0;
             self.moves.clear();

@@ -81,6 +81,10 @@ pub struct TextureState {
     /// climb's is chosen on the uniform level's cache.
     #[serde(default)]
     pub smoothing_settled: bool,
+    /// When this fit chose the weight: per weight of [`SMOOTHING_CHOICES`], its held-out error
+    /// relative to the chosen one's (empty when the weight was kept from before).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub held_out: Vec<f32>,
 }
 
 /// What a checkpoint written before the smoothing was chosen per group was solved with.
@@ -289,9 +293,9 @@ pub fn fit_textured(
         None => (uniform.clone(), FIRST_ITERATIONS),
     };
     let charts = atlas.chart_rects();
-    let smoothing = match previous {
-        Some(t) if t.smoothing_settled => t.smoothing,
-        _ => choose_smoothing(cache, rows, &spec, &uniform, &charts, atlas.width).0,
+    let (smoothing, held_out) = match previous {
+        Some(t) if t.smoothing_settled => (t.smoothing, Vec::new()),
+        _ => choose_smoothing(cache, rows, &spec, &uniform, &charts, atlas.width),
     };
     let mut texels = solve(
         cache,
@@ -365,6 +369,7 @@ pub fn fit_textured(
         charted: charts.iter().map(|r| r[2] * r[3]).sum(),
         smoothing,
         smoothing_settled: previous.is_some(),
+        held_out,
     };
     state.texels = texels;
     let mean = state.mean();
