@@ -585,7 +585,7 @@ fn poster_scene_textures_are_recovered_as_reflectance() {
 /// finest one photo resolves); a few minutes on two cores:
 ///   cargo test --profile ci --test tests texture::poster_scene_at_full_resolution -- --ignored --nocapture
 /// Measured: poster 38.8 dB, Σ|Δ|/Σ 1.51% per texel; 49.6 dB, 0.55% per 2×2 texels; books
-/// 33.4 dB, 2.69% per texel, 46.1 dB, 0.97% per 2×2; desk 51.5 dB, 0.60% (54.7 dB, 0.45%),
+/// 33.2 dB, 2.70% per texel, 46.1 dB, 0.97% per 2×2; desk 51.5 dB, 0.60% (54.7 dB, 0.45%),
 /// varnish ρs 0.095–0.097, α 0.0795; cut from the photo: 20.6, 22.1 and 29.6 dB (smoothing
 /// cross-validated: 0.003, 0.003, 0.03). Every group of
 /// the renders from the photo's view, a new one and under a moved lamp within 0.7% of the

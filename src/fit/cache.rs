@@ -405,8 +405,8 @@ pub struct CacheNeeds {
     pub texels: bool,
     /// The rows' smoothing factors (`TexelRows::scale`): a group at the textured level. A
     /// climb's cache has none: there the varnish is weighed against the bare texture, and a
-    /// bare texture solved on smoothed rows fits a highlight so much better than the varnish
-    /// under a climb cache's noisy lobe refit that the varnish would always lose.
+    /// bare texture solved on smoothed rows fitted a highlight so much better than the varnish
+    /// under a climb cache's noisy lobe refit that the poster scene's desk lost its varnish.
     pub smoothed_irradiance: bool,
 }
 

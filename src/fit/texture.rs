@@ -358,7 +358,7 @@ pub fn fit_textured(
             smoothing,
         );
     }
-    let seen = seen_texels(&column_weights(rows, n));
+    let seen = seen_texels(&column_weights(sampled, n));
     let mut state = TextureState {
         base,
         width: atlas.width,
