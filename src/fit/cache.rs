@@ -245,7 +245,7 @@ pub struct PixelGrid {
     pixel: Vec<u32>,
     width: i64,
     /// Image pixels between neighbouring cached pixels.
-    pub stride: i64,
+    stride: i64,
 }
 
 impl PixelGrid {

@@ -426,11 +426,7 @@ fn texture_without_highlight(
     smoothing: f32,
 ) -> (Vec<Rgb>, Vec<bool>) {
     let sum = |c: Rgb| c.x + c.y + c.z;
-    let mut without = TexelRows {
-        ranges: rows.ranges.clone(),
-        rows: rows.rows.clone(),
-        scale: Vec::new(),
-    };
+    let mut without = rows.clone();
     let hot: Vec<bool> = cache
         .pixels
         .iter()
@@ -662,11 +658,7 @@ pub fn choose_smoothing(
     let errors: Vec<f64> = runs
         .par_iter()
         .map(|&(c, k)| {
-            let mut kept = TexelRows {
-                ranges: rows.ranges.clone(),
-                rows: rows.rows.clone(),
-                scale: Vec::new(),
-            };
+            let mut kept = rows.clone();
             for (p, r) in kept.ranges.iter_mut().enumerate() {
                 if fold(p) == k {
                     *r = [r[0]; 3];
