@@ -84,29 +84,117 @@ fn linearise<const N: usize>(
         jtj: [[0.0; N]; N],
         jtr: [0.0; N],
     };
+    // Per channel, the Gram matrix of the mean columns [D, S, ∂S/∂x] (for JᵀJ, below).
+    let mut gram = [Gram::<N>::default(); 3];
     for (p, s) in cache.pixels.iter().zip(specs) {
         let j0 = chain(&s.ds_half[0]);
         let j1 = chain(&s.ds_half[1]);
-        for c in 0..3 {
+        for (c, gram) in gram.iter_mut().enumerate() {
             let (rdc, rsc) = (rd[c] as f64, rs[c] as f64);
             let d_half = s.diffuse(p).1;
             let (d0, d1) = (d_half[0][c] as f64, d_half[1][c] as f64);
             let (s0, s1) = (s.s_half[0][c] as f64, s.s_half[1][c] as f64);
             let ph = p.photo[c] as f64;
+            let g: [f64; N] = std::array::from_fn(|a| 0.5 * (j0[a][c] + j1[a][c]) as f64);
+            gram.add(0.5 * (d0 + d1), 0.5 * (s0 + s1), &g);
             for a in 0..N {
                 let (g0, g1) = (j0[a][c] as f64, j1[a][c] as f64);
                 // ½ ∂cost/∂x_a for cost = pp − 2(ρd dp + ρs sp) + ρd² dd + 2ρdρs ds + ρs² ss.
                 lin.jtr[a] += -rsc * 0.5 * (g0 + g1) * ph
                     + rdc * rsc * 0.5 * (d0 * g1 + d1 * g0)
                     + rsc * rsc * 0.5 * (g0 * s1 + s0 * g1);
-                for b in 0..N {
-                    let (h0, h1) = (j0[b][c] as f64, j1[b][c] as f64);
-                    lin.jtj[a][b] += rsc * rsc * 0.25 * (g0 + g1) * (h0 + h1);
-                }
+            }
+        }
+    }
+    for (c, gram) in gram.iter().enumerate() {
+        let (rdc, rsc) = (rd[c] as f64, rs[c] as f64);
+        let m = gram.projected(free != Free::Specular && rdc > 0.0, rsc > 0.0);
+        for a in 0..N {
+            for b in 0..N {
+                lin.jtj[a][b] += rsc * rsc * m[a][b];
             }
         }
     }
     lin
+}
+
+/// Sums of products of one channel's mean columns over the pixels: the diffuse sum D, the
+/// lobe's S and its derivatives ∂S/∂x_a.
+#[derive(Clone, Copy, Debug)]
+struct Gram<const N: usize> {
+    dd: f64,
+    ds: f64,
+    ss: f64,
+    dg: [f64; N],
+    sg: [f64; N],
+    gg: [[f64; N]; N],
+}
+
+impl<const N: usize> Default for Gram<N> {
+    fn default() -> Self {
+        Gram {
+            dd: 0.0,
+            ds: 0.0,
+            ss: 0.0,
+            dg: [0.0; N],
+            sg: [0.0; N],
+            gg: [[0.0; N]; N],
+        }
+    }
+}
+
+impl<const N: usize> Gram<N> {
+    #[inline]
+    fn add(&mut self, d: f64, s: f64, g: &[f64; N]) {
+        self.dd += d * d;
+        self.ds += d * s;
+        self.ss += s * s;
+        for a in 0..N {
+            self.dg[a] += d * g[a];
+            self.sg[a] += s * g[a];
+            for b in 0..N {
+                self.gg[a][b] += g[a] * g[b];
+            }
+        }
+    }
+
+    /// Σ ∂S/∂x_a ∂S/∂x_b with the columns' parts along D (when ρd is free) and S (when ρs is)
+    /// projected out: the Gauss–Newton curvature of the cost with ρ re-solved at every x
+    /// (Golub & Pereyra's variable projection; Kaufman 1975 keeps exactly this part). Without
+    /// the projection a change of α that only rescales the lobe, which ρs takes back, counts
+    /// as curvature: the steps came out about 40% of Newton's and LM crept to its optimum.
+    fn projected(&self, diffuse: bool, specular: bool) -> [[f64; N]; N] {
+        let mut m = self.gg;
+        // m − B G⁻¹ Bᵀ, with G the free columns' Gram matrix and B their products with the
+        // derivatives; where D and S are nearly parallel (G singular), S's part alone.
+        let det = self.dd * self.ss - self.ds * self.ds;
+        if diffuse && specular && det > 1e-9 * self.dd * self.ss {
+            // G⁻¹ = [[ss, −ds], [−ds, dd]] / det.
+            let (bd, bs) = (&self.dg, &self.sg);
+            for a in 0..N {
+                for k in 0..N {
+                    m[a][k] -= (self.ss * bd[a] * bd[k] + self.dd * bs[a] * bs[k]
+                        - self.ds * (bd[a] * bs[k] + bs[a] * bd[k]))
+                        / det;
+                }
+            }
+        } else if let Some((g, b)) = [(specular, self.ss, &self.sg), (diffuse, self.dd, &self.dg)]
+            .into_iter()
+            .find(|c| c.0 && c.1 > 0.0)
+            .map(|c| (c.1, c.2))
+        {
+            for a in 0..N {
+                for k in 0..N {
+                    m[a][k] -= b[a] * b[k] / g;
+                }
+            }
+        }
+        // Rounding can leave a nearly flat direction slightly negative.
+        for a in 0..N {
+            m[a][a] = m[a][a].max(1e-6 * self.gg[a][a]);
+        }
+        m
+    }
 }
 
 fn finish(

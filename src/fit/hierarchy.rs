@@ -1169,11 +1169,10 @@ mod tests {
 
     /// Anisotropic Ward contains isotropic Ward: an anisotropic fit that ended above the
     /// isotropic one is a failed search (here a lobe far too bright and turned), which the demotion
-    /// check must not take for the photo's verdict. On this cache the pixel-wise search is
-    /// itself led astray (its isotropic fit narrows to α ≈ 0.03 on the sky's few bright
-    /// samples, and the anisotropic search from there ends above it): the group's previous
-    /// answer, where it explains the cache, or else the search on the error's tiles finds the
-    /// lobe (αy/αx = 3, θ = 0). A fit no worse than the simpler one is left alone.
+    /// check must not take for the photo's verdict. The restart from the isotropic fit, the
+    /// group's previous answer where it explains the cache, or else the search on the error's
+    /// tiles finds the lobe (αy/αx = 3, θ = 0). A fit no worse than the simpler one is left
+    /// alone.
     #[test]
     fn a_fit_worse_than_a_level_it_contains_is_restarted() {
         let v = WardVariant::Ward1992;
@@ -1213,7 +1212,7 @@ mod tests {
         let event = restart_from_nested(&c, &mut fit, nested, &truth, v);
         let Some(Event::Restarted {
             from: Level::Isotropic,
-            previous_kept: true,
+            previous_kept,
             ..
         }) = event
         else {
@@ -1222,7 +1221,14 @@ mod tests {
         assert_eq!(fit.level, Level::Anisotropic);
         let at_truth = assess(&c, Level::Anisotropic, &truth, v, 0).error;
         assert!(at_truth < 0.5 * iso.error, "{at_truth} vs {}", iso.error);
-        assert_eq!(fit.error, at_truth);
+        // The previous answer is kept unless the restarted search fits better still.
+        assert!(fit.error <= at_truth, "{} vs {at_truth}", fit.error);
+        assert_eq!(previous_kept, fit.error == at_truth);
+        let aligned = |p: GroupParams| {
+            let turn = p.theta.rem_euclid(std::f32::consts::PI);
+            turn.min(std::f32::consts::PI - turn) < 0.1 && p.alpha_y > 1.5 * p.alpha_x
+        };
+        assert!(aligned(fit.params), "{:?}", fit.params);
 
         let mut refit = failed.clone();
         let event = restart_from_nested(&c, &mut refit, nested, &turned, v);
@@ -1243,10 +1249,7 @@ mod tests {
             refit.error,
             iso.error
         );
-        let p = refit.params;
-        let turn = p.theta.rem_euclid(std::f32::consts::PI);
-        let aligned = turn.min(std::f32::consts::PI - turn) < 0.1;
-        assert!(aligned && p.alpha_y > 1.5 * p.alpha_x, "{p:?}");
+        assert!(aligned(refit.params), "{:?}", refit.params);
 
         let mut good = fit.clone();
         assert_eq!(restart_from_nested(&c, &mut good, nested, &turned, v), None);
@@ -1404,7 +1407,7 @@ mod tests {
                     .iter()
                     .map(|&(wo, wi, c)| c * ward(wo, wi, 0.2))
                     .fold(Rgb::ZERO, |a, b| a + b);
-                0.5 * diffuse(s) + 0.3 * lobe
+                0.5 * diffuse(s) + 0.4 * lobe
             })
         };
         // Few samples: the Ward level's ε stays above its threshold on the noise.

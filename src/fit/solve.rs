@@ -158,6 +158,12 @@ fn solve_dense<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<
     Some(x)
 }
 
+/// The step below which [`levenberg_marquardt`] stops. Its parameters are roughnesses' logarithms
+/// and angles in radians, so this is 0.01% of α and 0.006° of θ: far below what one cache
+/// determines. (At 1e-7 the descents spent a third of their evaluations on steps the cost's f32
+/// rounding could no longer tell apart, rejected one after another as λ grew.)
+const STEP_TOLERANCE: f64 = 1e-4;
+
 /// Levenberg–Marquardt (Marquardt's diagonal scaling) from `x0`, with `eval` returning the
 /// linearisation at a point and `project` mapping a point into the feasible box. Returns the
 /// best point, its cost and the number of evaluations.
@@ -184,7 +190,7 @@ pub fn levenberg_marquardt<const N: usize>(
         }
         let trial = project(trial);
         let moved = (0..N).map(|i| (trial[i] - x[i]).abs()).fold(0.0, f64::max);
-        if moved < 1e-7 {
+        if moved < STEP_TOLERANCE {
             break;
         }
         let t = eval(&trial);
@@ -315,6 +321,6 @@ mod tests {
             l
         };
         let (k, cost, _) = levenberg_marquardt([0.2], eval, |p| p, 100);
-        assert!((k[0] - 1.7).abs() < 1e-6 && cost < 1e-12, "{k:?} {cost}");
+        assert!((k[0] - 1.7).abs() < 1e-4 && cost < 1e-9, "{k:?} {cost}");
     }
 }
