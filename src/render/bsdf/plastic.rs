@@ -160,6 +160,8 @@ pub fn plastic_sums(samples: &[super::ward::LobeSample], coat: &Coat) -> (Rgb, R
 /// The quadrature of the coat's integrals: a 128 × 64 midpoint grid of the lobe's sampling
 /// variables (`MicrofacetLobe::sample`), ĥ distributed as D cos θh. The normals do not depend
 /// on the incidence, so they are computed once per coat rather than once per table entry.
+/// ωi lies in the xz-plane and the lobe is isotropic, so the normals at azimuths φ and −φ give
+/// the same term: only the half grid with sin φ > 0 is kept, each normal counting twice.
 struct Quadrature {
     lobe: MicrofacetLobe,
     normals: Vec<Vec3>,
@@ -169,11 +171,11 @@ impl Quadrature {
     fn new(lobe: MicrofacetLobe) -> Quadrature {
         let (n1, n2) = (128, 64);
         let a = lobe.alpha_x;
-        let mut normals = Vec::with_capacity(n1 * n2);
+        let mut normals = Vec::with_capacity(n1 * n2 / 2);
         for i in 0..n1 {
             let u1 = (i as f32 + 0.5) / n1 as f32;
             let r = a * lobe.slope_radius(u1);
-            for j in 0..n2 {
+            for j in 0..n2 / 2 {
                 let (s, c) = (2.0 * PI * (j as f32 + 0.5) / n2 as f32).sin_cos();
                 normals.push(Vec3::new(r * c, r * s, 1.0).normalize());
             }
