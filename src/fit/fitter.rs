@@ -426,35 +426,90 @@ pub fn refit_level(
 }
 
 /// The minimum in ln α of a cost that is smooth and unimodal near its best point on a coarse
-/// grid: the grid, then golden-section search between the best point's neighbours to 0.01 in
-/// ln α. Returns ln α and the number of evaluations.
-fn scan_then_golden(cost: impl Fn(f64) -> f64) -> (f64, u32) {
+/// grid: the grid, then Brent's method (parabolic steps through the three best points so far,
+/// golden-section steps where a parabola would not shrink the bracket; Brent 1973, "Algorithms
+/// for Minimization without Derivatives", ch. 5) between the best point's neighbours, to 0.01
+/// in ln α. Its first parabola passes through the grid's three points around the best. Returns
+/// ln α and the number of evaluations.
+fn scan_then_brent(cost: impl Fn(f64) -> f64) -> (f64, u32) {
     let grid: Vec<f64> = [0.01f64, 0.02, 0.04, 0.07, 0.12, 0.2, 0.35, 0.6, 1.0]
         .iter()
         .map(|a| a.ln())
         .collect();
     let costs: Vec<f64> = grid.iter().map(|&x| cost(x)).collect();
+    let mut evals = grid.len() as u32;
     let k = (0..grid.len())
         .min_by(|&i, &j| costs[i].total_cmp(&costs[j]))
         .unwrap_or(0);
-    let (mut lo, mut hi) = (grid[k.saturating_sub(1)], grid[(k + 1).min(grid.len() - 1)]);
-    let r = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut x1, mut x2) = (hi - r * (hi - lo), lo + r * (hi - lo));
-    let (mut f1, mut f2) = (cost(x1), cost(x2));
-    let mut evals = grid.len() as u32 + 2;
-    while hi - lo > 0.01 {
-        if f1 < f2 {
-            (hi, x2, f2) = (x2, x1, f1);
-            x1 = hi - r * (hi - lo);
-            f1 = cost(x1);
-        } else {
-            (lo, x1, f1) = (x1, x2, f2);
-            x2 = lo + r * (hi - lo);
-            f2 = cost(x2);
+    let (lo, hi) = (k.saturating_sub(1), (k + 1).min(grid.len() - 1));
+    let (mut a, mut b) = (grid[lo], grid[hi]);
+    // x the best point so far, w the second best, v the previous w.
+    let (mut x, mut fx) = (grid[k], costs[k]);
+    let (mut w, mut fw) = (grid[hi], costs[hi]);
+    let (mut v, mut fv) = (grid[lo], costs[lo]);
+    // The golden section's smaller share, the tolerance (half the bracket's final width).
+    let golden = 0.5 * (3.0 - 5f64.sqrt());
+    let tol = 0.005;
+    // The step before last (a parabolic step must be less than half of it) and the last.
+    let (mut e, mut d) = (b - a, 0.0f64);
+    loop {
+        let mid = 0.5 * (a + b);
+        if (x - mid).abs() <= 2.0 * tol - 0.5 * (b - a) {
+            break;
         }
+        let mut parabolic = false;
+        if e.abs() > tol {
+            let r = (x - w) * (fx - fv);
+            let q = (x - v) * (fx - fw);
+            let mut p = (x - v) * q - (x - w) * r;
+            let mut q = 2.0 * (q - r);
+            if q > 0.0 {
+                p = -p;
+            } else {
+                q = -q;
+            }
+            if p.abs() < (0.5 * q * e).abs() && p > q * (a - x) && p < q * (b - x) {
+                e = d;
+                d = p / q;
+                let u = x + d;
+                if u - a < 2.0 * tol || b - u < 2.0 * tol {
+                    d = tol.copysign(mid - x);
+                }
+                parabolic = true;
+            }
+        }
+        if !parabolic {
+            e = if x >= mid { a - x } else { b - x };
+            d = golden * e;
+        }
+        let u = if d.abs() >= tol {
+            x + d
+        } else {
+            x + tol.copysign(d)
+        };
+        let fu = cost(u);
         evals += 1;
+        if fu <= fx {
+            if u >= x {
+                a = x;
+            } else {
+                b = x;
+            }
+            (v, fv, w, fw, x, fx) = (w, fw, x, fx, u, fu);
+        } else {
+            if u < x {
+                a = u;
+            } else {
+                b = u;
+            }
+            if fu <= fw || w == x {
+                (v, fv, w, fw) = (w, fw, u, fu);
+            } else if fu <= fv || v == x || v == w {
+                (v, fv) = (u, fu);
+            }
+        }
     }
-    (0.5 * (lo + hi), evals)
+    (x, evals)
 }
 
 /// The distributions levels 8–10 try.
@@ -653,7 +708,7 @@ fn fit_shape(
         }
         Level::Plastic => {
             // The coat's α moves its diffuse term too (through the transmittance), which the
-            // Ward-style Jacobian does not carry: [`scan_then_golden`] of the cost. Both
+            // Ward-style Jacobian does not carry: [`scan_then_brent`] of the cost. Both
             // distributions, as level 8, but the one of lower ε is kept, not of lower cost: a
             // nearly smooth coat's α can collapse to the bound, where the per-pixel cost is
             // biased low (see `objective::pooled`), and a second distribution gives it a second
@@ -667,7 +722,7 @@ fn fit_shape(
                     eta,
                     distribution,
                 };
-                let (x, n) = scan_then_golden(|ln_a| {
+                let (x, n) = scan_then_brent(|ln_a| {
                     let specs = pixel_specs(cache, coat(ln_a), variant, false);
                     project_rho(cache, &specs, Free::Both).2
                 });
@@ -824,6 +879,19 @@ mod tests {
                 (Rgb::new(0.35, 0.25, 0.15) * diffuse(s) + 0.2 * spec) * (1.0 + 0.04 * (n - 0.5))
             },
         )
+    }
+
+    /// Brent's search finds the minimum of a smooth cost between grid points, and of one at
+    /// the grid's end, to its tolerance, in fewer evaluations than golden sections would take
+    /// (the grid's 9 and about 10 more).
+    #[test]
+    fn scan_then_brent_finds_the_minimum_between_grid_points() {
+        for (truth, max_evals) in [(0.09f64, 15), (0.3, 15), (0.011, 20)] {
+            let t = truth.ln();
+            let (x, evals) = scan_then_brent(|x| (x - t).powi(2) + 0.3 * (x - t).powi(4) - 2.0);
+            assert!((x - t).abs() < 0.01, "{truth}: {} vs {t}", x);
+            assert!(evals <= max_evals, "{truth}: {evals} evaluations");
+        }
     }
 
     /// Every pair of nested levels: the lower level's optimum written as the higher level's
