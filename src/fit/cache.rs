@@ -676,12 +676,35 @@ pub fn build(
                     });
                 }
             }
+            let probes = if probed && unseen.iter().any(|u| u.moved.is_some()) {
+                Some(rays.clone())
+            } else {
+                None
+            };
+            let (traced, touched): (Vec<Rgb>, Vec<_>) =
+                indirect_radiance(pt, rays).into_iter().unzip();
+            // A probe's path is traced again in its moved scene only where it touched what
+            // moved: any other comes back the same to the bit (`Touched`).
             let moved: Vec<Option<Vec<Rgb>>> = unseen
                 .iter()
                 .filter(|_| probed)
-                .map(|u| u.moved.map(|m| indirect_radiance(m, rays.clone())))
+                .map(|u| {
+                    let (m, rays) = (u.moved?, probes.as_ref()?);
+                    let again: Vec<usize> = (0..rays.len())
+                        .filter(|&j| match u.group {
+                            STRAY_LIGHT => touched[j].escaped(),
+                            g => touched[j].group(g),
+                        })
+                        .collect();
+                    let retraced =
+                        indirect_radiance(m, again.iter().map(|&j| rays[j].clone()).collect());
+                    let mut radiance = traced.clone();
+                    for (&j, (l, _)) in again.iter().zip(retraced) {
+                        radiance[j] = l;
+                    }
+                    Some(radiance)
+                })
                 .collect();
-            let traced = indirect_radiance(pt, rays);
             let mut rows: [Vec<(u32, Rgb)>; 2] = [Vec::new(), Vec::new()];
             let mut shares = vec![[Rgb::ZERO; 2]; k];
             let mut dcs: [Vec<Rgb>; 2] = [Vec::new(), Vec::new()];

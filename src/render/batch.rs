@@ -69,12 +69,12 @@ impl Job {
 }
 
 /// Traces the paths that `next` writes into a free lane (returning false when there are no
-/// more), numbered from 0, eight at a time; `done(i, L)` gets job i's radiance, which is
-/// `PathTracer::trace_from`'s for the same job to the bit.
+/// more), numbered from 0, eight at a time; `done(i, st)` gets job i's path at its end, whose
+/// radiance `st.l` is `PathTracer::trace_from`'s for the same job to the bit.
 pub fn trace_jobs(
     pt: &PathTracer,
     mut next: impl FnMut(&mut Job) -> bool,
-    mut done: impl FnMut(usize, Rgb),
+    mut done: impl FnMut(usize, &PathState),
 ) {
     let mut lanes: [Job; LANES] = std::array::from_fn(|_| Job::idle());
     // Which job each lane holds; bit i of `live`: lane i holds one.
@@ -166,12 +166,12 @@ pub fn trace_jobs(
             };
             if !alive {
                 live &= !(1 << i);
-                done(item[i], lane.st.l);
+                done(item[i], &lane.st);
             }
         }
-        gathered.scatter(pt, &mut lanes, |i, l| {
+        gathered.scatter(pt, &mut lanes, |i, st| {
             live &= !(1 << i);
-            done(item[i], l);
+            done(item[i], st);
         });
     }
 }
@@ -360,7 +360,7 @@ pub fn render_pixels(
         job.sampler.take_sample_from(&pk.samplers[k]);
         true
     };
-    trace_jobs(pt, jobs, |i, l| results[i] = l);
+    trace_jobs(pt, jobs, |i, st| results[i] = st.l);
     // Sums in sample order, as `render_pixel`.
     for (px, samples) in out.iter_mut().zip(results.chunks(spp_n)) {
         *px = super::film::pixel_mean(samples.iter().copied(), spp);
@@ -630,7 +630,7 @@ impl SmoothLanes {
         &self,
         pt: &PathTracer,
         lanes: &mut [Job; LANES],
-        mut finish: impl FnMut(usize, Rgb),
+        mut finish: impl FnMut(usize, &PathState),
     ) {
         if self.n == 0 {
             return;
@@ -820,7 +820,7 @@ impl SmoothLanes {
         while ended != 0 {
             let j = ended.trailing_zeros() as usize;
             ended &= ended - 1;
-            finish(self.lane[j], lanes[self.lane[j]].st.l);
+            finish(self.lane[j], &lanes[self.lane[j]].st);
         }
     }
 }

@@ -167,6 +167,37 @@ pub struct PathState {
     /// delta reflection); otherwise it is left out entirely (the caller did next-event
     /// estimation for it without MIS).
     pub count_emission: bool,
+    /// Where its segments arrived.
+    pub touched: Touched,
+}
+
+/// The groups whose surfaces a path's segments arrived at, and whether one left the scene.
+/// A path's radiance depends on a group's material only through its vertices there (light
+/// sampling, shadow rays and Russian roulette read the materials of the path's own vertices
+/// alone), and on the stray light only where it leaves the scene: traced again with the same
+/// random numbers in a scene where only those changed, a path that touched neither gives the
+/// same radiance to the bit. Bit g stands for group g below 63, bit 63 for all the others.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Touched {
+    groups: u64,
+    escaped: bool,
+}
+
+impl Touched {
+    #[inline(always)]
+    fn arrive(&mut self, group: usize) {
+        self.groups |= 1 << group.min(63);
+    }
+
+    /// Whether a segment may have arrived at group `g` (certainly, for g below 63).
+    pub fn group(&self, g: usize) -> bool {
+        self.groups >> g.min(63) & 1 == 1
+    }
+
+    /// Whether the path left the scene.
+    pub fn escaped(&self) -> bool {
+        self.escaped
+    }
 }
 
 impl PathState {
@@ -180,6 +211,7 @@ impl PathState {
             prev_pdf: None,
             first: true,
             count_emission,
+            touched: Touched::default(),
         }
     }
 }
@@ -259,6 +291,7 @@ impl<'a> PathTracer<'a> {
     pub(super) fn arrive(&self, st: &mut PathState, hit: Option<&Hit>) -> Option<&'a Object> {
         st.segments += 1;
         let Some(hit) = hit else {
+            st.touched.escaped = true;
             // The path leaves the scene: the environment, MIS-weighted as an emitter is.
             self.lights.at_infinity(st.ray.d, |le, pl| {
                 let w = match st.prev_pdf {
@@ -272,6 +305,7 @@ impl<'a> PathTracer<'a> {
         };
         let g = &*self.scene.geometry;
         let obj = &self.scene.objects[g.tris[hit.prim as usize].object as usize];
+        st.touched.arrive(obj.group);
         // Emission (front side only).
         if obj.is_emitter() {
             let ng = g.faces[hit.prim as usize].ng;
