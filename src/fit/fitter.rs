@@ -108,7 +108,7 @@ fn linearise<const N: usize>(
     }
     for (c, gram) in gram.iter().enumerate() {
         let (rdc, rsc) = (rd[c] as f64, rs[c] as f64);
-        let m = gram.projected(free != Free::Specular && rdc > 0.0, rsc > 0.0);
+        let m = gram.projected(Movable::at(free, rdc, rsc));
         for a in 0..N {
             for b in 0..N {
                 lin.jtj[a][b] += rsc * rsc * m[a][b];
@@ -158,42 +158,78 @@ impl<const N: usize> Gram<N> {
         }
     }
 
-    /// Σ ∂S/∂x_a ∂S/∂x_b with the columns' parts along D (when ρd is free) and S (when ρs is)
-    /// projected out: the Gauss–Newton curvature of the cost with ρ re-solved at every x
-    /// (Golub & Pereyra's variable projection; Kaufman 1975 keeps exactly this part). Without
-    /// the projection a change of α that only rescales the lobe, which ρs takes back, counts
-    /// as curvature: the steps came out about 40% of Newton's and LM crept to its optimum.
-    fn projected(&self, diffuse: bool, specular: bool) -> [[f64; N]; N] {
+    /// Σ ∂S/∂x_a ∂S/∂x_b with the columns' parts along what the re-solved ρ can move
+    /// (`movable`) projected out: the Gauss–Newton curvature of the cost with ρ re-solved at
+    /// every x (Golub & Pereyra's variable projection, with Kaufman's 1975 simplification, here
+    /// on the mean columns). Without the projection a change of α that only rescales the lobe,
+    /// which ρs takes back, counts as curvature: the steps came out about 40% of Newton's and
+    /// LM crept to its optimum.
+    fn projected(&self, movable: Movable) -> [[f64; N]; N] {
         let mut m = self.gg;
-        // m − B G⁻¹ Bᵀ, with G the free columns' Gram matrix and B their products with the
+        // m − B G⁻¹ Bᵀ, with G the movable columns' Gram matrix and B their products with the
         // derivatives; where D and S are nearly parallel (G singular), S's part alone.
         let det = self.dd * self.ss - self.ds * self.ds;
-        if diffuse && specular && det > 1e-9 * self.dd * self.ss {
-            // G⁻¹ = [[ss, −ds], [−ds, dd]] / det.
-            let (bd, bs) = (&self.dg, &self.sg);
-            for a in 0..N {
-                for k in 0..N {
-                    m[a][k] -= (self.ss * bd[a] * bd[k] + self.dd * bs[a] * bs[k]
-                        - self.ds * (bd[a] * bs[k] + bs[a] * bd[k]))
-                        / det;
+        let mut subtract = |g: f64, b: &[f64; N]| {
+            if g > 0.0 {
+                for a in 0..N {
+                    for k in 0..N {
+                        m[a][k] -= b[a] * b[k] / g;
+                    }
                 }
             }
-        } else if let Some((g, b)) = [(specular, self.ss, &self.sg), (diffuse, self.dd, &self.dg)]
-            .into_iter()
-            .find(|c| c.0 && c.1 > 0.0)
-            .map(|c| (c.1, c.2))
-        {
-            for a in 0..N {
-                for k in 0..N {
-                    m[a][k] -= b[a] * b[k] / g;
-                }
+        };
+        match movable {
+            Movable::Both if det > 1e-9 * self.dd * self.ss => {
+                // B G⁻¹ Bᵀ with G⁻¹ = [[ss, −ds], [−ds, dd]] / det: the part along S, then the
+                // part along D that S does not explain.
+                subtract(self.ss, &self.sg);
+                let b: [f64; N] =
+                    std::array::from_fn(|a| self.dg[a] - self.ds / self.ss * self.sg[a]);
+                subtract(det / self.ss, &b);
             }
+            Movable::Both | Movable::Specular => subtract(self.ss, &self.sg),
+            Movable::Face => {
+                // The column D − S: ρd = t, ρs = 1 − t.
+                let b: [f64; N] = std::array::from_fn(|a| self.dg[a] - self.sg[a]);
+                subtract(self.dd - 2.0 * self.ds + self.ss, &b);
+            }
+            Movable::Neither => {}
         }
         // Rounding can leave a nearly flat direction slightly negative.
         for a in 0..N {
             m[a][a] = m[a][a].max(1e-6 * self.gg[a][a]);
         }
         m
+    }
+}
+
+/// What the re-solved ρd, ρs of a channel can move along at their optimum (`solve::solve_rho`):
+/// both, ρs alone (ρd at 0 or held there), only the edge ρd + ρs = 1 (both on it), or neither
+/// (a corner). A reflectance held at a bound cannot take back a change of the lobe, so its
+/// column must stay in the curvature.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Movable {
+    Both,
+    Specular,
+    Face,
+    Neither,
+}
+
+impl Movable {
+    fn at(free: Free, rd: f64, rs: f64) -> Movable {
+        // ρ in f32 on the edge sums to 1 within a few ulps.
+        let on_edge = rd + rs >= 1.0 - 1e-6;
+        match free {
+            Free::Both if rd > 0.0 && rs > 0.0 => {
+                if on_edge {
+                    Movable::Face
+                } else {
+                    Movable::Both
+                }
+            }
+            Free::Both | Free::Specular if rd == 0.0 && rs > 0.0 && !on_edge => Movable::Specular,
+            _ => Movable::Neither,
+        }
     }
 }
 
@@ -443,15 +479,21 @@ fn scan_then_brent(cost: impl Fn(f64) -> f64) -> (f64, u32) {
         .unwrap_or(0);
     let (lo, hi) = (k.saturating_sub(1), (k + 1).min(grid.len() - 1));
     let (mut a, mut b) = (grid[lo], grid[hi]);
-    // x the best point so far, w the second best, v the previous w.
+    // x the best point so far, w the second best, v the previous w: here the neighbours.
     let (mut x, mut fx) = (grid[k], costs[k]);
-    let (mut w, mut fw) = (grid[hi], costs[hi]);
-    let (mut v, mut fv) = (grid[lo], costs[lo]);
+    let (second, third) = if costs[hi] <= costs[lo] {
+        (hi, lo)
+    } else {
+        (lo, hi)
+    };
+    let (mut w, mut fw) = (grid[second], costs[second]);
+    let (mut v, mut fv) = (grid[third], costs[third]);
     // The golden section's smaller share, the tolerance (half the bracket's final width).
     let golden = 0.5 * (3.0 - 5f64.sqrt());
     let tol = 0.005;
-    // The step before last (a parabolic step must be less than half of it) and the last.
-    let (mut e, mut d) = (b - a, 0.0f64);
+    // The step before last (a parabolic step must be less than half of it) and the last; the
+    // grid's spacing stands for both at the start, so that the first two steps may be parabolic.
+    let (mut e, mut d) = (b - a, b - a);
     loop {
         let mid = 0.5 * (a + b);
         if (x - mid).abs() <= 2.0 * tol - 0.5 * (b - a) {
