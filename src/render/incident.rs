@@ -48,8 +48,9 @@ mod tests {
     use crate::math::Vec3;
     use crate::scene::load::parse_scene;
 
-    /// A grey floor, a back wall and a side wall, open above and in front, lit by the sun and
-    /// a stray light: `{wall}` and `{stray}` set the back wall's ρd and the stray radiance.
+    /// A grey floor, a back wall and a glossy (Ward) side wall, open above and in front, lit by
+    /// the sun, an area light facing the side wall and a stray light: `{wall}` and `{stray}` set
+    /// the back wall's ρd and the stray radiance.
     const ROOM: &str = r#"
 [render]
 spp = 1
@@ -84,7 +85,16 @@ shape = "quad"
 corner = [-2.0, 0.0, 1.0]
 edge_u = [0.0, 0.0, -3.0]
 edge_v = [0.0, 2.0, 0.0]
-material = { type = "diffuse", rho_d = 0.7 }
+tangent = [0.0, 1.0, 0.0]
+material = { type = "ward", rho_d = 0.3, rho_s = 0.4, alpha_x = 0.1, alpha_y = 0.3, theta_deg = 0.0 }
+[[object]]
+name = "lamp"
+group = "lamp"
+shape = "quad"
+corner = [1.9, 0.5, -1.5]
+edge_u = [0.0, 0.0, 1.0]
+edge_v = [0.0, 1.0, 0.0]
+emission = 5.0
 [[light]]
 name = "sun"
 type = "directional"
@@ -109,7 +119,7 @@ radiance = [{stray}, {stray}, {stray}]
                 let o = Vec3::new(-1.5 + 3.0 * u, 1e-3, 0.5 - 2.0 * v);
                 let (phi, z) = (
                     2.0 * std::f32::consts::PI * (i as f32 * 0.618).fract(),
-                    0.05 + 0.9 * v,
+                    0.05 + 0.45 * v,
                 );
                 let r = (1.0 - z * z).sqrt();
                 let ray = Ray::new(o, Vec3::new(r * phi.cos(), z, r * phi.sin()));
@@ -124,7 +134,9 @@ radiance = [{stray}, {stray}, {stray}]
 
     /// Traced again where only the back wall's ρd (or only the stray light) changed, a path
     /// `Touched` says never arrived at the wall (or never left the room) comes back the same to
-    /// the bit; the others include paths that change, so the test can tell.
+    /// the bit; the others include paths that change, so the test can tell (about 1300 for the
+    /// wall, 100 for the stray light: most paths that leave the room do so on their first
+    /// segment, whose light the caller takes).
     #[test]
     fn a_path_that_touched_nothing_that_moved_comes_back_the_same() {
         let base = room(0.6, 0.3);
@@ -152,7 +164,7 @@ radiance = [{stray}, {stray}, {stray}]
                 }
             }
             assert!(
-                same > 400 && changed > 100,
+                same > 400 && changed > 50,
                 "{what}: {same} untouched, {changed} changed"
             );
         }

@@ -171,7 +171,8 @@ pub struct PathState {
     pub touched: Touched,
 }
 
-/// The groups whose surfaces a path's segments arrived at, and whether one left the scene.
+/// The groups whose surfaces a path's segments arrived at, and whether one left the scene
+/// where what it finds there counts (not a first segment whose emission the caller takes).
 /// A path's radiance depends on a group's material only through its vertices there (light
 /// sampling, shadow rays and Russian roulette read the materials of the path's own vertices
 /// alone), and on the stray light only where it leaves the scene: traced again with the same
@@ -194,7 +195,7 @@ impl Touched {
         self.groups >> g.min(63) & 1 == 1
     }
 
-    /// Whether the path left the scene.
+    /// Whether the path found what lies outside the scene.
     pub fn escaped(&self) -> bool {
         self.escaped
     }
@@ -291,7 +292,8 @@ impl<'a> PathTracer<'a> {
     pub(super) fn arrive(&self, st: &mut PathState, hit: Option<&Hit>) -> Option<&'a Object> {
         st.segments += 1;
         let Some(hit) = hit else {
-            st.touched.escaped = true;
+            // A first segment whose emission does not count finds no stray light either.
+            st.touched.escaped |= !st.first || st.count_emission;
             // The path leaves the scene: the environment, MIS-weighted as an emitter is.
             self.lights.at_infinity(st.ray.d, |le, pl| {
                 let w = match st.prev_pdf {

@@ -169,6 +169,10 @@ struct Quadrature {
 
 impl Quadrature {
     fn new(lobe: MicrofacetLobe) -> Quadrature {
+        debug_assert_eq!(
+            lobe.alpha_x, lobe.alpha_y,
+            "the half grid needs an isotropic lobe"
+        );
         let (n1, n2) = (128, 64);
         let a = lobe.alpha_x;
         let mut normals = Vec::with_capacity(n1 * n2 / 2);
