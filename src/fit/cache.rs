@@ -800,7 +800,8 @@ pub fn build(
                     let before = sm.clone();
                     // One intersection for the three uses (the moved scenes share the geometry).
                     let first = scene.intersect_hit(&reflected, f32::INFINITY);
-                    let l = pt.trace_from(reflected, first, &mut sm, 1, true);
+                    let path = pt.trace_path(reflected, first, &mut sm, 1, true);
+                    let l = path.l;
                     if let Some(ps) = pseudo {
                         match first.and_then(|h| ps.radiance(scene, &reflected, &h)) {
                             Some((lp, g)) => {
@@ -818,6 +819,14 @@ pub fn build(
                         mirror_half[half] += l;
                         for (d, u) in dmirror.iter_mut().zip(unseen) {
                             let Some(moved) = u.moved else { continue };
+                            // Untouched, it would come back the same (`Touched`) and add 0.
+                            let touched = match u.group {
+                                STRAY_LIGHT => path.touched.escaped(),
+                                g => path.touched.group(g),
+                            };
+                            if !touched {
+                                continue;
+                            }
                             let lm =
                                 moved.trace_from(reflected, first, &mut before.clone(), 1, true);
                             if lm.is_finite() {

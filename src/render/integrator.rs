@@ -270,6 +270,19 @@ impl<'a> PathTracer<'a> {
         depth: u32,
         count_emission: bool,
     ) -> Rgb {
+        self.trace_path(ray, first_hit, sampler, depth, count_emission)
+            .l
+    }
+
+    /// [`PathTracer::trace_from`], the whole path at its end: its radiance and where it went.
+    pub fn trace_path(
+        &self,
+        ray: Ray,
+        first_hit: Option<Hit>,
+        sampler: &mut Sampler,
+        depth: u32,
+        count_emission: bool,
+    ) -> PathState {
         let mut st = PathState::new(ray, depth, count_emission);
         let mut hit = first_hit;
         while let Some(obj) = self.arrive(&mut st, hit.as_ref()) {
@@ -281,7 +294,7 @@ impl<'a> PathTracer<'a> {
             }
             hit = self.scene.intersect_hit(&st.ray, f32::INFINITY);
         }
-        st.l
+        st
     }
 
     /// The first half of a path segment: `hit` is where `st.ray` lands. Adds the emission seen
