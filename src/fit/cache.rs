@@ -21,7 +21,7 @@ use crate::geometry::{offset_origin, Ray};
 use crate::math::PI;
 use crate::math::{Rgb, Sampler, Vec2, Vec3, INV_PI};
 use crate::render::incident::{indirect_radiance, IndirectRay};
-use crate::render::integrator::{facing, mirror_ray};
+use crate::render::integrator::{facing, mirror_ray, Touched};
 use crate::render::PathTracer;
 use crate::scene::atlas::Atlas;
 use crate::scene::Scene;
@@ -196,6 +196,18 @@ pub struct UnseenProbe<'a> {
     pub group: usize,
     pub moved: Option<&'a PathTracer<'a>>,
     pub step: Rgb,
+}
+
+impl UnseenProbe<'_> {
+    /// Whether a path that went where `touched` says can come back otherwise from the moved
+    /// scene: only one that arrived at the group (or, for the stray light, found what lies
+    /// outside) can; any other comes back the same to the bit.
+    fn moves(&self, touched: &Touched) -> bool {
+        match self.group {
+            STRAY_LIGHT => touched.escaped(),
+            g => touched.group(g),
+        }
+    }
 }
 
 /// `UnseenProbe::group` and `UnseenShares::groups` entry of the stray light.
@@ -683,19 +695,15 @@ pub fn build(
             };
             let (traced, touched): (Vec<Rgb>, Vec<_>) =
                 indirect_radiance(pt, rays).into_iter().unzip();
-            // A probe's path is traced again in its moved scene only where it touched what
-            // moved: any other comes back the same to the bit (`Touched`).
+            // A probe's path is traced again in its moved scene only where it can come back
+            // otherwise (`UnseenProbe::moves`).
             let moved: Vec<Option<Vec<Rgb>>> = unseen
                 .iter()
                 .filter(|_| probed)
                 .map(|u| {
                     let (m, rays) = (u.moved?, probes.as_ref()?);
-                    let again: Vec<usize> = (0..rays.len())
-                        .filter(|&j| match u.group {
-                            STRAY_LIGHT => touched[j].escaped(),
-                            g => touched[j].group(g),
-                        })
-                        .collect();
+                    let again: Vec<usize> =
+                        (0..rays.len()).filter(|&j| u.moves(&touched[j])).collect();
                     let retraced =
                         indirect_radiance(m, again.iter().map(|&j| rays[j].clone()).collect());
                     let mut radiance = traced.clone();
@@ -819,12 +827,8 @@ pub fn build(
                         mirror_half[half] += l;
                         for (d, u) in dmirror.iter_mut().zip(unseen) {
                             let Some(moved) = u.moved else { continue };
-                            // Untouched, it would come back the same (`Touched`) and add 0.
-                            let touched = match u.group {
-                                STRAY_LIGHT => path.touched.escaped(),
-                                g => path.touched.group(g),
-                            };
-                            if !touched {
+                            // Otherwise it would come back the same and add 0.
+                            if !u.moves(&path.touched) {
                                 continue;
                             }
                             let lm =

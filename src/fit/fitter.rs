@@ -162,8 +162,7 @@ impl<const N: usize> Gram<N> {
     /// (`movable`) projected out: the Gauss–Newton curvature of the cost with ρ re-solved at
     /// every x (Golub & Pereyra's variable projection, with Kaufman's 1975 simplification, here
     /// on the mean columns). Without the projection a change of α that only rescales the lobe,
-    /// which ρs takes back, counts as curvature: the steps came out about 40% of Newton's and
-    /// LM crept to its optimum.
+    /// which ρs takes back, would count as curvature and shorten every step.
     fn projected(&self, movable: Movable) -> [[f64; N]; N] {
         let mut m = self.gg;
         // m − B G⁻¹ Bᵀ, with G the movable columns' Gram matrix and B their products with the

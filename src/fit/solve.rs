@@ -160,8 +160,7 @@ fn solve_dense<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<
 
 /// The step below which [`levenberg_marquardt`] stops. Its parameters are roughnesses' logarithms
 /// and angles in radians, so this is 0.01% of α and 0.006° of θ: far below what one cache
-/// determines. (At 1e-7 the descents spent a third of their evaluations on steps the cost's f32
-/// rounding could no longer tell apart, rejected one after another as λ grew.)
+/// determines, and above the steps whose change of cost the f32 sums can no longer resolve.
 const STEP_TOLERANCE: f64 = 1e-4;
 
 /// Levenberg–Marquardt (Marquardt's diagonal scaling) from `x0`, with `eval` returning the
