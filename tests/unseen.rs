@@ -198,11 +198,12 @@ fn a_wall_seen_only_in_a_mirror_is_estimated_from_its_image_there() {
     // mirror on the back wall (issue 25). The mirror's cache carries the radiance along its
     // reflection and that radiance's derivative along the wall's ρd, so the wall is fitted from
     // its own image in the mirror, jointly with the mirror's ρs. Full size, 256-spp photo.
-    // Measured: wall (0.298, 0.599, 0.397) ± 0.01 for (0.3, 0.6, 0.4); mirror ρs (0.804,
-    // 0.805, 0.806) for 0.8 (their product is what the mirror's pixels fix; with 16 mirror
-    // samples instead of 64 at the mirror level, 0.811, 0.808, 0.810); seen groups within
-    // 0.0016. With the white default (CLI, --white-unseen): the back wall 0.052 dark, the box
-    // 0.05, and the mirror a texture.
+    // Measured: wall (0.302, 0.604, 0.401) ± 0.01 for (0.3, 0.6, 0.4); mirror ρs (0.797,
+    // 0.797, 0.798) for 0.8 (their product is what the mirror's pixels fix: before the wall's
+    // steps started afresh at the mirror's climb, the wall stopped short and the mirror was
+    // 0.804–0.806; with 16 mirror samples instead of 64 at the mirror level, 0.811, 0.808,
+    // 0.810); seen groups within 0.0012. With the white default (CLI, --white-unseen): the back
+    // wall 0.052 dark, the box 0.05, and the mirror a texture.
     let scene = scaled("scenes/room-mirror/scene.toml", 1.0);
     let photo = photo_of(&scene);
     let wall = scene.group_index("front_wall").unwrap();
@@ -222,7 +223,7 @@ fn a_wall_seen_only_in_a_mirror_is_estimated_from_its_image_there() {
     let mirror = rec.groups.iter().find(|g| g.name == "mirror").unwrap();
     assert_eq!(mirror.level, matfit::fit::Level::Specular, "{report}");
     assert!(
-        (mirror.params.rho_s - Rgb::splat(0.8)).abs().max_element() < 0.01,
+        (mirror.params.rho_s - Rgb::splat(0.8)).abs().max_element() < 0.005,
         "{report}"
     );
     for g in rec

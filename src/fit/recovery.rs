@@ -884,6 +884,9 @@ impl<'a> RecoveryLoop<'a> {
                 }
             }
             self.unseen_history.anchor(&unseen_values);
+            if level_changed {
+                self.unseen_history.restart_steps();
+            }
         }
         tracing::debug!(
             "iteration {it}: moved {moved:.4} (unseen {unseen_moved:.4}, drift {unseen_drift:.4})"
