@@ -184,6 +184,10 @@ pub enum Event {
         #[serde(skip_serializing_if = "Option::is_none")]
         held_out: Option<[f32; 2]>,
         kept: bool,
+        /// Seconds spent fitting and judging this level on the cache (the log line's `seconds`
+        /// is the group's whole turn: its cache build and every fit).
+        #[serde(default)]
+        fit_seconds: f32,
     },
     /// The group moved to a new level.
     Moved { from: Level, to: Level },
@@ -894,6 +898,7 @@ impl GroupState {
         // Level 7 was not tried because a group that lights this one is still analysing.
         let mut texture_waits = false;
         while let Some(next) = level.next() {
+            let started = std::time::Instant::now();
             // Levels 8 and 10 reshape a lobe: a group on which no specular level earned its
             // place has none to reshape (a wall whose ε is its noise would only fit the noise).
             let no_lobe = next.is_microfacet() && best.level == Level::Diffuse;
@@ -945,6 +950,7 @@ impl GroupState {
                     gain_noise,
                     held_out: None,
                     kept,
+                    fit_seconds: started.elapsed().as_secs_f32(),
                 });
                 if kept {
                     best = f;
@@ -983,6 +989,7 @@ impl GroupState {
                 gain_noise,
                 held_out,
                 kept,
+                fit_seconds: started.elapsed().as_secs_f32(),
             });
             level = next;
             if kept {
