@@ -32,7 +32,8 @@ const FIT: [&str; 10] = [
     "3",
 ];
 
-/// results.json without its timing, log.jsonl without the seconds and elapsed, and recovered.toml.
+/// results.json without its timing, log.jsonl without its times (seconds, elapsed, fit_seconds),
+/// and recovered.toml.
 fn outputs(dir: &Path) -> (serde_json::Value, Vec<serde_json::Value>, String) {
     let mut res = crate::common::results(dir);
     res.as_object_mut().unwrap().remove("timing");
@@ -43,6 +44,7 @@ fn outputs(dir: &Path) -> (serde_json::Value, Vec<serde_json::Value>, String) {
             let mut v: serde_json::Value = serde_json::from_str(l).unwrap();
             v.as_object_mut().unwrap().remove("seconds");
             v.as_object_mut().unwrap().remove("elapsed");
+            v.as_object_mut().unwrap().remove("fit_seconds");
             v
         })
         .collect();
