@@ -58,17 +58,39 @@ fn rendered_means(truth: &Scene, group: usize, atlas: &Atlas, texels: &[Rgb]) ->
     .0
 }
 
-/// Per texel of `atlas`, the mean of `f(object, point, normal, uv)` over points stratified
-/// uniformly on `group`'s triangles (at least 16 per texel), and their number.
+/// Per texel of `atlas`, the mean of `f(object, point, normal, uv)` over the points of
+/// [`surface_samples`], and their number.
 fn area_means(
     truth: &Scene,
     group: usize,
     atlas: &Atlas,
     f: impl Fn(u32, Vec3, Vec3, Vec2) -> Rgb,
 ) -> (Vec<Rgb>, Vec<u32>) {
-    let g = &*truth.geometry;
     let n = atlas.width * atlas.height;
     let (mut sum, mut count) = (vec![Rgb::ZERO; n], vec![0u32; n]);
+    surface_samples(truth, group, atlas, |object, p, ng, uv| {
+        if let Some(x) = atlas.texel_at(object, p, ng) {
+            sum[x as usize] += f(object, p, ng, uv);
+            count[x as usize] += 1;
+        }
+    });
+    for (s, &c) in sum.iter_mut().zip(&count) {
+        if c > 0 {
+            *s /= c as f32;
+        }
+    }
+    (sum, count)
+}
+
+/// Calls `visit(object, point, normal, uv)` at points stratified uniformly on `group`'s
+/// triangles, at least 16 per texel of `atlas`.
+fn surface_samples(
+    truth: &Scene,
+    group: usize,
+    atlas: &Atlas,
+    mut visit: impl FnMut(u32, Vec3, Vec3, Vec2),
+) {
+    let g = &*truth.geometry;
     for (oi, obj) in truth.objects.iter().enumerate() {
         if obj.group != group {
             continue;
@@ -87,20 +109,11 @@ fn area_means(
                     let (wa, wb, wc) = (1.0 - r, r * (1.0 - t), r * t);
                     let p = pa * wa + pb * wb + pc * wc;
                     let uv = ua * wa + ub * wb + uc * wc;
-                    if let Some(x) = atlas.texel_at(oi as u32, p, ng) {
-                        sum[x as usize] += f(oi as u32, p, ng, uv);
-                        count[x as usize] += 1;
-                    }
+                    visit(oi as u32, p, ng, uv);
                 }
             }
         }
     }
-    for (s, &c) in sum.iter_mut().zip(&count) {
-        if c > 0 {
-            *s /= c as f32;
-        }
-    }
-    (sum, count)
 }
 
 /// A true texel's figures ([`per_true_texel`]).
@@ -136,56 +149,37 @@ fn per_true_texel(
         n: u32,
         ok: bool,
     }
-    let g = &*truth.geometry;
     let mut acc: BTreeMap<(usize, [i32; 3], usize, usize), Acc> = BTreeMap::new();
-    for (oi, obj) in truth.objects.iter().enumerate() {
-        if obj.group != group {
-            continue;
-        }
+    surface_samples(truth, group, atlas, |object, p, ng, uv| {
+        let obj = &truth.objects[object as usize];
         let Material::Textured { texture, scale, .. } = &obj.material else {
             panic!("{}: the truth is not textured", obj.name)
         };
-        for tri in &g.tris[obj.tri_range.start as usize..obj.tri_range.end as usize] {
-            let [a, b, c] = tri.v.map(|i| i as usize);
-            let (pa, pb, pc) = (g.positions[a], g.positions[b], g.positions[c]);
-            let (ua, ub, uc) = (g.uvs[a], g.uvs[b], g.uvs[c]);
-            let ng = (pb - pa).cross(pc - pa).normalize();
-            let face = [ng.x, ng.y, ng.z].map(|v| (v * 1000.0).round() as i32);
-            let area = 0.5 * (pb - pa).cross(pc - pa).length();
-            let k = ((area / (atlas.texel * atlas.texel) * 16.0).sqrt().ceil() as usize).max(4);
-            for i in 0..k {
-                for j in 0..k {
-                    let (s, t) = ((i as f32 + 0.5) / k as f32, (j as f32 + 0.5) / k as f32);
-                    let r = s.sqrt();
-                    let (wa, wb, wc) = (1.0 - r, r * (1.0 - t), r * t);
-                    let p = pa * wa + pb * wb + pc * wc;
-                    let uv = ua * wa + ub * wb + uc * wc;
-                    // The true texel under the sample, as `Texture::lookup` indexes it.
-                    let tx = (((uv.x - uv.x.floor()) * texture.width as f32) as usize)
-                        .min(texture.width - 1);
-                    let ty = (((1.0 - (uv.y - uv.y.floor())) * texture.height as f32) as usize)
-                        .min(texture.height - 1);
-                    let e = acc.entry((oi, face, tx, ty)).or_insert_with(|| Acc {
-                        truth: Rgb::ZERO,
-                        texel: *scale * texture.texels[ty * texture.width + tx],
-                        fields: vec![Rgb::ZERO; fields.len()],
-                        n: 0,
-                        ok: true,
-                    });
-                    e.truth += *scale * texture.lookup(uv);
-                    e.n += 1;
-                    match atlas.texel_at(oi as u32, p, ng) {
-                        Some(x) if scored[x as usize] => {
-                            for (sum, f) in e.fields.iter_mut().zip(fields) {
-                                *sum += atlas.lookup(f, oi as u32, p, ng);
-                            }
-                        }
-                        _ => e.ok = false,
-                    }
+        let face = [ng.x, ng.y, ng.z].map(|v| (v * 1000.0).round() as i32);
+        // The true texel under the sample, as `Texture::lookup` indexes it.
+        let tx = (((uv.x - uv.x.floor()) * texture.width as f32) as usize).min(texture.width - 1);
+        let ty = (((1.0 - (uv.y - uv.y.floor())) * texture.height as f32) as usize)
+            .min(texture.height - 1);
+        let e = acc
+            .entry((object as usize, face, tx, ty))
+            .or_insert_with(|| Acc {
+                truth: Rgb::ZERO,
+                texel: *scale * texture.texels[ty * texture.width + tx],
+                fields: vec![Rgb::ZERO; fields.len()],
+                n: 0,
+                ok: true,
+            });
+        e.truth += *scale * texture.lookup(uv);
+        e.n += 1;
+        match atlas.texel_at(object, p, ng) {
+            Some(x) if scored[x as usize] => {
+                for (sum, f) in e.fields.iter_mut().zip(fields) {
+                    *sum += atlas.lookup(f, object, p, ng);
                 }
             }
+            _ => e.ok = false,
         }
-    }
+    });
     let mut counts: BTreeMap<(usize, [i32; 3]), Vec<u32>> = BTreeMap::new();
     for (&(oi, face, _, _), a) in &acc {
         counts.entry((oi, face)).or_default().push(a.n);

@@ -199,11 +199,9 @@ fn a_wall_seen_only_in_a_mirror_is_estimated_from_its_image_there() {
     // reflection and that radiance's derivative along the wall's ρd, so the wall is fitted from
     // its own image in the mirror, jointly with the mirror's ρs. Full size, 256-spp photo.
     // Measured: wall (0.302, 0.604, 0.401) ± 0.01 for (0.3, 0.6, 0.4); mirror ρs (0.797,
-    // 0.797, 0.798) for 0.8 (their product is what the mirror's pixels fix: before the wall's
-    // steps started afresh at the mirror's climb, the wall stopped short and the mirror was
-    // 0.804–0.806; with 16 mirror samples instead of 64 at the mirror level, measured before
-    // that, 0.811, 0.808, 0.810); seen groups within 0.0012. With the white default (CLI, --white-unseen): the back
-    // wall 0.052 dark, the box 0.05, and the mirror a texture.
+    // 0.797, 0.798) for 0.8 (their product is what the mirror's pixels fix); seen groups
+    // within 0.0012. With the white default (CLI, --white-unseen): the back wall 0.052 dark,
+    // the box 0.05, and the mirror a texture.
     let scene = scaled("scenes/room-mirror/scene.toml", 1.0);
     let photo = photo_of(&scene);
     let wall = scene.group_index("front_wall").unwrap();

@@ -634,10 +634,8 @@ impl History {
 
     /// Starts every step's decay afresh ([`History::step`]), when a seen group changed its
     /// model: the proposals so far were made against the old one, and the estimate's value
-    /// moved with it; the first steps to the new one are full again. (A wall seen only in a
-    /// mirror, whose proposals are precise to 0.002, had ended 0.007 short of them after the
-    /// mirror's climb, its steps already down to a quarter, and the mirror's ρs had taken up
-    /// the difference.)
+    /// moved with it; the first steps to the new one are full again, or an estimate whose
+    /// steps had already shrunk would stop short of it.
     pub fn restart_steps(&mut self) {
         self.count.iter_mut().for_each(|n| *n = [0; 3]);
     }
