@@ -763,12 +763,17 @@ impl SmoothLanes {
             // part, then the whole BSDF's density and f cos θi / pdf.
             let lobe = wardm & !x[row::U_CHOICE].cmp_lt(*pd);
             let (u0, u1) = (x[row::U_BSDF], x[row::U_BSDF + 1]);
-            let (w, _) = lobes.sample(wo, u0, u1);
+            let (w, _, m) = lobes.sample(wo, u0, u1);
             for k in 0..3 {
                 wi[k] = lobe.blend(w[k], wi[k]);
             }
             ok = wi[2].cmp_gt(zero);
-            let gauss = lobes.gaussian(wo, &wi);
+            // exp(−E): the lobe's draw gives it, a Ward lane's Lambert draw computes it.
+            let gauss = if (wardm & !lobe).move_mask() != 0 {
+                lobe.blend(m, lobes.gaussian(wo, &wi))
+            } else {
+                m
+            };
             let pdf = Bsdf::ward_pdf8(*pd, lobes, wo, &wi, gauss);
             let f = Bsdf::ward_eval8(&rho, rho_s, lobes, wo, &wi, gauss);
             let cos_over_pdf = wi[2] / pdf;

@@ -179,7 +179,26 @@ impl Bsdf {
                 }
             }
             Bsdf::Ward { rho_d, rho_s, lobe } => {
-                self.smooth_sample(wo, *rho_d, *rho_s, uc, u, |u| lobe.sample(wo, u))
+                // `smooth_sample`, with the lobe's exp(−E) taken once for f and the density,
+                // and from the lobe's own draw where it drew (the eight lanes do the same).
+                let pd = Self::diffuse_prob(*rho_d, *rho_s);
+                let (wi, e) = if uc < pd {
+                    let wi = lambert::sample(u);
+                    (wi, lobe.gaussian(wo, wi))
+                } else {
+                    lobe.sample_with_gaussian(wo, u)?
+                };
+                if wi.z <= 0.0 {
+                    return None;
+                }
+                let pdf = pd * lambert::pdf(wo, wi) + (1.0 - pd) * lobe.pdf_with(wo, wi, e);
+                (pdf > 0.0).then(|| BsdfSample {
+                    wi,
+                    weight: (lambert::eval(*rho_d, wo, wi) + *rho_s * lobe.eval_with(wo, wi, e))
+                        * (wi.z / pdf),
+                    pdf,
+                    delta: false,
+                })
             }
             Bsdf::Microfacet { rho_d, rho_s, lobe } => {
                 self.smooth_sample(wo, *rho_d, *rho_s, uc, u, |u| lobe.sample(wo, u))

@@ -83,22 +83,20 @@ impl Lobes8 {
             / (f32x8::splat(2.0 * PI) * self.alpha_x * self.alpha_y * h[2] * h[2] * h[2])
     }
 
-    /// `WardLobe::sample` from (u0, u1) on every lane: ωi, and where it is above the surface
-    /// (elsewhere the scalar function returns None).
+    /// `WardLobe::sample_with_gaussian` from (u0, u1) on every lane: ωi, where it is above
+    /// the surface (elsewhere the scalar function returns None), and exp(−E) there.
     #[inline(always)]
-    pub fn sample(&self, wo: &V8, u0: f32x8, u1: f32x8) -> (V8, f32x8) {
+    pub fn sample(&self, wo: &V8, u0: f32x8, u1: f32x8) -> (V8, f32x8, f32x8) {
         let splat = f32x8::splat;
         let one = f32x8::ONE;
         let m = (one - u0).max(splat(f32::MIN_POSITIVE));
         let r = (-ln_poly8(m)).sqrt();
         let (s, c) = sin_cos_turn_x8(u1);
         let v = [self.alpha_x * r * c, self.alpha_y * r * s, one];
-        let inv = one / dot8(&v, &v).sqrt();
-        let h = v.map(|x| x * inv);
-        let t = splat(2.0) * dot8(wo, &h);
-        let wi: V8 = std::array::from_fn(|k| t * h[k] - wo[k]);
+        let t = splat(2.0) * dot8(wo, &v) / dot8(&v, &v);
+        let wi: V8 = std::array::from_fn(|k| t * v[k] - wo[k]);
         let above = wi[2].cmp_gt(f32x8::ZERO) & wo[2].cmp_gt(f32x8::ZERO);
-        (wi, above)
+        (wi, above, m)
     }
 }
 
@@ -297,7 +295,7 @@ mod tests {
             let (wo8, wi8) = (v8(&wo), v8(&wi));
             let g = l8.gaussian(&wo8, &wi8);
             let (e, p) = (l8.eval(&wo8, &wi8, g), l8.pdf(&wo8, &wi8, g));
-            let (ws, ok) = l8.sample(&wo8, x8(&|j| u[j].x), x8(&|j| u[j].y));
+            let (ws, ok, m8) = l8.sample(&wo8, x8(&|j| u[j].x), x8(&|j| u[j].y));
             let bsdfs: [Bsdf; 8] = std::array::from_fn(|j| Bsdf::Ward {
                 rho_d: rho_d[j],
                 rho_s: rho_s[j],
@@ -325,12 +323,13 @@ mod tests {
                     assert_eq!(bits(f8[k])[j], f[k].to_bits());
                 }
                 assert_eq!(bits(p8)[j], bsdfs[j].pdf(wo[j], wi[j]).to_bits());
-                let one = l.sample(wo[j], u[j]);
+                let one = l.sample_with_gaussian(wo[j], u[j]);
                 assert_eq!(one.is_some(), ok.to_array()[j] != 0.0, "{l:?}");
-                if let Some(w) = one {
+                if let Some((w, m)) = one {
                     for k in 0..3 {
                         assert_eq!(bits(ws[k])[j], w[k].to_bits());
                     }
+                    assert_eq!(bits(m8)[j], m.to_bits());
                     above += 1;
                 }
                 lobe_samples += 1;

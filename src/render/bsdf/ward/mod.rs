@@ -54,19 +54,32 @@ impl WardLobe {
         (a * a + b * b) / (h.z * h.z)
     }
 
+    /// exp(−E) for (ωo, ωi), from the unnormalised half vector: what `eval_with` and
+    /// `pdf_with` take.
+    #[inline]
+    pub fn gaussian(&self, wo: Vec3, wi: Vec3) -> f32 {
+        exp_neg_poly(self.exponent(wi + wo))
+    }
+
     /// f_s / ρs for directions in the local frame (both in the upper hemisphere, else 0).
     #[inline]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> f32 {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return 0.0;
         }
-        let h = wi + wo;
-        let e = exp_neg_poly(self.exponent(h));
+        self.eval_with(wo, wi, self.gaussian(wo, wi))
+    }
+
+    /// `eval` for directions above the surface, given `e` = exp(−E) (`gaussian`, or
+    /// `sample_with_gaussian`'s).
+    #[inline]
+    pub fn eval_with(&self, wo: Vec3, wi: Vec3, e: f32) -> f32 {
         match self.variant {
             WardVariant::Ward1992 => {
                 e / (4.0 * PI * self.alpha_x * self.alpha_y * (wi.z * wo.z).sqrt())
             }
             WardVariant::Balanced => {
+                let h = wi + wo;
                 let hz2 = h.z * h.z;
                 e * h.length_squared() / (PI * self.alpha_x * self.alpha_y * hz2 * hz2)
             }
@@ -79,23 +92,37 @@ impl WardLobe {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return 0.0;
         }
-        // E from the unnormalised half vector, as `eval` takes it (the same number); the
-        // density in the module comment's last form.
+        self.pdf_with(wo, wi, self.gaussian(wo, wi))
+    }
+
+    /// `pdf` for directions above the surface, given `e` = exp(−E): the density in the
+    /// module comment's last form.
+    #[inline]
+    pub fn pdf_with(&self, wo: Vec3, wi: Vec3, e: f32) -> f32 {
         let h = wi + wo;
-        let e = exp_neg_poly(self.exponent(h));
         e * h.length_squared() / (2.0 * PI * self.alpha_x * self.alpha_y * h.z * h.z * h.z)
     }
 
     /// Draws ωi by sampling the half vector; None when the reflected direction is below the
-    /// surface (the sample is then lost, which `pdf` accounts for by not renormalising). Its ln
-    /// and sin/cos are polynomials the eight lanes share (`ln_poly`, `sin_cos_turn`).
+    /// surface (the sample is then lost, which `pdf` accounts for by not renormalising).
     #[inline]
     pub fn sample(&self, wo: Vec3, u: Vec2) -> Option<Vec3> {
-        let r = (-ln_poly((1.0 - u.x).max(f32::MIN_POSITIVE))).sqrt();
+        self.sample_with_gaussian(wo, u).map(|(wi, _)| wi)
+    }
+
+    /// [`WardLobe::sample`], with exp(−E) at the direction drawn. The slopes drawn are
+    /// (αx, αy) · √(−ln m) · (cos, sin), so E = −ln m and exp(−E) is m itself: neither the
+    /// exponent nor its exp is recomputed (they would give m again, to rounding). The half
+    /// vector is left unnormalised: ωi = 2 (ωo·v) / (v·v) · v − ωo for any multiple v of ĥ.
+    /// Its ln and sin/cos are polynomials the eight lanes share (`ln_poly`, `sin_cos_turn`).
+    #[inline]
+    pub fn sample_with_gaussian(&self, wo: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
+        let m = (1.0 - u.x).max(f32::MIN_POSITIVE);
+        let r = (-ln_poly(m)).sqrt();
         let (s, c) = sin_cos_turn(u.y);
-        let h = Vec3::new(self.alpha_x * r * c, self.alpha_y * r * s, 1.0).normalize();
-        let wi = 2.0 * wo.dot(h) * h - wo;
-        (wi.z > 0.0 && wo.z > 0.0).then_some(wi)
+        let v = Vec3::new(self.alpha_x * r * c, self.alpha_y * r * s, 1.0);
+        let wi = 2.0 * wo.dot(v) / v.length_squared() * v - wo;
+        (wi.z > 0.0 && wo.z > 0.0).then_some((wi, m))
     }
 }
 
