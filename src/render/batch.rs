@@ -504,6 +504,7 @@ impl SmoothLanes {
     /// Adds lane `i` at vertex `v` (a Lambert surface of reflectance `rho`, seen from above,
     /// in a scene with lights), drawing its random numbers.
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     fn push(
         &mut self,
         i: usize,
