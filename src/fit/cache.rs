@@ -587,8 +587,13 @@ pub fn build(
             let mut open = 0.0f32;
             // Primary hits per half that read the atlas (the share of the pixel on the group).
             let mut tapped = [0u32; 2];
+            // Each half's stream, scrambled once per pixel (`Sampler::new` hashes its Owen
+            // scrambles; a copy whose sample is started anew draws the same numbers).
+            let streams: [Sampler; 2] = std::array::from_fn(|half| {
+                Sampler::new(seed ^ (0x9E37_79B9 * (half as u64 + 1)), p as u64)
+            });
             for (half, k) in (0..2usize).flat_map(|h| (0..hl + hi).map(move |k| (h, k))) {
-                let mut sampler = Sampler::new(seed ^ (0x9E37_79B9 * (half as u64 + 1)), p as u64);
+                let mut sampler = streams[half].clone();
                 sampler.start_sample(k);
                 let film = Vec2::new(x, y) + sampler.next_2d();
                 let Some((ray, hit)) = primary_hit(scene, film, primary, Some(group)) else {
@@ -793,8 +798,11 @@ pub fn build(
             if needs.mirror {
                 let m = needs.mirror_samples_per_half(opts);
                 let mut n_half = [0u32; 2];
+                let streams: [Sampler; 2] = std::array::from_fn(|half| {
+                    Sampler::new(seed ^ (0x6D69_7272 * (half as u64 + 1)), p as u64)
+                });
                 for (half, k) in (0..2usize).flat_map(|h| (0..m).map(move |k| (h, k))) {
-                    let mut sm = Sampler::new(seed ^ (0x6D69_7272 * (half as u64 + 1)), p as u64);
+                    let mut sm = streams[half].clone();
                     sm.start_sample(k);
                     let film = Vec2::new(x, y) + sm.next_2d();
                     n_half[half] += 1;
