@@ -354,7 +354,7 @@ pub fn render_pixels(
         }
         let k = pk.k;
         pk.k += 1;
-        job.st.start_camera_path(pk.rays[k]);
+        job.st.restart(pk.rays[k], 0, true);
         job.hit = pk.hits[k];
         job.traced = true;
         job.sampler.take_sample_from(&pk.samplers[k]);

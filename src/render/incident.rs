@@ -6,7 +6,7 @@
 //! to its estimator, not to the renderer.
 
 use super::batch::{trace_jobs, Job};
-use super::integrator::{PathState, PathTracer, Touched};
+use super::integrator::{PathTracer, Touched};
 use crate::geometry::{Hit, Ray};
 use crate::math::{Rgb, Sampler};
 
@@ -26,15 +26,14 @@ pub struct IndirectRay {
 pub fn indirect_radiance(pt: &PathTracer, rays: Vec<IndirectRay>) -> Vec<(Rgb, Touched)> {
     let mut radiance = vec![(Rgb::ZERO, Touched::default()); rays.len()];
     let mut rays = rays.into_iter();
+    // The lane's fields are written in place (`PathState::restart`), not through a new `Job`.
     let next = |lane: &mut Job| {
         rays.next()
             .map(|r| {
-                *lane = Job {
-                    st: PathState::new(r.ray, 1, false),
-                    hit: r.hit,
-                    traced: true,
-                    sampler: r.sampler,
-                }
+                lane.st.restart(r.ray, 1, false);
+                lane.hit = r.hit;
+                lane.traced = true;
+                lane.sampler = r.sampler;
             })
             .is_some()
     };

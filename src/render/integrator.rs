@@ -216,18 +216,18 @@ impl PathState {
         }
     }
 
-    /// Makes this the path `new(ray, 0, true)` in place: a camera path's start, field by
-    /// field. (`*self = PathState::new(..)` built a copy on the stack and moved it in 16-byte
-    /// pieces that straddled its smaller stores, missing store forwarding: 1% of a render.)
+    /// Makes this the path `new(ray, depth, count_emission)` in place, field by field.
+    /// (`*self = PathState::new(..)` built a copy on the stack and moved it in 16-byte pieces
+    /// that straddled its smaller stores, missing store forwarding: 1% of a render.)
     #[inline(always)]
-    pub fn start_camera_path(&mut self, ray: Ray) {
+    pub fn restart(&mut self, ray: Ray, depth: u32, count_emission: bool) {
         self.ray = ray;
         self.beta = Rgb::ONE;
         self.l = Rgb::ZERO;
-        self.segments = 0;
+        self.segments = depth;
         self.prev_pdf = None;
         self.first = true;
-        self.count_emission = true;
+        self.count_emission = count_emission;
         self.touched = Touched::default();
     }
 }
