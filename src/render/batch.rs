@@ -465,7 +465,7 @@ fn vec(x: &[f32x8], at: usize) -> [f32x8; 3] {
 
 /// Three `vec`s from nine registers at `at` (a frame's axes, a triangle's vertices), written
 /// out: `[0, 3, 6].map(..)` compiled to an outlined call whose 64-byte copies of 32-byte stores
-/// missed store forwarding, about 9% of a figure6 render.
+/// missed store forwarding.
 #[inline(always)]
 fn frame(x: &[f32x8], at: usize) -> [[f32x8; 3]; 3] {
     [vec(x, at), vec(x, at + 3), vec(x, at + 6)]

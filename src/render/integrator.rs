@@ -216,19 +216,30 @@ impl PathState {
         }
     }
 
-    /// Makes this the path `new(ray, depth, count_emission)` in place, field by field.
-    /// (`*self = PathState::new(..)` built a copy on the stack and moved it in 16-byte pieces
-    /// that straddled its smaller stores, missing store forwarding: 1% of a render.)
+    /// Makes this the path `new(ray, depth, count_emission)` in place, field by field
+    /// (`*self = PathState::new(..)` built a copy on the stack and moved it in pieces that
+    /// straddled its smaller stores, which missed store forwarding). The pattern names every
+    /// field, so a field added to the struct must be given its start here too.
     #[inline(always)]
     pub fn restart(&mut self, ray: Ray, depth: u32, count_emission: bool) {
-        self.ray = ray;
-        self.beta = Rgb::ONE;
-        self.l = Rgb::ZERO;
-        self.segments = depth;
-        self.prev_pdf = None;
-        self.first = true;
-        self.count_emission = count_emission;
-        self.touched = Touched::default();
+        let PathState {
+            ray: r,
+            beta,
+            l,
+            segments,
+            prev_pdf,
+            first,
+            count_emission: counts,
+            touched,
+        } = self;
+        *r = ray;
+        *beta = Rgb::ONE;
+        *l = Rgb::ZERO;
+        *segments = depth;
+        *prev_pdf = None;
+        *first = true;
+        *counts = count_emission;
+        *touched = Touched::default();
     }
 }
 
