@@ -161,6 +161,87 @@ impl Pair {
     }
 }
 
+/// Eight cached pairs' [`Pair`] and [`cosines`] on lanes, each lane its pair's values to the
+/// bit (the same operations in the same order). `valid` marks the pairs above the surface; the
+/// others get harmless values (no NaN), which the caller masks.
+pub(super) struct Pairs8 {
+    pub valid: f32x8,
+    /// The larger and the smaller cosine, and cos θd = ωi·ĥ.
+    pub big: f32x8,
+    pub small: f32x8,
+    pub cos_d: f32x8,
+    pub tan2_h: f32x8,
+    pub tan2_i: f32x8,
+    pub tan2_o: f32x8,
+    pub inv_4cc: f32x8,
+    /// c, per channel.
+    pub c: [f32x8; 3],
+}
+
+impl Pairs8 {
+    #[inline(always)]
+    pub(super) fn of(chunk: &[LobeSample; 8]) -> Pairs8 {
+        let splat = f32x8::splat;
+        let (zero, one) = (f32x8::ZERO, f32x8::ONE);
+        let r = lanes8(chunk);
+        let (hx, hy) = (r[row::HX], r[row::HY]);
+        let valid = r[row::NORM].cmp_gt(zero);
+        let n = valid.blend(r[row::NORM], splat(0.1));
+        let inv_hz2 = valid.blend(r[row::INV_HZ2], one);
+        let hz2 = one / inv_hz2;
+        let k = splat(4.0 * PI) * n;
+        let p = one / (k * k);
+        let big = splat(0.5) * (hz2.sqrt() + (hz2 - splat(4.0) * p).max(zero).sqrt());
+        let small = p / big;
+        let tan2 = |c: f32x8| (one - c * c).max(zero) / (c * c);
+        let t2 = hx * hx + hy * hy;
+        Pairs8 {
+            valid,
+            big,
+            small,
+            cos_d: splat(0.5) * (t2 + hz2).sqrt(),
+            tan2_h: t2 * inv_hz2,
+            tan2_i: tan2(big),
+            tan2_o: tan2(small),
+            inv_4cc: splat(0.25) / p,
+            c: [r[row::C], r[row::C + 1], r[row::C + 2]],
+        }
+    }
+
+    /// [`isotropic_at`] on the eight pairs (zero where not valid).
+    #[inline(always)]
+    pub(super) fn isotropic(&self, alpha: f32, distribution: Distribution) -> f32x8 {
+        let splat = f32x8::splat;
+        let (one, two) = (f32x8::ONE, splat(2.0));
+        let a2 = splat(alpha * alpha);
+        let one_t = one + self.tan2_h;
+        let g = match distribution {
+            Distribution::Ggx => {
+                let d_den = a2 + self.tan2_h;
+                let d = a2 * one_t * one_t / (splat(PI) * d_den * d_den);
+                let si = (one + a2 * self.tan2_i).sqrt();
+                let so = (one + a2 * self.tan2_o).sqrt();
+                d * (two / (one + si)) * (two / (one + so)) * self.inv_4cc
+            }
+            Distribution::Beckmann => {
+                let d = exp_neg_poly8(self.tan2_h / a2) * one_t * one_t / (splat(PI) * a2);
+                d * beckmann_g1_8(a2 * self.tan2_i) * beckmann_g1_8(a2 * self.tan2_o) * self.inv_4cc
+            }
+        };
+        self.valid.blend(g, f32x8::ZERO)
+    }
+}
+
+/// [`beckmann_g1`] on eight lanes, to the bit.
+#[inline(always)]
+fn beckmann_g1_8(t: f32x8) -> f32x8 {
+    let splat = f32x8::splat;
+    let a = f32x8::ONE / t.sqrt();
+    let g = (splat(3.535) * a + splat(2.181) * a * a)
+        / (f32x8::ONE + splat(2.276) * a + splat(2.577) * a * a);
+    a.cmp_ge(splat(1.6)).blend(f32x8::ONE, g)
+}
+
 /// cos θi and cos θo of a cached pair (in either order), and cos θd = ωi·ĥ, from its half
 /// vector (see [`Pair`]); None below the surface.
 pub fn cosines(hv: &HalfVector) -> Option<(f32, f32, f32)> {

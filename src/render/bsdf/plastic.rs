@@ -26,11 +26,13 @@
 //! the other levels, and ρd + ρs ≤ 1 holds). The lobe per unit ρs is F(η, ωi·ĥ)/F0 · D G1 G1 /
 //! (4 cosθi cosθo).
 
-use super::microfacet::{Distribution, MicrofacetLobe};
+use super::microfacet::{Distribution, MicrofacetLobe, Pairs8};
+use super::ward::LobeSample;
 use crate::math::{Rgb, Vec3, PI};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
+use wide::{f32x8, CmpGe};
 
 /// The coat's relative index of refraction when none is given: Mitsuba's default for
 /// `roughplastic` (polypropylene, 1.49, in air).
@@ -123,6 +125,20 @@ impl Coat {
         (1.0 - w) * self.transmittance[i] + w * self.transmittance[i + 1]
     }
 
+    /// [`Coat::transmittance`] on eight lanes, to the bit.
+    #[inline(always)]
+    fn transmittance8(&self, mu: f32x8) -> f32x8 {
+        let x = (mu.max(f32x8::ZERO).min(f32x8::ONE) * f32x8::splat((RES - 1) as f32)).to_array();
+        let (mut lo, mut hi, mut w) = ([0.0f32; 8], [0.0f32; 8], [0.0f32; 8]);
+        for l in 0..8 {
+            let i = (x[l] as usize).min(RES - 2);
+            w[l] = x[l] - i as f32;
+            (lo[l], hi[l]) = (self.transmittance[i], self.transmittance[i + 1]);
+        }
+        let w = f32x8::from(w);
+        (f32x8::ONE - w) * f32x8::from(lo) + w * f32x8::from(hi)
+    }
+
     /// The diffuse part per unit ρd (both directions above the surface).
     #[inline]
     pub fn diffuse(&self, cos_o: f32, cos_i: f32) -> f32 {
@@ -142,19 +158,54 @@ impl Coat {
 
 /// Per unit ρs and ρd, Σ c·(specular part) and Σ c·(diffuse part) over cached direction pairs
 /// (`ward::LobeSample`): what the fitter's objective needs for a trial coat. The pairs' cosines
-/// come from their half vectors (`microfacet::cosines`).
-pub fn plastic_sums(samples: &[super::ward::LobeSample], coat: &Coat) -> (Rgb, Rgb) {
-    let (mut s, mut d) = (Rgb::ZERO, Rgb::ZERO);
-    for smp in samples {
-        let Some((ci, co, cd)) = super::microfacet::cosines(&smp.half) else {
-            continue;
-        };
-        let lobe = &coat.lobe;
-        let g = super::microfacet::isotropic_at(&smp.half, lobe.alpha_x, lobe.distribution);
-        s += smp.c * (fresnel_dielectric(cd, coat.eta) / coat.f0 * g);
-        d += smp.c * coat.diffuse(ci, co);
+/// come from their half vectors (`microfacet::cosines`). Eight pairs at a time, the last eight
+/// padded with empty ones: each lane is its pair's terms as [`Coat::specular`] and
+/// [`Coat::diffuse`] give them to rounding (the cosines, F, the lobe and t to the bit), but the
+/// totals are summed in another order than one pair at a time.
+pub fn plastic_sums(samples: &[LobeSample], coat: &Coat) -> (Rgb, Rgb) {
+    let splat = f32x8::splat;
+    let (mut s, mut d) = ([f32x8::ZERO; 3], [f32x8::ZERO; 3]);
+    let (f0, scale) = (splat(coat.f0), splat(coat.diffuse_scale));
+    let lobe = &coat.lobe;
+    let mut add = |chunk: &[LobeSample; 8]| {
+        let q = Pairs8::of(chunk);
+        let spec = fresnel_dielectric8(q.cos_d, coat.eta) / f0
+            * q.isotropic(lobe.alpha_x, lobe.distribution);
+        let diff = q.valid.blend(
+            coat.transmittance8(q.big) * coat.transmittance8(q.small) * scale,
+            f32x8::ZERO,
+        );
+        for ch in 0..3 {
+            s[ch] += q.c[ch] * spec;
+            d[ch] += q.c[ch] * diff;
+        }
+    };
+    let mut chunks = samples.chunks_exact(8);
+    for chunk in &mut chunks {
+        add(chunk.try_into().expect("eight samples"));
     }
-    (s, d)
+    let rest = chunks.remainder();
+    if !rest.is_empty() {
+        let mut pad = [LobeSample::default(); 8];
+        pad[..rest.len()].copy_from_slice(rest);
+        add(&pad);
+    }
+    let sum = |v: &[f32x8; 3]| Rgb::from_array(v.map(|x| x.reduce_add()));
+    (sum(&s), sum(&d))
+}
+
+/// [`fresnel_dielectric`] on eight lanes, to the bit.
+#[inline(always)]
+fn fresnel_dielectric8(cos_i: f32x8, eta: f32) -> f32x8 {
+    let (zero, one) = (f32x8::ZERO, f32x8::ONE);
+    let e = f32x8::splat(eta);
+    let cos_i = cos_i.max(zero).min(one);
+    let sin_t2 = (one - cos_i * cos_i) / (e * e);
+    let cos_t = (one - sin_t2).max(zero).sqrt();
+    let a_s = (cos_i - e * cos_t) / (cos_i + e * cos_t);
+    let a_p = (e * cos_i - cos_t) / (e * cos_i + cos_t);
+    let f = f32x8::splat(0.5) * (a_s * a_s + a_p * a_p);
+    sin_t2.cmp_ge(one).blend(one, f)
 }
 
 /// The quadrature of the coat's integrals: a 128 × 64 midpoint grid of the lobe's sampling
@@ -252,6 +303,53 @@ mod tests {
         let critical = (1.0f32 - 1.0 / 1.5f32.powi(2)).sqrt(); // cos of asin(1/1.5)
         assert_eq!(fresnel_dielectric(critical - 1e-3, 1.0 / 1.5), 1.0);
         assert!(fresnel_dielectric(critical + 1e-2, 1.0 / 1.5) < 1.0);
+    }
+
+    /// The eight-lane sums are the sums of [`Coat::specular`] and [`Coat::diffuse`] over the
+    /// pairs' own directions (computed from ωo and ωi, not from the cached half vectors), for
+    /// both distributions, a smooth and a rough coat, grazing pairs and pairs below the surface
+    /// (which count zero), and a count of pairs not a multiple of eight.
+    #[test]
+    fn lane_sums_are_the_coats_terms_summed() {
+        let mut s = Sampler::new(11, 0);
+        let mut pairs = Vec::new();
+        for k in 0..1003 {
+            s.start_sample(k);
+            let [a, b, c, d, r, g, bl] = s.next_n::<7>();
+            let dir = |u: f32, v: f32, lift: f32| {
+                let z = (u * 1.1 - lift).clamp(-1.0, 1.0);
+                let rxy = (1.0 - z * z).max(0.0).sqrt();
+                let phi = 2.0 * PI * v;
+                Vec3::new(rxy * phi.cos(), rxy * phi.sin(), z)
+            };
+            // About one pair in twenty has a direction below the surface.
+            pairs.push((dir(a, b, 0.05), dir(c, d, 0.05), Rgb::new(r, g, bl)));
+        }
+        for distribution in [Distribution::Ggx, Distribution::Beckmann] {
+            for alpha in [0.03f32, 0.3] {
+                let coat = Coat::get(alpha, DEFAULT_ETA, distribution);
+                let samples: Vec<LobeSample> = pairs
+                    .iter()
+                    .map(|&(wo, wi, c)| LobeSample::new(wo, wi, c))
+                    .collect();
+                let (spec, diff) = plastic_sums(&samples, coat);
+                let (mut want_s, mut want_d) = (Rgb::ZERO, Rgb::ZERO);
+                for &(wo, wi, c) in &pairs {
+                    if wo.z > 0.0 && wi.z > 0.0 {
+                        want_s += c * coat.specular(wo, wi);
+                        want_d += c * coat.diffuse(wo.z, wi.z);
+                    }
+                }
+                let close = |a: Rgb, b: Rgb| ((a - b).abs() / b.abs()).max_element() < 2e-4;
+                let case = format!("{distribution:?} α {alpha}");
+                assert!(close(spec, want_s), "{case}: {spec:?} vs {want_s:?}");
+                assert!(close(diff, want_d), "{case}: {diff:?} vs {want_d:?}");
+                assert!(
+                    want_s.min_element() > 0.0 && want_d.min_element() > 0.0,
+                    "{case}"
+                );
+            }
+        }
     }
 
     /// The coat's tables against brute force: the albedo R by sampling the coat's own lobe
