@@ -234,7 +234,7 @@ impl Pairs8 {
 
 /// [`beckmann_g1`] on eight lanes, to the bit.
 #[inline(always)]
-fn beckmann_g1_8(t: f32x8) -> f32x8 {
+pub(super) fn beckmann_g1_8(t: f32x8) -> f32x8 {
     let splat = f32x8::splat;
     let a = f32x8::ONE / t.sqrt();
     let g = (splat(3.535) * a + splat(2.181) * a * a)

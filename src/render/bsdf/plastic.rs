@@ -32,7 +32,7 @@ use crate::math::{Rgb, Vec3, PI};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
-use wide::{f32x8, CmpGe};
+use wide::{f32x8, CmpGe, CmpGt, CmpLe};
 
 /// The coat's relative index of refraction when none is given: Mitsuba's default for
 /// `roughplastic` (polypropylene, 1.49, in air).
@@ -215,8 +215,12 @@ fn fresnel_dielectric8(cos_i: f32x8, eta: f32) -> f32x8 {
 /// the same term: only the half grid with sin φ > 0 is kept, each normal counting twice.
 struct Quadrature {
     lobe: MicrofacetLobe,
-    normals: Vec<Vec3>,
+    /// The normals ĥ, eight per entry, as lanes of x, y and z.
+    normals: Vec<[f32x8; 3]>,
 }
+
+/// Three lanes of vectors: x, y and z.
+type V8 = [f32x8; 3];
 
 impl Quadrature {
     fn new(lobe: MicrofacetLobe) -> Quadrature {
@@ -235,42 +239,63 @@ impl Quadrature {
                 normals.push(Vec3::new(r * c, r * s, 1.0).normalize());
             }
         }
+        let normals = normals
+            .chunks_exact(8)
+            .map(|h| [0, 1, 2].map(|k| f32x8::from(std::array::from_fn(|l| h[l][k]))))
+            .collect();
         Quadrature { lobe, normals }
     }
 
-    /// The mean of `term(ωi, ĥ, ωi·ĥ, G1(ωi), G1)` over the grid, ωi at incidence μ; terms
-    /// where ωi·ĥ ≤ 0 are 0.
-    fn mean(
-        &self,
-        mu: f32,
-        term: impl Fn(Vec3, Vec3, f32, f32, &dyn Fn(Vec3) -> f32) -> f32,
-    ) -> f32 {
+    /// G1 of eight directions ([`MicrofacetLobe::g1`] on lanes, to the bit).
+    #[inline(always)]
+    fn g1(&self, w: &V8) -> f32x8 {
+        let (a, b) = (
+            f32x8::splat(self.lobe.alpha_x) * w[0],
+            f32x8::splat(self.lobe.alpha_y) * w[1],
+        );
+        let t = (a * a + b * b) / (w[2] * w[2]);
+        match self.lobe.distribution {
+            Distribution::Ggx => f32x8::splat(2.0) / (f32x8::ONE + (f32x8::ONE + t).sqrt()),
+            Distribution::Beckmann => super::microfacet::beckmann_g1_8(t),
+        }
+    }
+
+    /// The mean of `term(ωi, ĥ, ωi·ĥ, G1(ωi))` over the grid, ωi at incidence μ, eight normals
+    /// at a time; terms where ωi·ĥ ≤ 0 are 0. Each term is the scalar formula's to the bit, and
+    /// the terms are summed in the grid's order, so the tables do not depend on the lanes.
+    fn mean(&self, mu: f32, term: impl Fn(&V8, &V8, f32x8, f32x8) -> f32x8) -> f32 {
         let wi = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
-        let g1 = |w: Vec3| self.lobe.g1(w);
-        let g1_wi = g1(wi);
+        let wi8 = [wi.x, wi.y, wi.z].map(f32x8::splat);
+        let g1_wi = self.g1(&wi8);
         let mut sum = 0.0f64;
-        for &h in &self.normals {
-            let d = wi.dot(h);
-            if d > 0.0 {
-                sum += term(wi, h, d, g1_wi, &g1) as f64;
+        for h in &self.normals {
+            // glam's dot: (x·x' + y·y') + z·z'.
+            let d = wi8[0] * h[0] + wi8[1] * h[1] + wi8[2] * h[2];
+            let t = d
+                .cmp_gt(f32x8::ZERO)
+                .blend(term(&wi8, h, d, g1_wi), f32x8::ZERO);
+            for v in t.to_array() {
+                sum += v as f64;
             }
         }
-        (sum / self.normals.len() as f64) as f32
+        (sum / (8 * self.normals.len()) as f64) as f32
     }
 
     /// t(μ) of the module comment: with ĥ drawn from D cos θh, the visible normals' density
     /// is G1(ωi) (ωi·ĥ) D / μ, so t = E[(1 − F) G1(ωt) G1(ωi) (ωi·ĥ) / (μ cos θh)], ωt the
     /// refraction of ωi through ĥ (into the coat, 1/η).
     fn transmitted(&self, eta: f32, mu: f32) -> f32 {
-        self.mean(mu, |wi, h, d, g1_wi, g1| {
-            let f = fresnel_dielectric(d, eta);
-            if f >= 1.0 {
-                return 0.0;
-            }
-            let inv = 1.0 / eta;
-            let cos_t = (1.0 - inv * inv * (1.0 - d * d)).max(0.0).sqrt();
-            let wt = h * (d * inv - cos_t) - wi * inv;
-            (1.0 - f) * g1(wt) * g1_wi * d / (mu * h.z)
+        let splat = f32x8::splat;
+        self.mean(mu, |wi, h, d, g1_wi| {
+            let f = fresnel_dielectric8(d, eta);
+            let inv = splat(1.0 / eta);
+            let cos_t = (f32x8::ONE - inv * inv * (f32x8::ONE - d * d))
+                .max(f32x8::ZERO)
+                .sqrt();
+            let k = d * inv - cos_t;
+            let wt = [0, 1, 2].map(|c| h[c] * k - wi[c] * inv);
+            let t = (f32x8::ONE - f) * self.g1(&wt) * g1_wi * d / (splat(mu) * h[2]);
+            f.cmp_ge(f32x8::ONE).blend(f32x8::ZERO, t)
         })
     }
 
@@ -278,12 +303,12 @@ impl Quadrature {
     /// reflectance 1). With ĥ drawn from D cos θh (pdf_h), ωo its reflection,
     /// dωo = 4 (ωo·ĥ) dωh: R = E[F G1(ωi) G1(ωo) (ωi·ĥ) / (μ cos θh)].
     fn albedo(&self, eta: f32, mu: f32) -> f32 {
-        self.mean(mu, |wi, h, d, g1_wi, g1| {
-            let wo = 2.0 * d * h - wi;
-            if wo.z <= 0.0 {
-                return 0.0;
-            }
-            fresnel_dielectric(d, eta) * g1_wi * g1(wo) * d / (mu * h.z)
+        self.mean(mu, |wi, h, d, g1_wi| {
+            let k = f32x8::splat(2.0) * d;
+            let wo = [0, 1, 2].map(|c| k * h[c] - wi[c]);
+            let r =
+                fresnel_dielectric8(d, eta) * g1_wi * self.g1(&wo) * d / (f32x8::splat(mu) * h[2]);
+            wo[2].cmp_le(f32x8::ZERO).blend(f32x8::ZERO, r)
         })
     }
 }
