@@ -580,8 +580,10 @@ pub fn build(
             let (nl, ni) = (2 * hl, 2 * hi);
             // Every sample up to its indirect path; the paths, eight at a time; then the
             // samples in their order (so the sums are the same to the bit as one by one).
-            let mut entries: Vec<Entry> = Vec::new();
-            let mut rays: Vec<IndirectRay> = Vec::new();
+            // At their final size (a ray holds its sampler, ~400 bytes: growing by doubling
+            // copied each pixel's rays five times).
+            let mut entries: Vec<Entry> = Vec::with_capacity(2 * (hl + hi) as usize);
+            let mut rays: Vec<IndirectRay> = Vec::with_capacity(2 * hi as usize);
             // Σ cos θ / (pdf n) over the indirect rays that leave the scene at once (× 1/π:
             // the open share of the cosine-weighted hemisphere).
             let mut open = 0.0f32;
