@@ -27,7 +27,7 @@
 //! in ln α ([`ggx_at`], [`ggx_sums`]).
 
 use super::ward::lanes::row;
-use super::ward::{lanes8, HalfVector, LobeSample};
+use super::ward::{chunks8, lanes8, HalfVector, LobeSample};
 use crate::math::{exp_neg_poly, exp_neg_poly8, Rgb, Vec2, Vec3, PI};
 pub use crate::scene::Distribution;
 use wide::{f32x8, CmpGe, CmpGt};
@@ -387,7 +387,7 @@ pub fn aniso_sums(samples: &[LobeSample], p: &AnisoParams, derivatives: bool) ->
     let beckmann = p.distribution == Distribution::Beckmann;
     let mut s = [zero; 3];
     let mut ds = [[zero; 3]; 3];
-    let mut add = |chunk: &[LobeSample; 8]| {
+    let add = |chunk: &[LobeSample; 8]| {
         let r = lanes8(chunk);
         let (hx, hy, inv_hz2, n) = (r[row::HX], r[row::HY], r[row::INV_HZ2], r[row::NORM]);
         let c = [r[row::C], r[row::C + 1], r[row::C + 2]];
@@ -464,16 +464,7 @@ pub fn aniso_sums(samples: &[LobeSample], p: &AnisoParams, derivatives: bool) ->
             }
         }
     };
-    let mut chunks = samples.chunks_exact(8);
-    for chunk in &mut chunks {
-        add(chunk.try_into().expect("eight samples"));
-    }
-    let rest = chunks.remainder();
-    if !rest.is_empty() {
-        let mut pad = [LobeSample::default(); 8];
-        pad[..rest.len()].copy_from_slice(rest);
-        add(&pad);
-    }
+    chunks8(samples, add);
     let sum = |v: &[f32x8; 3]| Rgb::from_array(v.map(|x| x.reduce_add()));
     (sum(&s), ds.each_ref().map(sum))
 }

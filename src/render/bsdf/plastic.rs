@@ -27,7 +27,7 @@
 //! (4 cosθi cosθo).
 
 use super::microfacet::{Distribution, MicrofacetLobe, Pairs8};
-use super::ward::LobeSample;
+use super::ward::{chunks8, LobeSample};
 use crate::math::{Rgb, Vec3, PI};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -167,7 +167,7 @@ pub fn plastic_sums(samples: &[LobeSample], coat: &Coat) -> (Rgb, Rgb) {
     let (mut s, mut d) = ([f32x8::ZERO; 3], [f32x8::ZERO; 3]);
     let (f0, scale) = (splat(coat.f0), splat(coat.diffuse_scale));
     let lobe = &coat.lobe;
-    let mut add = |chunk: &[LobeSample; 8]| {
+    let add = |chunk: &[LobeSample; 8]| {
         let q = Pairs8::of(chunk);
         let spec = fresnel_dielectric8(q.cos_d, coat.eta) / f0
             * q.isotropic(lobe.alpha_x, lobe.distribution);
@@ -180,16 +180,7 @@ pub fn plastic_sums(samples: &[LobeSample], coat: &Coat) -> (Rgb, Rgb) {
             d[ch] += q.c[ch] * diff;
         }
     };
-    let mut chunks = samples.chunks_exact(8);
-    for chunk in &mut chunks {
-        add(chunk.try_into().expect("eight samples"));
-    }
-    let rest = chunks.remainder();
-    if !rest.is_empty() {
-        let mut pad = [LobeSample::default(); 8];
-        pad[..rest.len()].copy_from_slice(rest);
-        add(&pad);
-    }
+    chunks8(samples, add);
     let sum = |v: &[f32x8; 3]| Rgb::from_array(v.map(|x| x.reduce_add()));
     (sum(&s), sum(&d))
 }

@@ -150,6 +150,21 @@ pub fn lanes8(chunk: &[LobeSample; 8]) -> [f32x8; 8] {
     }))
 }
 
+/// Calls `f` on `samples` eight at a time, the last eight padded with empty samples (zero c,
+/// below the surface), which the sums over them count as nothing.
+#[inline(always)]
+pub fn chunks8(samples: &[LobeSample], mut f: impl FnMut(&[LobeSample; 8])) {
+    let (chunks, rest) = samples.as_chunks::<8>();
+    for chunk in chunks {
+        f(chunk);
+    }
+    if !rest.is_empty() {
+        let mut pad = [LobeSample::default(); 8];
+        pad[..rest.len()].copy_from_slice(rest);
+        f(&pad);
+    }
+}
+
 /// [`LobeParams`] splat on eight lanes.
 struct Lanes8Params {
     cos_t: f32x8,

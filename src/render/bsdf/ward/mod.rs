@@ -31,7 +31,7 @@ pub mod half_vector;
 pub mod lanes;
 
 pub use half_vector::{ward_at, HalfVector, LobeParams};
-pub use lanes::{lanes8, lobe_sums, LobeSample, Lobes8};
+pub use lanes::{chunks8, lanes8, lobe_sums, LobeSample, Lobes8};
 
 use crate::math::warp::sin_cos_turn;
 use crate::math::{exp_neg_poly, ln_poly, Vec2, Vec3, PI};
