@@ -117,13 +117,37 @@ pub fn trace_jobs(
         gathered.n = 0;
         gathered.ward = 0;
         gathered.mirror = 0;
+        // Every lane arrives; then the lanes on anything but Ward, then those on Ward, so that
+        // each pass's branch on the material mostly goes one way (one pass mixing them
+        // mispredicted it lane by lane).
+        let mut objs: [Option<(&Object, Hit)>; LANES] = [None; LANES];
+        let mut ward = 0u32;
         let mut mask = live;
         while mask != 0 {
             let i = mask.trailing_zeros() as usize;
             mask &= mask - 1;
             let lane = &mut lanes[i];
-            let alive = match (pt.arrive(&mut lane.st, lane.hit.as_ref()), &lane.hit) {
+            match (pt.arrive(&mut lane.st, lane.hit.as_ref()), lane.hit) {
                 (Some(obj), Some(hit)) => {
+                    objs[i] = Some((obj, hit));
+                    ward |= u32::from(matches!(obj.material, Material::Ward { .. })) << i;
+                }
+                _ => {
+                    live &= !(1 << i);
+                    done(item[i], &lane.st);
+                }
+            }
+        }
+        for pass in [live & !ward, live & ward] {
+            let mut mask = pass;
+            while mask != 0 {
+                let i = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                let lane = &mut lanes[i];
+                let Some((obj, ref hit)) = objs[i] else {
+                    continue;
+                };
+                let alive =
                     if let Some((ng, frame, rho_d)) = flat_lambert(pt, obj, hit, lane.st.ray.d) {
                         let p = pt.scene.hit_point(hit);
                         gathered.push(i, pt, p, ng, &frame, rho_d, lane);
@@ -160,13 +184,11 @@ pub fn trace_jobs(
                                 _ => pt.scatter(&mut lane.st, &v, &mut lane.sampler),
                             },
                         }
-                    }
+                    };
+                if !alive {
+                    live &= !(1 << i);
+                    done(item[i], &lane.st);
                 }
-                _ => false,
-            };
-            if !alive {
-                live &= !(1 << i);
-                done(item[i], &lane.st);
             }
         }
         gathered.scatter(pt, &mut lanes, |i, st| {
