@@ -162,10 +162,16 @@ impl Pair {
 }
 
 /// Eight cached pairs' [`Pair`] and [`cosines`] on lanes, each lane its pair's values to the
-/// bit (the same operations in the same order). `valid` marks the pairs above the surface; the
+/// bit (the same operations in the same order): what the isotropic lobe, the coat
+/// (`plastic_sums`) and the anisotropic lobe ([`aniso_sums`]) recover from a half vector. `valid` marks the pairs above the surface; the
 /// others get harmless values (no NaN), which the caller masks.
 pub(super) struct Pairs8 {
     pub valid: f32x8,
+    /// The half vector's tangential components, 1/hz² and the cosines' product P.
+    pub hx: f32x8,
+    pub hy: f32x8,
+    pub inv_hz2: f32x8,
+    pub p: f32x8,
     /// The larger and the smaller cosine, and cos θd = ωi·ĥ.
     pub big: f32x8,
     pub small: f32x8,
@@ -197,6 +203,10 @@ impl Pairs8 {
         let t2 = hx * hx + hy * hy;
         Pairs8 {
             valid,
+            hx,
+            hy,
+            inv_hz2,
+            p,
             big,
             small,
             cos_d: splat(0.5) * (t2 + hz2).sqrt(),
@@ -388,20 +398,12 @@ pub fn aniso_sums(samples: &[LobeSample], p: &AnisoParams, derivatives: bool) ->
     let mut s = [zero; 3];
     let mut ds = [[zero; 3]; 3];
     let add = |chunk: &[LobeSample; 8]| {
-        let r = lanes8(chunk);
-        let (hx, hy, inv_hz2, n) = (r[row::HX], r[row::HY], r[row::INV_HZ2], r[row::NORM]);
-        let c = [r[row::C], r[row::C + 1], r[row::C + 2]];
+        // Empty lanes get harmless values, and their c is zero or they are masked below.
+        let q = Pairs8::of(chunk);
+        let (hx, hy, inv_hz2, prod, c) = (q.hx, q.hy, q.inv_hz2, q.p, q.c);
+        let (valid, big, small) = (q.valid, q.big, q.small);
         let tangent = |k: usize| f32x8::from(std::array::from_fn::<f32, 8, _>(|i| chunk[i].d[k]));
         let (dx, dy) = (tangent(0), tangent(1));
-        let valid = n.cmp_gt(zero);
-        // Empty lanes get harmless values, and their c is zero or they are masked below.
-        let n = valid.blend(n, splat(0.1));
-        let inv_hz2 = valid.blend(inv_hz2, one);
-        let hz2 = one / inv_hz2;
-        let k = splat(4.0 * PI) * n;
-        let prod = one / (k * k);
-        let big = splat(0.5) * (hz2.sqrt() + (hz2 - splat(4.0) * prod).max(zero).sqrt());
-        let small = prod / big;
         let (ix, iy) = (splat(0.5) * (hx + dx), splat(0.5) * (hy + dy));
         let (ox, oy) = (splat(0.5) * (hx - dx), splat(0.5) * (hy - dy));
         let i_grazer = (ix * ix + iy * iy).cmp_gt(ox * ox + oy * oy);
