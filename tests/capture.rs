@@ -78,11 +78,12 @@ fn params(dir: &std::path::Path, out: &str) -> serde_json::Value {
 /// response, 1% noise and 8 bits, and its exposure is found from the grey card in a model whose
 /// other materials are placeholders. Every parameter is compared with the truth within twice
 /// the tolerance of the clean photo (the radiance through the true camera, exposure known),
-/// fitted with the same settings — and the exposure within 1% of the one that made the
+/// fitted with the same settings, both as medians over `seeds` runs (at 128×96 one run's ρ
+/// scatters by 0.01–0.03 from seed to seed, and two seeds in six put a block 0.2 off) — and the exposure within 1% of the one that made the
 /// brackets (1.5% with the pose off, below). With the pose off, the pose must be found within 0.1° and 1 cm: the refinement
 /// against the placeholders alone (no quick fit) found 1.18° and a 3.3 cm lift, and the floor
 /// came out ρd 0.074 for 0.1 and θ −4.8°.
-fn capture_is_recovered(pose: bool, (width, height): (u32, u32)) {
+fn capture_is_recovered(pose: bool, (width, height): (u32, u32), seeds: u64) {
     let d = tempfile::tempdir().unwrap();
     let keep = std::env::var_os("MATFIT_KEEP").map(std::path::PathBuf::from);
     let dir = keep.as_deref().unwrap_or(d.path());
@@ -202,22 +203,39 @@ fn capture_is_recovered(pose: bool, (width, height): (u32, u32)) {
             &format!("target = {target:?}"),
         );
     write(dir, "clean.toml", &through_taken);
-    let (clean, _) = recover(
-        "radiance.exr",
-        "clean",
-        &[
+    // Each recovery with `seeds` seeds; the parameters compared are the medians (the first
+    // seed's run is the one whose exposure, pose and output are checked).
+    let seeds: Vec<String> = (0..seeds).map(|s| s.to_string()).collect();
+    let clean = Fit::median(seeds.iter().map(|seed| {
+        let out = format!("clean{seed}");
+        let args = [
             "--model",
             "clean.toml",
             "--exposure",
             "1",
             "--camera-is-calibrated",
-        ],
-    );
+            "--seed",
+            seed,
+        ];
+        recover("radiance.exr", &out, &args).0
+    }));
     let mut args = vec!["--vignetting", &vig, "--grey-card", "card=0.18"];
     if pose {
         args.push("--refine-pose");
     }
-    let (got, stdout) = recover("merged.exr", "out", &args);
+    let runs: Vec<(Fit, String)> = (seeds.iter())
+        .map(|seed| {
+            let out = if seed == "0" {
+                "out".to_string()
+            } else {
+                format!("out{seed}")
+            };
+            let args = [&args[..], &["--seed", seed]].concat();
+            recover("merged.exr", &out, &args)
+        })
+        .collect();
+    let stdout = runs[0].1.clone();
+    let got = Fit::median(runs.into_iter().map(|r| r.0));
     // The exposure: the brackets' merge over the radiance that made them (vignetted).
     let merged = matfit::io::image::read_linear(&dir.join("merged.exr")).unwrap();
     let (mut sm, mut sr) = (0.0f64, 0.0f64);
@@ -305,6 +323,19 @@ impl Fit {
         Fit(v)
     }
 
+    /// Each parameter's median over `fits` (an odd number of them).
+    fn median(fits: impl Iterator<Item = Fit>) -> Fit {
+        let fits: Vec<Fit> = fits.collect();
+        let mid = |k: usize| {
+            let mut v: Vec<f64> = fits.iter().map(|f| f.0[k].1).collect();
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        Fit((0..fits[0].0.len())
+            .map(|k| (fits[0].0[k].0.clone(), mid(k)))
+            .collect())
+    }
+
     fn of(res: &serde_json::Value) -> Fit {
         use crate::common::{json_rgb, result_group};
         let group = |name: &str| result_group(res, name)["params"].clone();
@@ -339,14 +370,14 @@ impl Fit {
 
 #[test]
 fn a_simulated_capture_through_the_right_pose_is_recovered_from_its_brackets() {
-    capture_is_recovered(false, (128, 96));
+    capture_is_recovered(false, (128, 96), 3);
 }
 
 /// At 128×96 the pose refinement trades the 1° turn for a 7 cm lift (1.7°; the blocks' edges
 /// are a few pixels long), so this one is at 256×192 (about two minutes on two cores).
 #[test]
 fn a_simulated_capture_off_by_a_degree_and_2_cm_is_recovered_with_its_pose_refined() {
-    capture_is_recovered(true, (256, 192));
+    capture_is_recovered(true, (256, 192), 1);
 }
 
 /// The same at figure6's own 512×384, for the absolute figures (ρ within 0.01, α 4%,
@@ -355,5 +386,5 @@ fn a_simulated_capture_off_by_a_degree_and_2_cm_is_recovered_with_its_pose_refin
 #[test]
 #[ignore]
 fn full_size_capture_off_by_a_degree_and_2_cm() {
-    capture_is_recovered(true, (512, 384));
+    capture_is_recovered(true, (512, 384), 1);
 }

@@ -257,6 +257,7 @@ fn quick_fit_poses(
     quick.cache.max_pixels = quick.cache.max_pixels.min(QUICK_PIXELS);
     quick.first_pixels = quick.first_pixels.min(QUICK_PIXELS);
     quick.final_spp = Some(2);
+    quick.hierarchy.gross_climbs = false;
     let rec = recover_resumable(
         &through[0],
         &prepared[0].photo,

@@ -63,6 +63,10 @@ pub struct HierarchyOptions {
     /// hierarchy of the notes and the Ward lobes alone, for comparison).
     #[serde(default = "yes")]
     pub microfacet: bool,
+    /// Whether a group whose error its neighbours' stale models cannot explain climbs before
+    /// the scene settles (`schedule::gross`).
+    #[serde(default = "yes")]
+    pub gross_climbs: bool,
 }
 
 fn yes() -> bool {
@@ -76,6 +80,7 @@ impl Default for HierarchyOptions {
             margin: 0.15,
             noise_factor: 3.0,
             microfacet: true,
+            gross_climbs: true,
         }
     }
 }

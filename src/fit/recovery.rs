@@ -551,7 +551,9 @@ impl<'a> RecoveryLoop<'a> {
             };
             let (px, tiles, n_tiles) = &self.pixel_lists[g];
             let atlas = self.atlases[g].as_deref();
-            let needs = self.states[g].cache_needs(self.settled);
+            // Once settled every group may try the levels above; before, only a gross one.
+            let may_climb = self.settled || climbers.contains(&g);
+            let needs = self.states[g].cache_needs(may_climb);
             // §5.1: the groups still being analysed, as the mirror radiance may read them (one
             // photo only: the pseudo-textures read the photo's pixels).
             let analysing: Vec<bool> = self
@@ -715,7 +717,7 @@ impl<'a> RecoveryLoop<'a> {
             // uniform level that Algorithm 1's gate says is not enough.
             let held = hold_textures.then(|| STRAY_LIGHT.to_string());
             let turn = schedule::Turn {
-                may_climb: self.settled,
+                may_climb,
                 may_move: climbers.contains(&g),
                 // The neighbours first: the texture's pixels need the index buffers.
                 texture_waits_for: held.or_else(|| {

@@ -4,7 +4,8 @@
 //!
 //! A group must not climb to explain light that a neighbour's stale model is missing, so groups
 //! try higher levels only after an iteration that changed no level and in which every group's
-//! parameters either stopped moving or move only within their own noise. The first to move is
+//! parameters either stopped moving or move only within their own noise; except a group whose
+//! error no neighbour's stale model could explain ([`gross`]), which climbs at once. The first to move is
 //! the one that has waited longest for its turn, then the one furthest above its level's
 //! threshold; others move in the same iteration only if no group moving lights them, nor they
 //! it, by more than [`INDEPENDENT`] of its light (they cannot be explaining each other's
@@ -49,15 +50,41 @@ fn independent(states: &[GroupState], a: usize, b: usize) -> bool {
     matches!((share(a, b), share(b, a)), (Some(x), Some(y)) if x <= INDEPENDENT && y <= INDEPENDENT)
 }
 
-/// The groups that may move to a higher level this iteration: none until the scene has
-/// settled, then among those with a [`climb_priority`] the one that has waited longest since it
-/// found a better level (`GroupState::waiting`), then the highest priority (the later group on
-/// ties); then, in the same order, every other one independent of all those already chosen.
-/// The waiting count makes turns rotate: one group that keeps finding better levels cannot hold
-/// the turn while another waits.
+/// How far above its level's threshold a group's error must be for [`gross`].
+pub const GROSS: f32 = 10.0;
+
+/// Whether group `g` misses its photo by more than its neighbours' stale models could explain,
+/// so that it need not wait for the scene to settle before it climbs: it is analysing, has been
+/// fitted at its level, its ε is at least [`GROSS`] times its level's threshold, and at least
+/// twice the share of its cached light that came by way of the other groups (`lit_by`). Were
+/// every other group's light wrong by 100%, g's tiles would be off by at most that share;
+/// what remains is g's own model. (figure6's Ward floor fitted diffuse: ε 0.88, 42% of its light
+/// by way of the others.) Before its first cache nothing is known: false.
+pub fn gross(states: &[GroupState], g: usize, opts: &HierarchyOptions) -> bool {
+    let s = &states[g];
+    let others: f32 = (s.lit_by.iter().enumerate())
+        .filter(|&(h, _)| h != g)
+        .map(|(_, &x)| x)
+        .sum();
+    opts.gross_climbs
+        && s.status == Status::Analysing
+        && has_settled_at_level(s.iterations_at_level)
+        && !s.lit_by.is_empty()
+        && s.error >= GROSS * opts.thresholds.of(s.level)
+        && s.error >= 2.0 * others
+}
+
+/// The groups that may move to a higher level this iteration. Until the scene has settled, the
+/// [`gross`] ones. Then among those with a [`climb_priority`] the one that has waited longest
+/// since it found a better level (`GroupState::waiting`), then the highest priority (the later
+/// group on ties); then, in the same order, every other one independent of all those already
+/// chosen. The waiting count makes turns rotate: one group that keeps finding better levels
+/// cannot hold the turn while another waits.
 pub fn climbers(states: &[GroupState], settled: bool, opts: &HierarchyOptions) -> Vec<usize> {
     if !settled {
-        return Vec::new();
+        return (0..states.len())
+            .filter(|&g| gross(states, g, opts))
+            .collect();
     }
     let mut candidates: Vec<(usize, u32, f32)> = (0..states.len())
         .filter_map(|g| climb_priority(&states[g], opts).map(|p| (g, states[g].waiting, p)))
@@ -76,7 +103,7 @@ pub fn climbers(states: &[GroupState], settled: bool, opts: &HierarchyOptions) -
 /// What the schedule allows one group in a global iteration.
 #[derive(Clone, Debug, Default)]
 pub struct Turn {
-    /// The scene has settled: the group may try the levels above its own.
+    /// The group may try the levels above its own: the scene has settled, or it is [`gross`].
     pub may_climb: bool,
     /// It is its turn: it may also move to a level it found (otherwise it waits).
     pub may_move: bool,
@@ -259,8 +286,51 @@ mod tests {
         assert_eq!(climbers(&states, true, &opts), [0]);
         // Without a cache yet, nothing is known: one climber.
         states[2].lit_by.clear();
-        states[2].lit_by.clear();
         assert_eq!(climbers(&states, true, &opts), [0]);
+        // Unsettled, only a gross group climbs: 0 (ε 0.3, 10.5% of its light from the others).
+        assert_eq!(climbers(&states, false, &opts), [0]);
+        states[0].lit_by[1] = 0.2;
         assert!(climbers(&states, false, &opts).is_empty());
+    }
+
+    /// Before the scene settles, a group climbs only if its ε is at least `GROSS` thresholds
+    /// and twice the share of its light that came by way of the others: not a group whose
+    /// neighbours could explain its error, nor one just above its threshold, nor one decided
+    /// or not yet fitted at its level, nor one without a cache.
+    #[test]
+    fn a_group_its_neighbours_cannot_explain_climbs_before_the_scene_settles() {
+        let opts = HierarchyOptions::default(); // diffuse threshold 2%
+                                                // Group g's shares: `own` from itself, `others` split between the next two groups.
+        let lit = |g: usize, own: f32, others: f32| {
+            let mut v = vec![0.0; 6];
+            v[g] = own;
+            v[(g + 1) % 6] = others / 2.0;
+            v[(g + 2) % 6] = others / 2.0;
+            v
+        };
+        let mut states = vec![
+            group(Status::Analysing, Level::Diffuse, 0.88, 1), // 42% via the others
+            group(Status::Analysing, Level::Diffuse, 0.30, 3), // 20% via the others
+            group(Status::Analysing, Level::Diffuse, 0.15, 3), // 7.5 thresholds
+            group(Status::Confirmed, Level::Diffuse, 0.90, 3),
+            group(Status::Analysing, Level::Diffuse, 0.90, 0), // not yet fitted here
+            group(Status::Analysing, Level::Diffuse, 0.90, 3), // no cache
+        ];
+        for (g, (own, others)) in [(0.1, 0.42), (0.0, 0.2), (0.0, 0.01), (0.0, 0.0), (0.0, 0.0)]
+            .into_iter()
+            .enumerate()
+        {
+            states[g].lit_by = lit(g, own, others);
+        }
+        assert!(gross(&states, 0, &opts));
+        assert!((1..6).all(|g| !gross(&states, g, &opts)));
+        assert_eq!(climbers(&states, false, &opts), [0]);
+        // g's own share does not count: its model is what is being fitted.
+        states[0].lit_by = lit(0, 0.5, 0.42);
+        assert!(gross(&states, 0, &opts));
+        states[0].lit_by = lit(0, 0.1, 0.45);
+        assert!(!gross(&states, 0, &opts));
+        // Settled, the usual rule: everyone with a priority, the worst first.
+        assert_eq!(climbers(&states, true, &opts)[0], 5);
     }
 }
