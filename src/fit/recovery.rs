@@ -872,12 +872,14 @@ impl<'a> RecoveryLoop<'a> {
             .iter()
             .zip(&levels_before)
             .any(|(s, l)| s.level != *l);
-        // Fits made before a group changed its model saw a different scene; so did fits made
-        // before the unseen groups' ρd (or the stray light) drifted, since the averages started,
-        // by more than twice the tolerance in the seen light. (From where they started, not from
-        // the last iteration: the estimate's own noise from one iteration to the next does not
-        // restart them, a slow drift does.) Either starts every group's average afresh; a new
-        // model also the record of how its parameters converge.
+        // Fits made before a group changed its model saw a different scene; so did the averaged
+        // fits once the unseen groups' ρd (or the stray light) is more than twice the tolerance,
+        // in the seen light, away from the mean of the values they saw. (That mean, not the last
+        // iteration's value: the estimate's own noise from one iteration to the next does not
+        // restart them, a slow drift does; and not the value when they started: an average
+        // of fits along a slow drift is biased by the distance from its mean.) Either starts
+        // every group's average afresh; a new model also the record of how its parameters
+        // converge.
         if level_changed || unseen_drift > 2.0 * opts.tolerance {
             for s in self.states.iter_mut() {
                 s.restart_average();

@@ -588,9 +588,16 @@ pub struct History {
     #[serde(default)]
     state: Vec<[Option<f32>; 3]>,
     /// Per unseen group (and the stray light): its value when the seen groups' averages last
-    /// started afresh ([`History::anchor`]); [`update`] measures its drift from there.
+    /// started afresh ([`History::anchor`]); [`update`] measures its drift from there until an
+    /// iteration's fits have seen a value (`seen_sum`).
     #[serde(default)]
     anchor: Vec<[f32; 3]>,
+    /// Per unseen group (and the stray light): the sum of the values the seen groups' fits saw
+    /// since the averages last started afresh, and how many iterations that is.
+    #[serde(default)]
+    seen_sum: Vec<[f64; 3]>,
+    #[serde(default)]
+    seen_n: u32,
 }
 
 impl History {
@@ -661,6 +668,30 @@ impl History {
     /// averages start from: fits made before saw other values.
     pub fn anchor(&mut self, values: &[Rgb]) {
         self.anchor = values.iter().map(|v| v.to_array()).collect();
+        self.seen_sum.clear();
+        self.seen_n = 0;
+    }
+
+    /// Records the values this iteration's fits saw.
+    fn saw(&mut self, values: &[Rgb]) {
+        self.seen_sum.resize(values.len(), [0.0; 3]);
+        for (s, v) in self.seen_sum.iter_mut().zip(values) {
+            for c in 0..3 {
+                s[c] += v[c] as f64;
+            }
+        }
+        self.seen_n += 1;
+    }
+
+    /// The mean of the values the fits since the last anchor saw, for tracked unknown `j`.
+    fn mean_seen(&self, j: usize) -> Option<Rgb> {
+        let s = self.seen_sum.get(j).filter(|_| self.seen_n > 0)?;
+        let n = self.seen_n as f64;
+        Some(Rgb::new(
+            (s[0] / n) as f32,
+            (s[1] / n) as f32,
+            (s[2] / n) as f32,
+        ))
     }
 
     /// The σ to report for group `j` in channel `c`; None before its first determined proposal.
@@ -688,8 +719,8 @@ pub struct Estimates {
     pub stray: Option<StrayEstimate>,
     /// The largest move in this iteration.
     pub moved: f32,
-    /// The largest move since [`History::anchor`] was last called: how stale the seen groups'
-    /// averaged fits are.
+    /// The largest difference between the values now and the mean of the values the seen
+    /// groups' fits saw since [`History::anchor`] was last called: how stale their averages are.
     pub drift: f32,
     /// Every tracked unknown's value now (ρd, or the stray light's radiance), in order.
     pub values: Vec<Rgb>,
@@ -777,6 +808,7 @@ pub fn update(
     for v in rho0.iter().skip(history.anchor.len()) {
         history.anchor.push(v.to_array());
     }
+    history.saw(&rho0);
     // The bounds of the running estimate: a reflectance's, or a radiance's (any S ≥ 0).
     let bounds = |u: usize| {
         if stray(u) {
@@ -939,10 +971,12 @@ pub fn update(
                 .fold(0.0f32, f32::max)
         };
         let before = rho0[j];
-        let anchor = history
-            .anchor
-            .get(j)
-            .map_or(before, |&a| Rgb::from_array(a));
+        let anchor = history.mean_seen(j).unwrap_or_else(|| {
+            history
+                .anchor
+                .get(j)
+                .map_or(before, |&a| Rgb::from_array(a))
+        });
         out.moved = out.moved.max(seen_change(before));
         out.drift = out.drift.max(seen_change(anchor));
         out.values.push(value);
@@ -1195,6 +1229,25 @@ mod tests {
             t.su = vec![[Rgb::ZERO; 2]];
         }
         assert!(solve_channel(&groups, 1, 0, Tiles::All).is_none());
+    }
+
+    /// The values the fits saw since the last anchor are averaged; an anchor starts afresh.
+    #[test]
+    fn the_drift_is_measured_from_the_mean_the_averaged_fits_saw() {
+        let mut h = History::default();
+        assert_eq!(h.mean_seen(0), None);
+        h.anchor(&[Rgb::splat(0.9)]);
+        assert_eq!(h.mean_seen(0), None);
+        for v in [0.90, 0.94, 0.98] {
+            h.saw(&[Rgb::splat(v)]);
+        }
+        let m = h.mean_seen(0).unwrap();
+        assert!((m.x - 0.94).abs() < 1e-6 && (m.z - 0.94).abs() < 1e-6);
+        assert_eq!(h.mean_seen(1), None);
+        h.anchor(&[Rgb::splat(0.98)]);
+        assert_eq!(h.mean_seen(0), None);
+        h.saw(&[Rgb::splat(0.98)]);
+        assert!((h.mean_seen(0).unwrap().y - 0.98).abs() < 1e-6);
     }
 
     /// A proposal far from the running estimate, in its own σ, is ignored once the estimate has
