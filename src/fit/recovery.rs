@@ -814,7 +814,6 @@ impl<'a> RecoveryLoop<'a> {
             stray,
             moved: unseen_moved,
             drift: unseen_drift,
-            values: unseen_values,
         } = super::unseen::update(
             &mut self.current,
             &mut self.states,
@@ -887,7 +886,7 @@ impl<'a> RecoveryLoop<'a> {
                     s.moves.clear();
                 }
             }
-            self.unseen_history.anchor(&unseen_values);
+            self.unseen_history.restart_drift();
             if level_changed {
                 self.unseen_history.restart_steps();
             }

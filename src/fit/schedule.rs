@@ -299,8 +299,9 @@ mod tests {
     /// or not yet fitted at its level, nor one without a cache.
     #[test]
     fn a_group_its_neighbours_cannot_explain_climbs_before_the_scene_settles() {
-        let opts = HierarchyOptions::default(); // diffuse threshold 2%
-                                                // Group g's shares: `own` from itself, `others` split between the next two groups.
+        // Diffuse threshold 2%. Group g's shares: `own` from itself, `others` split between the
+        // next two groups.
+        let opts = HierarchyOptions::default();
         let lit = |g: usize, own: f32, others: f32| {
             let mut v = vec![0.0; 6];
             v[g] = own;

@@ -587,13 +587,9 @@ pub struct History {
     /// below it.
     #[serde(default)]
     state: Vec<[Option<f32>; 3]>,
-    /// Per unseen group (and the stray light): its value when the seen groups' averages last
-    /// started afresh ([`History::anchor`]); [`update`] measures its drift from there until an
-    /// iteration's fits have seen a value (`seen_sum`).
-    #[serde(default)]
-    anchor: Vec<[f32; 3]>,
     /// Per unseen group (and the stray light): the sum of the values the seen groups' fits saw
-    /// since the averages last started afresh, and how many iterations that is.
+    /// since their averages last started afresh ([`History::restart_drift`]), and how many
+    /// iterations that is; [`update`] measures the drift from their mean.
     #[serde(default)]
     seen_sum: Vec<[f64; 3]>,
     #[serde(default)]
@@ -664,10 +660,9 @@ impl History {
         self.count.iter_mut().for_each(|n| *n = [0; 3]);
     }
 
-    /// Marks `values` (per tracked unknown, as [`Estimates::values`]) as the ones the seen groups'
-    /// averages start from: fits made before saw other values.
-    pub fn anchor(&mut self, values: &[Rgb]) {
-        self.anchor = values.iter().map(|v| v.to_array()).collect();
+    /// The seen groups' averages start afresh: the drift is measured from the values the fits
+    /// from the next iteration on see.
+    pub fn restart_drift(&mut self) {
         self.seen_sum.clear();
         self.seen_n = 0;
     }
@@ -683,7 +678,7 @@ impl History {
         self.seen_n += 1;
     }
 
-    /// The mean of the values the fits since the last anchor saw, for tracked unknown `j`.
+    /// The mean of the values the fits since the last restart saw, for tracked unknown `j`.
     fn mean_seen(&self, j: usize) -> Option<Rgb> {
         let s = self.seen_sum.get(j).filter(|_| self.seen_n > 0)?;
         let n = self.seen_n as f64;
@@ -720,10 +715,8 @@ pub struct Estimates {
     /// The largest move in this iteration.
     pub moved: f32,
     /// The largest difference between the values now and the mean of the values the seen
-    /// groups' fits saw since [`History::anchor`] was last called: how stale their averages are.
+    /// groups' fits saw since [`History::restart_drift`]: how stale their averages are.
     pub drift: f32,
-    /// Every tracked unknown's value now (ρd, or the stray light's radiance), in order.
-    pub values: Vec<Rgb>,
 }
 
 /// The stray light's estimate (`recover --stray-light`): a constant environment's radiance,
@@ -803,11 +796,6 @@ pub fn update(
             }
         })
         .collect();
-    // Until the seen groups' averages first start afresh, drift is measured from the values
-    // the first iteration's fits saw.
-    for v in rho0.iter().skip(history.anchor.len()) {
-        history.anchor.push(v.to_array());
-    }
     history.saw(&rho0);
     // The bounds of the running estimate: a reflectance's, or a radiance's (any S ≥ 0).
     let bounds = |u: usize| {
@@ -971,15 +959,9 @@ pub fn update(
                 .fold(0.0f32, f32::max)
         };
         let before = rho0[j];
-        let anchor = history.mean_seen(j).unwrap_or_else(|| {
-            history
-                .anchor
-                .get(j)
-                .map_or(before, |&a| Rgb::from_array(a))
-        });
+        let seen = history.mean_seen(j).unwrap_or(before);
         out.moved = out.moved.max(seen_change(before));
-        out.drift = out.drift.max(seen_change(anchor));
-        out.values.push(value);
+        out.drift = out.drift.max(seen_change(seen));
         if stray(u) {
             current.stray_light = value;
             out.stray = Some(StrayEstimate {
@@ -1231,12 +1213,12 @@ mod tests {
         assert!(solve_channel(&groups, 1, 0, Tiles::All).is_none());
     }
 
-    /// The values the fits saw since the last anchor are averaged; an anchor starts afresh.
+    /// The values the fits saw since the last restart are averaged; a restart starts afresh.
     #[test]
     fn the_drift_is_measured_from_the_mean_the_averaged_fits_saw() {
         let mut h = History::default();
         assert_eq!(h.mean_seen(0), None);
-        h.anchor(&[Rgb::splat(0.9)]);
+        h.restart_drift();
         assert_eq!(h.mean_seen(0), None);
         for v in [0.90, 0.94, 0.98] {
             h.saw(&[Rgb::splat(v)]);
@@ -1244,7 +1226,7 @@ mod tests {
         let m = h.mean_seen(0).unwrap();
         assert!((m.x - 0.94).abs() < 1e-6 && (m.z - 0.94).abs() < 1e-6);
         assert_eq!(h.mean_seen(1), None);
-        h.anchor(&[Rgb::splat(0.98)]);
+        h.restart_drift();
         assert_eq!(h.mean_seen(0), None);
         h.saw(&[Rgb::splat(0.98)]);
         assert!((h.mean_seen(0).unwrap().y - 0.98).abs() < 1e-6);
