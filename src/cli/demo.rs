@@ -115,7 +115,7 @@ pub fn print_table(
     rec: &matfit::fit::Recovery,
     out: &mut impl Write,
 ) -> std::io::Result<f32> {
-    use matfit::fit::hierarchy::Status;
+    use matfit::fit::Status;
     let mut worst = 0.0f32;
     // The surface column is as wide as the longest shown name.
     let sw = rec

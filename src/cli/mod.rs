@@ -550,7 +550,7 @@ impl FitArgs {
                 enabled: !self.white_unseen,
                 ..d.unseen.clone()
             },
-            hierarchy: matfit::fit::hierarchy::HierarchyOptions {
+            hierarchy: matfit::fit::HierarchyOptions {
                 thresholds: matfit::fit::level::Thresholds {
                     // --lambert: level 1's threshold met by every fit.
                     diffuse: if self.lambert {

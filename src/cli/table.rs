@@ -1,7 +1,7 @@
 //! How the terminal shows numbers: rounded vectors, colours, materials, and the table of
 //! recovered materials that ends `recover`.
 
-use matfit::fit::hierarchy::Status;
+use matfit::fit::Status;
 use matfit::fit::{Level, Recovery};
 use matfit::math::{Rgb, Vec3};
 use matfit::scene::{Material, Scene};
@@ -276,7 +276,7 @@ pub fn recovered(rec: &Recovery) -> String {
 }
 
 /// The 1σ column: the largest σ of ρd and ρs over the channels, and α's relative σ.
-fn uncertainty(st: &matfit::fit::hierarchy::GroupState, sd: &matfit::fit::GroupParams) -> String {
+fn uncertainty(st: &matfit::fit::GroupState, sd: &matfit::fit::GroupParams) -> String {
     let rho = sd.rho_d.max_element().max(sd.rho_s.max_element());
     let mut out = format!("ρ {rho:.3}");
     if st.level.has_lobe() {

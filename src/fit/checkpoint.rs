@@ -2,7 +2,7 @@
 //! (the caches' seeds derive from the iteration number, so a resumed run draws the same samples
 //! and ends with the same result as an uninterrupted one).
 
-use super::hierarchy::GroupState;
+use super::group::GroupState;
 use super::recover::RecoverOptions;
 use crate::math::sampler::{hash_seed, mix64};
 use crate::photo::{Photo, UsableMask};
@@ -33,7 +33,7 @@ pub struct Checkpoint {
     pub exposures: Vec<f32>,
     /// The stray light's last estimate (`recover --stray-light`; None without it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub stray_light: Option<super::unseen::StrayEstimate>,
+    pub stray_light: Option<super::stray::StrayEstimate>,
 }
 
 pub const CHECKPOINT_VERSION: u32 = 2;

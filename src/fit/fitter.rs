@@ -609,7 +609,7 @@ fn fit_level_from(
     // below (1 − margin) of the other's, the share of the photo's energy Σp² the diffuse term
     // explains decides instead, from the unbiased cross-half costs, against the level's
     // threshold squared.
-    let rule = super::hierarchy::HierarchyOptions::default();
+    let rule = super::level::HierarchyOptions::default();
     let quieter = metal.noise_floor < (1.0 - rule.margin) * fit.noise_floor;
     let explains = || {
         let energy: f64 = (cache.pixels.iter())

@@ -218,3 +218,36 @@ impl Thresholds {
         }
     }
 }
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct HierarchyOptions {
+    pub thresholds: Thresholds,
+    /// A higher level must lower ε by at least this fraction of the current ε...
+    pub margin: f32,
+    /// ...and by more than this many noise floors.
+    pub noise_factor: f32,
+    /// Whether levels 8, 9 and 10, the GGX lobes (microfacet, plastic, anisotropic), are tried (off: the
+    /// hierarchy of the notes and the Ward lobes alone, for comparison).
+    #[serde(default = "yes")]
+    pub microfacet: bool,
+    /// Whether a group whose error its neighbours' stale models cannot explain climbs before
+    /// the scene settles (`schedule::gross`).
+    #[serde(default = "yes")]
+    pub gross_climbs: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+impl Default for HierarchyOptions {
+    fn default() -> Self {
+        HierarchyOptions {
+            thresholds: Thresholds::default(),
+            margin: 0.15,
+            noise_factor: 3.0,
+            microfacet: true,
+            gross_climbs: true,
+        }
+    }
+}

@@ -4,7 +4,9 @@
 
 use super::cache::CacheOptions;
 pub use super::checkpoint::{fingerprint, Checkpoint, CHECKPOINT_VERSION};
-use super::hierarchy::{Event, GroupState, HierarchyOptions};
+use super::event::Event;
+use super::group::GroupState;
+use super::level::HierarchyOptions;
 use super::params::GroupParams;
 use super::recovery::RecoveryLoop;
 use crate::io::image::Image;
@@ -183,7 +185,7 @@ pub struct Recovery {
     /// The unseen groups' estimates after the last global iteration (empty without such groups).
     pub unseen: Vec<super::unseen::UnseenEstimate>,
     /// The stray light's estimate after the last global iteration (`stray_light` on).
-    pub stray_light: Option<super::unseen::StrayEstimate>,
+    pub stray_light: Option<super::stray::StrayEstimate>,
     /// The scene with the recovered materials.
     pub scene: Scene,
     pub synthetic: Image,
@@ -302,7 +304,8 @@ pub fn recover_resumable(
 mod tests {
     use super::*;
     use crate::fit::cache::{CacheOptions, CachePixel, GroupCache};
-    use crate::fit::hierarchy::{HierarchyOptions, Status};
+    use crate::fit::group::Status;
+    use crate::fit::level::HierarchyOptions;
     use crate::fit::level::Level;
     use crate::math::Rgb;
     use crate::photo::usable_pixels;

@@ -10,13 +10,16 @@
 //! a group's cache already sees the groups refitted before it in the same iteration: this
 //! converges in fewer iterations than updating all groups at the end (bench/README.md).
 
-use super::cache::{build, choose_pixels, CacheOptions, Primary, UnseenProbe, STRAY_LIGHT};
+use super::cache::build::UnseenProbe;
+use super::cache::PseudoTextures;
+use super::cache::{build, choose_pixels, CacheOptions, Primary, STRAY_LIGHT};
 use super::checkpoint::{Checkpoint, CHECKPOINT_VERSION};
 use super::error::{block_side, block_tile, tiled_error, PixelTerms};
-use super::hierarchy::{Event, GroupState, Motion, Status};
+use super::event::Event;
+use super::group::{GroupState, Motion, Status};
 use super::level::Level;
 use super::params::{largest_move, GroupParams};
-use super::pseudo::{self, PseudoTextures};
+use super::pseudo;
 use super::recover::{
     pixel_budget, LogLine, PhotoView, RecoverError, RecoverOptions, Recovery, ViewFit,
 };
@@ -75,7 +78,7 @@ pub struct RecoveryLoop<'a> {
     unseen_history: super::unseen::History,
     unseen: Vec<super::unseen::UnseenEstimate>,
     /// The stray light's last estimate (`RecoverOptions::stray_light`).
-    stray: Option<super::unseen::StrayEstimate>,
+    stray: Option<super::stray::StrayEstimate>,
     /// Per group, the atlas a texture of it would use (fitted groups only; `texture.rs`).
     atlases: Vec<Option<Arc<Atlas>>>,
     /// Per group at level 7, its current texture as the renderer reads it.

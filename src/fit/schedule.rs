@@ -12,7 +12,8 @@
 //! missing light). Turns rotate, so no group holds them; and when the iterations run out, every
 //! group still analysing is decided (`GroupState::decide_at_end`).
 
-use super::hierarchy::{GroupState, HierarchyOptions, Motion, Status};
+use super::group::{GroupState, Motion, Status};
+use super::level::HierarchyOptions;
 use super::level::Level;
 
 /// Whether the scene has settled after a global iteration: no group changed level, and every

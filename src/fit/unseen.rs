@@ -36,9 +36,10 @@
 //! solved without it, so a closed room's unseen groups come out as without the option.
 
 use super::cache::{CacheNeeds, GroupCache, Sample, STRAY_LIGHT};
-use super::hierarchy::{GroupState, Status};
+use super::group::{GroupState, Status};
 use super::level::Level;
 use super::objective::Spec;
+use super::stray::StrayEstimate;
 use crate::math::{Rgb, Vec3};
 use crate::render::bsdf::ward::{lobe_sums, LobeParams};
 use crate::scene::{Scene, WardVariant};
@@ -719,42 +720,6 @@ pub struct Estimates {
     pub drift: f32,
 }
 
-/// The stray light's estimate (`recover --stray-light`): a constant environment's radiance,
-/// fitted like an unseen group's ρd from the light it adds to the seen groups' tiles (what it
-/// adds has its own shape: it fills shadows and is strongest where a surface sees open sky).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct StrayEstimate {
-    /// W/(m² sr) per channel, in the scene's units.
-    pub radiance: [f32; 3],
-    /// 1σ per channel (−1: no estimate from the photo in that channel).
-    pub sigma: [f32; 3],
-    /// Whether every channel was determined (1σ below [`STRAY_MAX_SHARE`] of the seen light);
-    /// a channel that never was keeps its given value (0 unless the scene file gives one).
-    pub estimated: bool,
-    /// The share of the seen pixels' light it makes.
-    pub share: f32,
-    /// Whether any of its light reaches the seen tiles (false in a closed room).
-    #[serde(default)]
-    pub open: bool,
-}
-
-impl StrayEstimate {
-    /// One line for the log and the summary.
-    pub fn describe(&self) -> String {
-        let [r, g, b] = self.radiance;
-        let [sr, sg, sb] = self.sigma;
-        let how = if self.estimated {
-            format!("1σ ({sr:.1e}, {sg:.1e}, {sb:.1e})")
-        } else {
-            "not determined by the photo in some channel (kept as given there)".to_string()
-        };
-        format!(
-            "stray light ({r:.4}, {g:.4}, {b:.4}) W/(m² sr), {how}, {:.1}% of the seen light",
-            100.0 * self.share
-        )
-    }
-}
-
 /// The stray light is determined in a channel when its 1σ adds at most this share of the seen
 /// groups' light there.
 pub const STRAY_MAX_SHARE: f64 = 0.005;
@@ -1168,7 +1133,7 @@ mod tests {
     #[test]
     fn an_unseen_group_is_probed_only_where_its_light_can_inform_the_fit() {
         use crate::fit::cache::CacheNeeds;
-        use crate::fit::hierarchy::{GroupState, Status};
+        use crate::fit::group::{GroupState, Status};
         use crate::fit::params::GroupParams;
         let mut seen = GroupState::new("wall", Status::Confirmed, GroupParams::default());
         let mut unseen = GroupState::new("ceiling", Status::Default, GroupParams::default());

@@ -4,8 +4,8 @@
 pub mod html;
 pub mod plots;
 
-use crate::fit::hierarchy::Status;
 use crate::fit::params::Value;
+use crate::fit::Status;
 use crate::fit::{GroupParams, Level, Recovery};
 use crate::io::atomic::write_atomic;
 use crate::io::image::Image;
@@ -131,7 +131,7 @@ pub struct Results {
     pub views: Vec<crate::fit::recover::ViewFit>,
     /// The fitted stray light (`recover --stray-light`).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub stray_light: Option<crate::fit::unseen::StrayEstimate>,
+    pub stray_light: Option<crate::fit::stray::StrayEstimate>,
 }
 
 /// The material of group `g`'s first object in the recovered scene.
@@ -235,7 +235,7 @@ pub fn results(rec: &Recovery) -> Results {
 }
 
 /// The texture outputs of group `g`, if it ended at level 7.
-fn texture_result(g: usize, s: &crate::fit::hierarchy::GroupState) -> Option<TextureResult> {
+fn texture_result(g: usize, s: &crate::fit::GroupState) -> Option<TextureResult> {
     let t = s.texture.as_ref().filter(|_| s.level == Level::Textured)?;
     let stem = crate::fit::recovery::texture_stem(g, &s.name);
     Some(TextureResult {

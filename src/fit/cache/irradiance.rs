@@ -20,7 +20,7 @@
 //! Only the texture is solved on the smoothed rows; the error that weighs levels against each
 //! other reads the rows as sampled, like every other level's model (`texture::fit_textured`).
 
-use super::cache::{CachePixel, PixelGrid, TexelRows};
+use super::pixels::{CachePixel, PixelGrid, TexelRows};
 use crate::math::Rgb;
 
 /// Neighbours within this many grid steps (either way, in x and y) are averaged.
