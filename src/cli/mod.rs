@@ -774,7 +774,7 @@ pub fn run(cmd: Command) -> Result<()> {
                 opts.grey_card = photo_args
                     .grey_card
                     .clone()
-                    .map(|(group, rho)| matfit::fit::recover::GreyCard { group, rho });
+                    .map(|(group, rho)| matfit::fit::recovery::GreyCard { group, rho });
             }
             if photo_args.register && photo_args.refine_pose {
                 let names: Vec<String> = chosen[1..]
@@ -828,11 +828,11 @@ pub fn run(cmd: Command) -> Result<()> {
                 inputs.photos = photos.iter().map(|p| p.display().to_string()).collect();
             }
             let (first, rest) = scenes.split_first().expect("one photo at least");
-            let views: Vec<matfit::fit::recover::PhotoView> = rest
+            let views: Vec<matfit::fit::recovery::PhotoView> = rest
                 .iter()
                 .zip(&prepared[1..])
                 .enumerate()
-                .map(|(k, (s, p))| matfit::fit::recover::PhotoView {
+                .map(|(k, (s, p))| matfit::fit::recovery::PhotoView {
                     name: sc.views[chosen[k + 1]].name.clone(),
                     scene: s,
                     photo: &p.photo,

@@ -2,8 +2,8 @@
 //! every global iteration, then write the outputs. `resume` continues a run that was killed
 //! (even by `kill -9`) from its last checkpoint, to exactly the result of an uninterrupted run.
 
-use matfit::fit::recover::PhotoView;
-use matfit::fit::recover::{fingerprint, CHECKPOINT_VERSION};
+use matfit::fit::recovery::PhotoView;
+use matfit::fit::recovery::{fingerprint, CHECKPOINT_VERSION};
 use matfit::fit::{recover_resumable, Checkpoint, RecoverOptions, Recovery};
 use matfit::io::atomic::write_atomic;
 use matfit::photo::{Photo, UsableMask};

@@ -2,7 +2,6 @@
 //! machine, and the global iterations that tie them together (§4 of the notes).
 
 pub mod cache;
-pub mod checkpoint;
 pub mod error;
 pub mod event;
 pub mod fitter;
@@ -12,7 +11,6 @@ pub mod level;
 pub mod objective;
 pub mod params;
 pub mod pseudo;
-pub mod recover;
 pub mod recovery;
 pub mod schedule;
 pub mod solve;
@@ -26,4 +24,6 @@ pub use event::Event;
 pub use group::{GroupState, Status};
 pub use level::{HierarchyOptions, Level};
 pub use params::GroupParams;
-pub use recover::{recover, recover_resumable, Checkpoint, RecoverError, RecoverOptions, Recovery};
+pub use recovery::{
+    recover, recover_resumable, Checkpoint, RecoverError, RecoverOptions, Recovery,
+};

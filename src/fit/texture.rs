@@ -77,7 +77,7 @@ pub struct TextureState {
     #[serde(default = "default_smoothing")]
     pub smoothing: f32,
     /// Whether that weight was chosen on a cache of the textured level (whose pixels draw
-    /// [`super::recovery::TEXTURED_SAMPLES`] times the samples) and is kept from then on; the
+    /// [`super::recovery::run::TEXTURED_SAMPLES`] times the samples) and is kept from then on; the
     /// climb's is chosen on the uniform level's cache.
     #[serde(default)]
     pub smoothing_settled: bool,

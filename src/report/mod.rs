@@ -128,7 +128,7 @@ pub struct Results {
     pub ward_variant: &'static str,
     /// Per photo, when several were fitted together: its fitted exposure factor and residual.
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub views: Vec<crate::fit::recover::ViewFit>,
+    pub views: Vec<crate::fit::recovery::ViewFit>,
     /// The fitted stray light (`recover --stray-light`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stray_light: Option<crate::fit::stray::StrayEstimate>,

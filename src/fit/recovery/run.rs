@@ -10,27 +10,23 @@
 //! a group's cache already sees the groups refitted before it in the same iteration: this
 //! converges in fewer iterations than updating all groups at the end (bench/README.md).
 
-use super::cache::build::UnseenProbe;
-use super::cache::PseudoTextures;
-use super::cache::{build, choose_pixels, CacheOptions, Primary, STRAY_LIGHT};
 use super::checkpoint::{Checkpoint, CHECKPOINT_VERSION};
-use super::error::{block_side, block_tile, tiled_error, PixelTerms};
-use super::event::Event;
-use super::group::{GroupState, Motion, Status};
-use super::level::Level;
-use super::params::{largest_move, GroupParams};
-use super::pseudo;
-use super::recover::{
+use super::options::{
     pixel_budget, LogLine, PhotoView, RecoverError, RecoverOptions, Recovery, ViewFit,
 };
-use super::schedule;
+use crate::fit::cache::{choose_pixels, CacheOptions};
+use crate::fit::error::{block_side, block_tile, tiled_error, PixelTerms};
+use crate::fit::event::Event;
+use crate::fit::group::{GroupState, Status};
+use crate::fit::level::Level;
+use crate::fit::params::GroupParams;
+use crate::fit::schedule;
 use crate::io::image::Image;
 use crate::math::sampler::hash_seed;
 use crate::math::Rgb;
 use crate::photo::openness::{open_scene_warning, OPEN_SCENE};
 use crate::photo::{Photo, UsableMask};
 use crate::render::film::{render, RenderOptions};
-use crate::render::PathTracer;
 use crate::scene::atlas::Atlas;
 use crate::scene::texture::{Mapping, Texture};
 use crate::scene::Scene;
@@ -38,65 +34,65 @@ use std::sync::Arc;
 use std::time::Instant;
 
 /// The cached pixels of every group at one pixel budget: (pixels, their tiles, tile count).
-type PixelLists = Vec<(Vec<usize>, Vec<u32>, usize)>;
+pub(super) type PixelLists = Vec<(Vec<usize>, Vec<u32>, usize)>;
 
 /// A further photo's part of a recovery (`views.rs`).
-struct ViewRun<'a> {
-    name: String,
-    scene: &'a Scene,
-    photo: &'a Photo,
-    mask: UsableMask,
+pub(super) struct ViewRun<'a> {
+    pub(super) name: String,
+    pub(super) scene: &'a Scene,
+    pub(super) photo: &'a Photo,
+    pub(super) mask: UsableMask,
     /// The view's scene with every group's current parameters.
-    current: Scene,
-    pixel_lists: PixelLists,
+    pub(super) current: Scene,
+    pub(super) pixel_lists: PixelLists,
 }
 
 /// A recovery in progress.
 pub struct RecoveryLoop<'a> {
-    scene: &'a Scene,
-    photo: &'a Photo,
-    mask: UsableMask,
-    opts: &'a RecoverOptions,
-    states: Vec<GroupState>,
+    pub(super) scene: &'a Scene,
+    pub(super) photo: &'a Photo,
+    pub(super) mask: UsableMask,
+    pub(super) opts: &'a RecoverOptions,
+    pub(super) states: Vec<GroupState>,
     /// The scene with every group's current parameters.
-    current: Scene,
+    pub(super) current: Scene,
     /// Whether the previous iteration left the scene nearly unchanged ([`schedule::settled`]).
-    settled: bool,
+    pub(super) settled: bool,
     /// The next global iteration to run.
-    next: u32,
+    pub(super) next: u32,
     /// Global iterations run, in this call and before the checkpoint resumed from.
-    iterations: u32,
-    cache_builds: u32,
-    evals: u64,
-    converged: bool,
+    pub(super) iterations: u32,
+    pub(super) cache_builds: u32,
+    pub(super) evals: u64,
+    pub(super) converged: bool,
     t0: Instant,
     /// Time before this run: that of the interrupted run, when resuming.
-    elapsed_before: f64,
-    cap: usize,
-    pixel_lists: PixelLists,
+    pub(super) elapsed_before: f64,
+    pub(super) cap: usize,
+    pub(super) pixel_lists: PixelLists,
     /// The unseen groups' recent estimates and the last ones (`unseen::update`).
-    unseen_history: super::unseen::History,
-    unseen: Vec<super::unseen::UnseenEstimate>,
+    pub(super) unseen_history: crate::fit::unseen::History,
+    pub(super) unseen: Vec<crate::fit::unseen::UnseenEstimate>,
     /// The stray light's last estimate (`RecoverOptions::stray_light`).
-    stray: Option<super::stray::StrayEstimate>,
+    pub(super) stray: Option<crate::fit::stray::StrayEstimate>,
     /// Per group, the atlas a texture of it would use (fitted groups only; `texture.rs`).
-    atlases: Vec<Option<Arc<Atlas>>>,
+    pub(super) atlases: Vec<Option<Arc<Atlas>>>,
     /// Per group at level 7, its current texture as the renderer reads it.
-    textures: Vec<Option<Arc<Texture>>>,
+    pub(super) textures: Vec<Option<Arc<Texture>>>,
     /// Per group, the pixels a texture of it is fitted from (`texture_pixels`), found when a
     /// group first needs them.
-    texture_pixels: std::cell::OnceCell<Vec<Vec<usize>>>,
+    pub(super) texture_pixels: std::cell::OnceCell<Vec<Vec<usize>>>,
     /// The scene's index buffers in the first photo, found when first needed.
-    index_buffers: std::cell::OnceCell<crate::render::aov::IndexBuffers>,
+    pub(super) index_buffers: std::cell::OnceCell<crate::render::aov::IndexBuffers>,
     /// The further photos fitted with the first (`views.rs`); empty for one photo.
-    extra: Vec<ViewRun<'a>>,
+    pub(super) extra: Vec<ViewRun<'a>>,
     /// Per photo (the first included), its exposure factor: all 1 for one photo.
-    exposures: Vec<f32>,
+    pub(super) exposures: Vec<f32>,
     /// Per photo, the residual and pixel count of the last iteration (several photos only).
-    residuals: Vec<(f32, usize)>,
+    pub(super) residuals: Vec<(f32, usize)>,
     /// The first photo divided by `exposures[0]` when that is not 1 (§5.1's pseudo-textures
     /// read it), made when first needed.
-    photo_scaled: std::cell::OnceCell<Vec<Rgb>>,
+    pub(super) photo_scaled: std::cell::OnceCell<Vec<Rgb>>,
 }
 
 /// The pixels a textured group is fitted from: its usable pixels, those the mask's edge test
@@ -142,7 +138,7 @@ fn texture_pixels(
 /// overall level says nothing new about the group and would only drag it towards its last
 /// value. What they add is the pattern, seen a second time from another direction; the level
 /// is left to the group's own pixels.
-fn mirror_scale(cache: &super::cache::GroupCache, model: &[Rgb]) -> (Rgb, bool) {
+pub(super) fn mirror_scale(cache: &crate::fit::cache::GroupCache, model: &[Rgb]) -> (Rgb, bool) {
     let (photo, model) = cache
         .pixels
         .iter()
@@ -236,7 +232,7 @@ impl<'a> RecoveryLoop<'a> {
     }
 
     /// Sets the stray light of the scene of every photo (one constant environment for all).
-    fn set_stray_light(&mut self, v: Rgb) {
+    pub(super) fn set_stray_light(&mut self, v: Rgb) {
         self.current.stray_light = v;
         for e in self.extra.iter_mut() {
             e.current.stray_light = v;
@@ -258,7 +254,7 @@ impl<'a> RecoveryLoop<'a> {
                 if !states[g].is_fitted() {
                     return None;
                 }
-                let texel = super::texture::footprint(scene, &by_group[g])?;
+                let texel = crate::fit::texture::footprint(scene, &by_group[g])?;
                 let objects = &scene.groups[g].objects;
                 Some(Arc::new(Atlas::build(
                     &scene.geometry,
@@ -323,8 +319,8 @@ impl<'a> RecoveryLoop<'a> {
     }
 
     /// The pixels of group `g`'s image in each confirmed ideal mirror: per mirror, its ρs and
-    /// its usable pixels that show `g` wholly ([`super::cache::shows_in_mirror`]).
-    fn mirror_view_pixels(&self, g: usize) -> Vec<(usize, Rgb, Vec<usize>)> {
+    /// its usable pixels that show `g` wholly ([`crate::fit::cache::shows_in_mirror`]).
+    pub(super) fn mirror_view_pixels(&self, g: usize) -> Vec<(usize, Rgb, Vec<usize>)> {
         let ib = self.index_buffers();
         let mirrors = self.states.iter().enumerate().filter_map(|(m, s)| {
             let confirmed = m != g && s.status == Status::Confirmed;
@@ -339,7 +335,7 @@ impl<'a> RecoveryLoop<'a> {
                     .filter(|&i| {
                         self.mask.group[i] == m as i32
                             && ib.mirror_group[i] == g as i32
-                            && super::cache::shows_in_mirror(self.scene, i, m, g)
+                            && crate::fit::cache::shows_in_mirror(self.scene, i, m, g)
                     })
                     .collect();
                 (!pixels.is_empty()).then_some((m, rho_s, pixels))
@@ -356,7 +352,7 @@ impl<'a> RecoveryLoop<'a> {
     /// After a textured group's cache: re-asks Algorithm 1's gate of it when a group that now
     /// lights it has changed level since its texture ([`schedule::texture_sources_changed`]);
     /// the trigger when a group changes level reads the textured group's shares from before.
-    fn note_texture_sources(&mut self, g: usize) {
+    pub(super) fn note_texture_sources(&mut self, g: usize) {
         if self.states[g].level != Level::Textured {
             self.states[g].texture_sources.clear();
             return;
@@ -372,7 +368,7 @@ impl<'a> RecoveryLoop<'a> {
     }
 
     /// Per group, the pixels a texture of it is fitted from ([`texture_pixels`]).
-    fn texture_pixels(&self) -> &[Vec<usize>] {
+    pub(super) fn texture_pixels(&self) -> &[Vec<usize>] {
         self.texture_pixels
             .get_or_init(|| texture_pixels(self.scene, &self.mask, self.index_buffers()))
     }
@@ -395,7 +391,7 @@ impl<'a> RecoveryLoop<'a> {
 
     /// The log line of `event` for group `g` in global iteration `it`, with the group's
     /// parameters as they are now.
-    fn line(&self, it: u32, g: usize, event: Event, seconds: f64) -> LogLine {
+    pub(super) fn line(&self, it: u32, g: usize, event: Event, seconds: f64) -> LogLine {
         let st = &self.states[g];
         LogLine {
             iteration: it,
@@ -412,12 +408,12 @@ impl<'a> RecoveryLoop<'a> {
     }
 
     /// Seconds since the recovery started (across a resume, the interrupted run's included).
-    fn elapsed(&self) -> f64 {
+    pub(super) fn elapsed(&self) -> f64 {
         self.elapsed_before + self.t0.elapsed().as_secs_f64()
     }
 
     /// Chooses the pixels of every group's cache, in every photo, at a given pixel budget.
-    fn choose_all(&mut self, cap: usize) {
+    pub(super) fn choose_all(&mut self, cap: usize) {
         let cache_opts = CacheOptions {
             max_pixels: cap,
             ..self.opts.cache.clone()
@@ -439,7 +435,7 @@ impl<'a> RecoveryLoop<'a> {
 
     /// The cached pixels of group `g` in further photo `k`: a subsample of its usable pixels
     /// there (`usable`) within the budget, all of them at level 7.
-    fn choose_in_view(
+    pub(super) fn choose_in_view(
         &self,
         k: usize,
         g: usize,
@@ -460,7 +456,7 @@ impl<'a> RecoveryLoop<'a> {
 
     /// The cached pixels of group `g`: at level 7 all of [`texture_pixels`] (every texel needs
     /// its pixels), else a subsample of its usable ones (`usable`) within the budget.
-    fn choose(
+    pub(super) fn choose(
         &self,
         g: usize,
         cache_opts: &CacheOptions,
@@ -476,437 +472,6 @@ impl<'a> RecoveryLoop<'a> {
         } else {
             choose_pixels(usable, w, cache_opts)
         }
-    }
-
-    /// One global iteration: every fitted group's cache rebuilt and refitted in turn, `log`
-    /// receiving each event as it happens. A fit whose error or parameters are not finite stops
-    /// the recovery with an error naming the group and the iteration (the state is then that of
-    /// the failed iteration; the last checkpoint is the one to resume from).
-    pub fn iterate(&mut self, log: &mut dyn FnMut(&LogLine)) -> Result<(), RecoverError> {
-        let (opts, it) = (self.opts, self.next);
-        let budget = pixel_budget(opts, it);
-        if budget != self.cap {
-            self.cap = budget;
-            self.choose_all(budget);
-        }
-        let levels_before: Vec<_> = self.states.iter().map(|s| s.level).collect();
-        self.iterations = it + 1;
-        let before: Vec<GroupParams> = self.states.iter().map(|s| s.params).collect();
-        let climbers = schedule::climbers(&self.states, self.settled, &opts.hierarchy);
-        let variant = self.scene.render.ward_variant;
-        // Unseen groups whose light every cache tracks, and the seen groups' shares of it.
-        let mut tracked = if opts.unseen.enabled {
-            super::unseen::unseen_groups(&self.states)
-        } else {
-            Vec::new()
-        };
-        // The stray light is tracked as one more unknown, last.
-        if opts.stray_light {
-            tracked.push(STRAY_LIGHT);
-        }
-        // While an open scene's stray light is not yet determined, no group tries level 7: a
-        // texture takes the stray light's shape texel by texel and would hide it for good (a
-        // textured group says nothing of it). Until half the iterations at most.
-        let hold_textures = opts.stray_light
-            && it < opts.max_iterations / 2
-            && self.stray.as_ref().is_none_or(|s| s.open && !s.estimated);
-        let mut shares = Vec::new();
-        let mut sums = super::views::ExposureSums::new(self.exposures.len());
-        for g in 0..self.states.len() {
-            if !self.states[g].is_fitted() {
-                continue;
-            }
-            let tg = Instant::now();
-            let textured = self.states[g].level == Level::Textured;
-            if textured && self.pixel_lists[g].0.len() < self.texture_pixels()[g].len() {
-                let cache_opts = CacheOptions {
-                    max_pixels: self.cap,
-                    ..opts.cache.clone()
-                };
-                // Textured: `choose` takes the texture's pixels, not these.
-                self.pixel_lists[g] =
-                    self.choose(g, &cache_opts, self.scene.camera.width as usize, &[]);
-                for k in 0..self.extra.len() {
-                    // Level 7 keeps every usable pixel of the view.
-                    let usable = self.extra[k].mask.pixels_of(g);
-                    self.extra[k].pixel_lists[g] = self.choose_in_view(k, g, &cache_opts, &usable);
-                }
-            }
-            let level = self.states[g].level;
-            let factor = match level {
-                Level::Textured => TEXTURED_SAMPLES,
-                Level::Microfacet | Level::Plastic => ggx_samples(self.states[g].params.alpha_x),
-                Level::AnisotropicMicrofacet => {
-                    let p = &self.states[g].params;
-                    ggx_samples(p.alpha_x.min(p.alpha_y))
-                }
-                _ => 1,
-            };
-            let indirect = if level.is_microfacet() {
-                factor * METAL_INDIRECT
-            } else {
-                factor
-            };
-            let cache_opts = CacheOptions {
-                light_samples: opts.cache.light_samples * factor,
-                indirect_samples: opts.cache.indirect_samples * indirect,
-                ..opts.cache.clone()
-            };
-            let (px, tiles, n_tiles) = &self.pixel_lists[g];
-            let atlas = self.atlases[g].as_deref();
-            // Once settled every group may try the levels above; before, only a gross one.
-            let may_climb = self.settled || climbers.contains(&g);
-            let needs = self.states[g].cache_needs(may_climb);
-            // §5.1: the groups still being analysed, as the mirror radiance may read them (one
-            // photo only: the pseudo-textures read the photo's pixels).
-            let analysing: Vec<bool> = self
-                .states
-                .iter()
-                .enumerate()
-                .map(|(i, s)| i != g && s.is_fitted() && s.status == Status::Analysing)
-                .collect();
-            let pseudo = (opts.pseudo_textures
-                && self.extra.is_empty()
-                && needs.mirror
-                && analysing.contains(&true))
-            .then(|| PseudoTextures {
-                groups: analysing,
-                usable: &self.mask.group,
-                photo: self.photo_in_cache_units(),
-            });
-            let probe: Vec<bool> = tracked
-                .iter()
-                .map(|&u| {
-                    u == STRAY_LIGHT
-                        || super::unseen::worth_probing(&self.states[g], needs, u, &self.states[u])
-                })
-                .collect();
-            let view_cache = |current: &Scene,
-                              primary: Primary,
-                              (px, tiles, n_tiles): (&[usize], &[u32], usize),
-                              photo: &Photo,
-                              pseudo: Option<&PseudoTextures>,
-                              seed: u64| {
-                let pt = PathTracer::new(current);
-                let moved: Vec<(Scene, Rgb)> = tracked
-                    .iter()
-                    .map(|&u| match u {
-                        STRAY_LIGHT => super::unseen::moved_stray(current),
-                        u => super::unseen::moved_scene(current, &self.states[u]),
-                    })
-                    .collect();
-                let moved_pt: Vec<Option<PathTracer>> = moved
-                    .iter()
-                    .zip(&probe)
-                    .map(|((s, _), &p)| p.then(|| PathTracer::new(s)))
-                    .collect();
-                let probes: Vec<UnseenProbe> = tracked
-                    .iter()
-                    .zip(&moved)
-                    .zip(&moved_pt)
-                    .map(|((&group, (_, step)), pt)| UnseenProbe {
-                        group,
-                        moved: pt.as_ref(),
-                        step: *step,
-                    })
-                    .collect();
-                build(
-                    current,
-                    &pt,
-                    g,
-                    primary,
-                    px,
-                    tiles,
-                    n_tiles,
-                    &photo.image.data,
-                    needs,
-                    atlas,
-                    &probes,
-                    pseudo,
-                    &cache_opts,
-                    seed,
-                )
-            };
-            let mut cache = view_cache(
-                &self.current,
-                Primary::Camera,
-                (px, tiles, *n_tiles),
-                self.photo,
-                pseudo.as_ref(),
-                hash_seed(&[opts.seed, it as u64, g as u64]),
-            );
-            let reads_photo = pseudo.is_some();
-            // The photo in the recovered scene's units (x / 1 is x: one photo without a grey
-            // card is unchanged to the bit).
-            let e0 = self.exposures[0];
-            for p in cache.pixels.iter_mut() {
-                p.photo /= e0;
-            }
-            if !self.extra.is_empty() {
-                for (k, v) in self.extra.iter().enumerate() {
-                    let seed = hash_seed(&[opts.seed, it as u64, g as u64, k as u64 + 1]);
-                    let (px, tiles, n) = &v.pixel_lists[g];
-                    let c = view_cache(
-                        &v.current,
-                        Primary::Camera,
-                        (px, tiles, *n),
-                        v.photo,
-                        None,
-                        seed,
-                    );
-                    cache.append(c, self.exposures[k + 1]);
-                }
-                self.cache_builds += self.extra.len() as u32;
-            }
-            // Issue 25: a textured group is also fitted from its image in the confirmed mirrors
-            // (one photo only, and not while §5.1 reads the photo for this group).
-            let mut via_builds = 0;
-            if textured && opts.mirror_views && self.extra.is_empty() && !reads_photo {
-                let w = self.scene.camera.width as usize;
-                let all = CacheOptions {
-                    max_pixels: usize::MAX,
-                    ..opts.cache.clone()
-                };
-                for (m, rho_s, pixels) in self.mirror_view_pixels(g) {
-                    let (px, tiles, n) = choose_pixels(&pixels, w, &all);
-                    let seed = hash_seed(&[opts.seed, it as u64, g as u64, 0x6d69_7272, m as u64]);
-                    let mut c = view_cache(
-                        &self.current,
-                        Primary::Mirror(m),
-                        (&px, &tiles, n),
-                        self.photo,
-                        None,
-                        seed,
-                    );
-                    via_builds += 1;
-                    for p in c.pixels.iter_mut() {
-                        p.photo = p.photo / e0 / rho_s;
-                    }
-                    let st = &self.states[g];
-                    let Some(model) = st
-                        .texture
-                        .as_ref()
-                        .and_then(|t| super::texture::textured_model(&c, t, &st.params, variant))
-                    else {
-                        continue;
-                    };
-                    let (scale, used) = mirror_scale(&c, &model);
-                    let event = Event::MirrorView {
-                        mirror: self.states[m].name.clone(),
-                        pixels: c.pixels.len(),
-                        scale: [scale.x, scale.y, scale.z],
-                        used,
-                    };
-                    log(&self.line(it, g, event, 0.0));
-                    if used {
-                        for p in c.pixels.iter_mut() {
-                            p.photo *= scale;
-                        }
-                        cache.append(c, 1.0);
-                    }
-                }
-            }
-            self.cache_builds += 1 + via_builds;
-            let mut read = cache.pseudo.take().filter(|r| r.share >= pseudo::MIN_SHARE);
-            let mut took = false;
-            if let Some(r) = read.as_mut() {
-                if let Some((event, take)) = pseudo::choose(&mut cache, r, &self.states, g, variant)
-                {
-                    took = take;
-                    log(&self.line(it, g, event, 0.0));
-                }
-            }
-            // A held group waits as for a neighbour: it is neither textured nor confirmed at a
-            // uniform level that Algorithm 1's gate says is not enough.
-            let held = hold_textures.then(|| STRAY_LIGHT.to_string());
-            let turn = schedule::Turn {
-                may_climb,
-                may_move: climbers.contains(&g),
-                // The neighbours first: the texture's pixels need the index buffers.
-                texture_waits_for: held.or_else(|| {
-                    schedule::texture_waits_for(&self.states, g, &opts.hierarchy)
-                        .filter(|_| self.texture_pixels()[g].len() > opts.cache.max_pixels)
-                        .map(|h| self.states[h].name.clone())
-                }),
-            };
-            let st = &mut self.states[g];
-            let level_before = st.level;
-            let events = st.step(&cache, atlas, variant, &opts.hierarchy, &turn);
-            if let (true, Some(r)) = (took, read.as_mut()) {
-                // The unseen groups' derivatives are those of the rendered mirror radiance.
-                cache.swap_mirror(r);
-            }
-            if !self.extra.is_empty() && self.states[g].level != Level::Textured {
-                let st = &self.states[g];
-                let model = super::texture::uniform_model(&cache, st.level, &st.params, variant);
-                sums.add(&cache, &model, &self.exposures);
-            }
-            shares.extend(super::unseen::shares(&cache, g, &self.states[g], variant));
-            self.states[g].lit_by = cache.light_from.clone();
-            self.states[g].open = cache.open;
-            self.note_texture_sources(g);
-            if self.states[g].level != level_before {
-                for (h, st) in self.states.iter_mut().enumerate() {
-                    if h != g
-                        && st.level == Level::Textured
-                        && st
-                            .lit_by
-                            .get(g)
-                            .is_some_and(|&x| x > super::schedule::INDEPENDENT)
-                    {
-                        st.recheck_texture = true;
-                    }
-                }
-            }
-            let secs = tg.elapsed().as_secs_f64();
-            for e in events {
-                if let Event::Fit { evals: n, .. } = e {
-                    self.evals += n as u64;
-                }
-                log(&self.line(it, g, e, secs));
-            }
-            if let Some(what) = self.states[g].non_finite() {
-                return Err(RecoverError::Diverged {
-                    group: self.states[g].name.clone(),
-                    iteration: it,
-                    what,
-                });
-            }
-            // Gauss–Seidel: the next groups' caches see this group's new parameters.
-            self.textures[g] = texture_of(self.scene, &self.states[g], self.atlases[g].as_ref());
-            apply(&mut self.current, &self.states, &self.textures);
-            for v in self.extra.iter_mut() {
-                apply(&mut v.current, &self.states, &self.textures);
-            }
-        }
-        // Several photos: each one's exposure factor against the refitted materials.
-        let mut exposure_moved = 0.0f32;
-        if !self.extra.is_empty() {
-            self.residuals = sums.residuals(&self.exposures);
-            if let Some(e) = sums.exposures() {
-                exposure_moved = e
-                    .iter()
-                    .zip(&self.exposures)
-                    .fold(0.0f32, |m, (a, b)| m.max((a / b - 1.0).abs()));
-                self.exposures = e;
-            }
-        }
-        // The grey card rendered with the refitted materials: the first photo's factor is
-        // what it says, and the others keep their ratios to it.
-        if let Some(card) = &opts.grey_card {
-            match grey_card_factor(&self.current, self.photo, &self.mask, card) {
-                Ok(f) => {
-                    let scale = f / self.exposures[0];
-                    tracing::debug!("iteration {it}: grey card factor {f}");
-                    exposure_moved = exposure_moved.max((scale - 1.0).abs());
-                    self.exposures.iter_mut().for_each(|e| *e *= scale);
-                    self.photo_scaled.take();
-                }
-                Err(e) => tracing::warn!("{e}; the exposure stays as calibrated before the fit"),
-            }
-        }
-        // Unseen groups' ρd re-estimated against the refitted seen groups (issue 26), except in
-        // the last `min_average` iterations (once as many have moved them): the fits made there
-        // all see the same values, so the averages that end the run hold `min_average` fits even
-        // if the estimate moved late, not only the last one.
-        let n = opts.max_iterations;
-        let m = opts.min_average;
-        let frozen = it + 1 >= n || (it + m >= n && it >= m);
-        let super::unseen::Estimates {
-            groups: estimates,
-            stray,
-            moved: unseen_moved,
-            drift: unseen_drift,
-        } = super::unseen::update(
-            &mut self.current,
-            &mut self.states,
-            &shares,
-            &tracked,
-            &opts.unseen,
-            &mut self.unseen_history,
-            frozen,
-        );
-        self.unseen = estimates;
-        if let Some(s) = stray {
-            log(&LogLine {
-                iteration: it,
-                group: "stray_light".into(),
-                event: Event::StrayLight(s.clone()),
-                params: Default::default(),
-                distribution: None,
-                seconds: 0.0,
-                elapsed: self.elapsed(),
-            });
-            self.set_stray_light(self.current.stray_light);
-            self.stray = Some(s);
-        }
-        for v in self.extra.iter_mut() {
-            apply(&mut v.current, &self.states, &self.textures);
-        }
-        let moves: Vec<Option<f32>> = self
-            .states
-            .iter()
-            .zip(&before)
-            .map(|(s, b)| {
-                s.is_fitted()
-                    .then(|| largest_move([(s.level, &s.params, b)]))
-            })
-            .collect();
-        let moved = moves
-            .iter()
-            .flatten()
-            .fold(unseen_moved.max(exposure_moved), |a, &b| a.max(b));
-        let mut motions = Vec::new();
-        for (g, m) in moves.iter().enumerate() {
-            let Some(m) = *m else { continue };
-            let motion = self.states[g].record_move(m, opts.settle);
-            if motion == Motion::Jittering {
-                log(&self.line(it, g, Event::Jitter { moved: m }, 0.0));
-            }
-            // Only its own: the light it sends the others barely changes on the way.
-            if self.states[g].restarts_its_average(motion, opts.settle) {
-                self.states[g].restart_average();
-            }
-            motions.push(motion);
-        }
-        let level_changed = self
-            .states
-            .iter()
-            .zip(&levels_before)
-            .any(|(s, l)| s.level != *l);
-        // Fits made before a group changed its model saw a different scene; so did the averaged
-        // fits once the unseen groups' ρd (or the stray light) is more than twice the tolerance,
-        // in the seen light, away from the mean of the values they saw. (That mean, not the last
-        // iteration's value: the estimate's own noise from one iteration to the next does not
-        // restart them, a slow drift does; and not the value when they started: an average
-        // of fits along a slow drift is biased by the distance from its mean.) Either starts
-        // every group's average afresh; a new model also the record of how its parameters
-        // converge.
-        if level_changed || unseen_drift > 2.0 * opts.tolerance {
-            for s in self.states.iter_mut() {
-                s.restart_average();
-                if level_changed {
-                    s.moves.clear();
-                }
-            }
-            self.unseen_history.restart_drift();
-            if level_changed {
-                self.unseen_history.restart_steps();
-            }
-        }
-        tracing::debug!(
-            "iteration {it}: moved {moved:.4} (unseen {unseen_moved:.4}, drift {unseen_drift:.4})"
-        );
-        self.settled = schedule::settled(level_changed, &motions);
-        let all_confirmed = self.states.iter().all(|s| {
-            s.status != Status::Analysing
-                && (s.status != Status::Confirmed
-                    || s.average.is_some_and(|a| a.1 >= opts.min_average))
-        });
-        self.converged =
-            all_confirmed && moved < opts.tolerance && self.cap >= opts.cache.max_pixels;
-        self.next = it + 1;
-        Ok(())
     }
 
     /// Ends the analysis of every group still analysing once the iterations are over: each keeps
@@ -972,7 +537,7 @@ impl<'a> RecoveryLoop<'a> {
         let (width, height) = (self.mask.width, self.photo.image.height);
         let spp = opts
             .final_spp
-            .unwrap_or_else(|| super::recover::auto_final_spp(width * height));
+            .unwrap_or_else(|| super::options::auto_final_spp(width * height));
         let half = (spp / 2).max(1);
         let tile = block_side(2 * half);
         let render_half = |seed: u64| {
@@ -1035,10 +600,9 @@ impl<'a> RecoveryLoop<'a> {
         let total_s = self.t0.elapsed().as_secs_f64();
         let mut states = self.states;
         for st in states.iter_mut().filter(|s| s.is_fitted()) {
-            let weak = st
-                .sigma
-                .as_ref()
-                .and_then(|sd| super::uncertainty::weak_lobe(st.params_level(), &st.params, sd));
+            let weak = st.sigma.as_ref().and_then(|sd| {
+                crate::fit::uncertainty::weak_lobe(st.params_level(), &st.params, sd)
+            });
             if let Some(w) = weak {
                 st.note = Some(match st.note.take() {
                     Some(n) => format!("{n}; {w}"),
@@ -1069,7 +633,7 @@ impl<'a> RecoveryLoop<'a> {
     }
 
     /// The first photo divided by its exposure factor, as the caches hold it.
-    fn photo_in_cache_units(&self) -> &[Rgb] {
+    pub(super) fn photo_in_cache_units(&self) -> &[Rgb] {
         let e0 = self.exposures[0];
         if e0 == 1.0 {
             return &self.photo.image.data;
@@ -1081,11 +645,11 @@ impl<'a> RecoveryLoop<'a> {
 
 /// The factor photo / rendering over the grey card's usable pixels, the card at its known ρ and
 /// every other group with its current materials (`photo::exposure::from_grey_card`).
-fn grey_card_factor(
+pub(super) fn grey_card_factor(
     current: &Scene,
     photo: &Photo,
     mask: &UsableMask,
-    card: &super::recover::GreyCard,
+    card: &super::options::GreyCard,
 ) -> Result<f32, String> {
     crate::photo::exposure::from_grey_card(current, photo, mask, &card.group, card.rho, 4096)
         .map(|c| c.factor)
@@ -1160,7 +724,7 @@ fn initial_states(scene: &Scene, mask: &UsableMask, opts: &RecoverOptions) -> Ve
 }
 
 /// Applies each group's current parameters (and texture) to its objects.
-fn apply(scene: &mut Scene, states: &[GroupState], textures: &[Option<Arc<Texture>>]) {
+pub(super) fn apply(scene: &mut Scene, states: &[GroupState], textures: &[Option<Arc<Texture>>]) {
     for obj in scene.objects.iter_mut() {
         let st = &states[obj.group];
         if matches!(
@@ -1178,7 +742,11 @@ fn apply(scene: &mut Scene, states: &[GroupState], textures: &[Option<Arc<Textur
 }
 
 /// The texture the renderer reads for a group at level 7 (None at the other levels).
-fn texture_of(scene: &Scene, st: &GroupState, atlas: Option<&Arc<Atlas>>) -> Option<Arc<Texture>> {
+pub(super) fn texture_of(
+    scene: &Scene,
+    st: &GroupState,
+    atlas: Option<&Arc<Atlas>>,
+) -> Option<Arc<Texture>> {
     let (t, atlas) = (st.texture.as_ref()?, atlas?);
     if st.level != Level::Textured || t.texels.len() != atlas.width * atlas.height {
         return None;

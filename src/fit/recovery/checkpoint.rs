@@ -2,8 +2,8 @@
 //! (the caches' seeds derive from the iteration number, so a resumed run draws the same samples
 //! and ends with the same result as an uninterrupted one).
 
-use super::group::GroupState;
-use super::recover::RecoverOptions;
+use super::options::RecoverOptions;
+use crate::fit::group::GroupState;
 use crate::math::sampler::{hash_seed, mix64};
 use crate::photo::{Photo, UsableMask};
 use serde::{Deserialize, Serialize};
@@ -27,13 +27,13 @@ pub struct Checkpoint {
     /// The unseen groups' recent estimates (`unseen::History`), so a resumed run averages the
     /// same ones.
     #[serde(default)]
-    pub unseen_history: super::unseen::History,
+    pub unseen_history: crate::fit::unseen::History,
     /// Each photo's fitted exposure factor (several photos only; `fit/views.rs`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub exposures: Vec<f32>,
     /// The stray light's last estimate (`recover --stray-light`; None without it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub stray_light: Option<super::stray::StrayEstimate>,
+    pub stray_light: Option<crate::fit::stray::StrayEstimate>,
 }
 
 pub const CHECKPOINT_VERSION: u32 = 2;
