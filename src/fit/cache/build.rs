@@ -166,24 +166,49 @@ pub fn shows_in_mirror(scene: &Scene, pixel: usize, mirror: usize, group: usize)
     })
 }
 
-/// Builds the cache of `group` for the chosen pixels, tracing through `scene` as it is now,
-/// with the pixels' primary rays as `primary` makes them.
-pub fn build(
-    scene: &Scene,
-    pt: &PathTracer,
-    group: usize,
-    primary: Primary,
-    pixels: &[usize],
-    tiles: &[u32],
-    n_tiles: usize,
-    photo: &[Rgb],
-    needs: CacheNeeds,
-    atlas: Option<&Atlas>,
-    unseen: &[UnseenProbe],
-    pseudo: Option<&PseudoTextures>,
-    opts: &CacheOptions,
-    seed: u64,
-) -> GroupCache {
+/// What one cache build is asked for: whose pixels, seen how, holding what, with how many
+/// samples.
+#[derive(Clone, Copy)]
+pub struct CacheRequest<'a> {
+    /// The group whose cache it is.
+    pub group: usize,
+    /// Where the pixels' primary rays come from.
+    pub primary: Primary,
+    /// The chosen pixels (row-major image indices, `choose_pixels`), each one's tile, and the
+    /// number of tiles.
+    pub pixels: &'a [usize],
+    pub tiles: &'a [u32],
+    pub n_tiles: usize,
+    /// The photo the pixels are read from (row-major, in the scene's units).
+    pub photo: &'a [Rgb],
+    /// What the cache must hold for the group's level.
+    pub needs: CacheNeeds,
+    /// The group's texture atlas, for the texel rows (level 7).
+    pub atlas: Option<&'a Atlas>,
+    /// The unseen groups (and the stray light) whose light the cache tracks.
+    pub unseen: &'a [UnseenProbe<'a>],
+    /// §5.1: the groups its mirror samples may read from the photo.
+    pub pseudo: Option<&'a PseudoTextures<'a>>,
+    pub opts: &'a CacheOptions,
+    pub seed: u64,
+}
+
+/// Builds the cache `req` asks for, tracing through `scene` as it is now (`pt` traces it).
+pub fn build(scene: &Scene, pt: &PathTracer, req: &CacheRequest) -> GroupCache {
+    let CacheRequest {
+        group,
+        primary,
+        pixels,
+        tiles,
+        n_tiles,
+        photo,
+        needs,
+        atlas,
+        unseen,
+        pseudo,
+        opts,
+        seed,
+    } = *req;
     let cam = &scene.camera;
     let k = unseen.len();
     let atlas = atlas.filter(|_| needs.texels);
@@ -713,22 +738,21 @@ irradiance = 2.0
         let opts = CacheOptions::default();
         let tiles = vec![0u32; via.len()];
         let build_as = |primary, pixels: &[usize]| {
-            build(
-                &scene,
-                &pt,
-                floor,
+            let req = CacheRequest {
+                group: floor,
                 primary,
                 pixels,
-                &tiles[..pixels.len()],
-                1,
-                &photo,
-                CacheNeeds::default(),
-                None,
-                &[],
-                None,
-                &opts,
-                7,
-            )
+                tiles: &tiles[..pixels.len()],
+                n_tiles: 1,
+                photo: &photo,
+                needs: CacheNeeds::default(),
+                atlas: None,
+                unseen: &[],
+                pseudo: None,
+                opts: &opts,
+                seed: 7,
+            };
+            build(&scene, &pt, &req)
         };
         let c = build_as(Primary::Mirror(mirror), &via);
         assert_eq!(c.stray, 0);
@@ -798,22 +822,21 @@ irradiance = 2.0
             step,
         }];
         let build_in = |s: &Scene, pt: &PathTracer, probes: &[UnseenProbe]| {
-            build(
-                s,
-                pt,
-                floor,
-                Primary::Camera,
-                &pixels,
-                &tiles,
-                1,
-                &photo,
-                CacheNeeds::default(),
-                None,
-                probes,
-                None,
-                &opts,
-                3,
-            )
+            let req = CacheRequest {
+                group: floor,
+                primary: Primary::Camera,
+                pixels: &pixels,
+                tiles: &tiles,
+                n_tiles: 1,
+                photo: &photo,
+                needs: CacheNeeds::default(),
+                atlas: None,
+                unseen: probes,
+                pseudo: None,
+                opts: &opts,
+                seed: 3,
+            };
+            build(s, pt, &req)
         };
         let c = build_in(&scene, &pt, &probe);
         let c_lit = build_in(&lit, &pt_lit, &[]);

@@ -10,6 +10,6 @@ pub mod mixture;
 pub mod pixels;
 pub mod pseudo_textures;
 
-pub use build::{build, choose_pixels, shows_in_mirror, Primary};
+pub use build::{build, choose_pixels, shows_in_mirror, CacheRequest, Primary};
 pub use pixels::*;
 pub use pseudo_textures::{photo_radiance, PseudoMirror, PseudoTextures};

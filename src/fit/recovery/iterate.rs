@@ -10,7 +10,8 @@ use super::run::{apply, ggx_samples, grey_card_factor, mirror_scale, texture_of,
 use super::run::{METAL_INDIRECT, TEXTURED_SAMPLES};
 use crate::fit::cache::build::UnseenProbe;
 use crate::fit::cache::{
-    build, choose_pixels, CacheOptions, GroupCache, Primary, PseudoTextures, STRAY_LIGHT,
+    build, choose_pixels, CacheOptions, CacheRequest, GroupCache, Primary, PseudoTextures,
+    STRAY_LIGHT,
 };
 use crate::fit::event::Event;
 use crate::fit::group::{Motion, Status};
@@ -213,22 +214,21 @@ impl RecoveryLoop<'_> {
                     step: *step,
                 })
                 .collect();
-            build(
-                current,
-                &pt,
-                g,
+            let req = CacheRequest {
+                group: g,
                 primary,
-                px,
+                pixels: px,
                 tiles,
                 n_tiles,
-                &photo.image.data,
+                photo: &photo.image.data,
                 needs,
                 atlas,
-                &probes,
+                unseen: &probes,
                 pseudo,
-                &cache_opts,
+                opts: &cache_opts,
                 seed,
-            )
+            };
+            build(current, &pt, &req)
         };
         let mut cache = view_cache(
             &self.current,
