@@ -1,6 +1,7 @@
 //! Benchmarks run by `matfit bench`: figures for the issue notes, measured on the machine at
 //! hand, reported as medians of several repetitions.
 
+use super::*;
 use matfit::geometry::packet::{Packet, LANES};
 use matfit::geometry::{shapes, Bvh, Ray};
 use matfit::math::{Vec2, Vec3};
@@ -157,4 +158,52 @@ pub fn ray_file(scene: &Scene, path: &std::path::Path, repeat: usize) -> anyhow:
         100.0 * hits as f64 / rays.len() as f64
     );
     Ok(())
+}
+
+#[derive(Subcommand)]
+pub enum BenchCommand {
+    /// Primary rays per second on a scene and on a generated mesh of ≥ 1M triangles.
+    Rays {
+        /// Scene to trace.
+        #[arg(long, default_value = "scenes/figure6/scene.toml")]
+        scene: PathBuf,
+        /// Triangles of the generated mesh.
+        #[arg(long, value_name = "N", default_value_t = 1_000_000)]
+        triangles: usize,
+        /// Repetitions (the median is reported).
+        #[arg(long, value_name = "N", default_value_t = 5)]
+        repeat: usize,
+        /// Instead: time one thread's closest-hit and shadow queries on the rays of this file
+        /// (little-endian f32 records: origin xyz, direction xyz, shadow-ray length; written
+        /// by bench/rays.py, which times Mitsuba 3 on the same rays).
+        #[arg(long)]
+        ray_file: Option<PathBuf>,
+    },
+}
+
+/// The arguments of `matfit bench` (see `Command::Bench`).
+#[derive(clap::Args)]
+pub struct BenchCli {
+    #[command(subcommand)]
+    which: BenchCommand,
+}
+
+/// Runs `matfit bench`.
+pub fn command(args: BenchCli) -> Result<()> {
+    let BenchCli { which } = args;
+    match which {
+        BenchCommand::Rays {
+            scene,
+            triangles,
+            repeat,
+            ray_file,
+        } => {
+            let sc = load_scene(&scene).with_context(|| "loading the benchmark scene")?;
+            match ray_file {
+                Some(f) => bench::ray_file(&sc, &f, repeat)?,
+                None => bench::rays(&sc, triangles, repeat),
+            }
+            Ok(())
+        }
+    }
 }

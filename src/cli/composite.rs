@@ -2,6 +2,7 @@
 //! (`matfit::render::composite`).
 
 use super::checks;
+use super::*;
 use crate::outln;
 use anyhow::{bail, Result};
 use matfit::io::atomic::check_output_file;
@@ -128,4 +129,58 @@ fn exposure(given: Option<f32>, scene: &Path) -> Result<(f32, String)> {
         1.0,
         "default: no --exposure and no results.json beside the scene".into(),
     ))
+}
+
+/// The arguments of `matfit composite` (see `Command::Composite`).
+#[derive(clap::Args)]
+pub struct CompositeCli {
+    /// The recovered scene (`recover`'s recovered.toml), whose camera is the photo's.
+    #[arg(
+        help = "Scene file (TOML): the recovered scene (recover's recovered.toml), whose camera is the photo's"
+    )]
+    scene: PathBuf,
+    #[arg(help = PHOTO_HELP)]
+    photo: PathBuf,
+    /// Output image: .png (sRGB), or .exr, .hdr, .pfm (linear, the photo's units).
+    #[arg(short, long)]
+    output: PathBuf,
+    #[command(flatten)]
+    edits: EditCli,
+    /// Samples per pixel of each of the two renders [default: the scene's [render] spp].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    spp: Option<u32>,
+    /// Random seed of both renders [default: the scene's [render] seed].
+    #[arg(long, value_name = "S")]
+    seed: Option<u64>,
+    /// Response curve of an 8/16-bit photo: srgb, linear, gamma:G or table:FILE.
+    #[arg(long, default_value = "srgb", value_parser = Response::parse)]
+    response: Response,
+    /// Exposure factor k of the photo (its linear values = k × radiance) [default: the one
+    /// in results.json beside SCENE, else 1].
+    #[arg(long, value_name = "K")]
+    exposure: Option<f32>,
+}
+
+/// Runs `matfit composite`.
+pub fn command(args: CompositeCli) -> Result<()> {
+    let CompositeCli {
+        scene,
+        photo,
+        output,
+        edits,
+        spp,
+        seed,
+        response,
+        exposure,
+    } = args;
+    composite::run(&composite::CompositeArgs {
+        scene,
+        photo,
+        output,
+        edits: edits.edits()?,
+        spp,
+        seed,
+        response,
+        exposure,
+    })
 }

@@ -1,6 +1,7 @@
 //! `matfit demo`: renders the figure6 photo (kept for the next run), recovers its materials
 //! without looking at the true ones, and prints the notes' Figure 6 table.
 
+use super::*;
 use matfit::fit::{GroupParams, Level, RecoverOptions};
 use matfit::io::image::read_linear;
 use matfit::photo::Photo;
@@ -293,6 +294,62 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
         rec_dir.display()
     );
     Ok(worst)
+}
+
+/// The arguments of `matfit demo` (see `Command::Demo`).
+#[derive(clap::Args)]
+pub struct DemoCli {
+    /// Scene whose materials are the truth [default: scenes/figure6/scene.toml].
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Output folder; the photo is kept there for the next run.
+    #[arg(short, long, default_value = "out/demo")]
+    output: PathBuf,
+    /// Samples per pixel of the photo.
+    #[arg(long, value_name = "N", default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..))]
+    photo_spp: u32,
+    /// Relative Gaussian noise added to the photo, as a standard deviation (0.01 = 1%).
+    #[arg(long, value_name = "SIGMA", default_value_t = 0.0)]
+    noise: f32,
+    /// Misregister the model: shift the camera given to the recovery by DX,DY pixels.
+    #[arg(long, value_name = "DX,DY", value_parser = parse_shift, default_value = "0,0")]
+    shift: (f32, f32),
+    /// Give the recovery the camera as it is, without refining its pose (as `recover
+    /// --camera-is-calibrated`).
+    #[arg(long)]
+    camera_is_calibrated: bool,
+    /// Write into OUTPUT even if it holds files that are not a matfit output.
+    #[arg(long)]
+    force: bool,
+    #[command(flatten)]
+    fit: FitArgs,
+}
+
+/// Runs `matfit demo`.
+pub fn command(args: DemoCli) -> Result<()> {
+    let DemoCli {
+        scene,
+        output,
+        photo_spp,
+        noise,
+        shift,
+        camera_is_calibrated,
+        force,
+        fit,
+    } = args;
+    checks::output_folder(&output, force)?;
+    let opts = demo::DemoOptions {
+        scene,
+        out: output,
+        photo_spp,
+        noise,
+        shift,
+        register: !camera_is_calibrated,
+        recover: fit.options(),
+    };
+    demo::run(&opts).map_err(anyhow::Error::msg)?;
+    out::repeat_warnings();
+    Ok(())
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
 //! `matfit hdr`: exposure brackets → one linear image for `recover`, with the response curve
 //! given or recovered from the brackets (`photo::hdr`, `photo::calibrate`).
 
+use super::*;
 use crate::outln;
 use anyhow::{bail, Result};
 use matfit::io::atomic::{check_output_file, write_atomic};
@@ -133,4 +134,46 @@ pub fn run(a: &HdrArgs) -> Result<()> {
         }
     );
     Ok(())
+}
+
+/// The arguments of `matfit hdr` (see `Command::Hdr`).
+#[derive(clap::Args)]
+pub struct HdrCli {
+    /// The brackets, in any order, all of one size and bit depth.
+    #[arg(required = true, num_args = 2.., value_name = "IMAGE")]
+    images: Vec<PathBuf>,
+    /// Exposure time of each image, in the images' order, fractions or decimals; required
+    /// (e.g. 1/60,1/15,0.25). Only their ratios matter to the merge.
+    #[arg(long, value_name = "T1,T2,...", value_parser = hdr::parse_times)]
+    times: hdr::Times,
+    /// Output image: .exr, .pfm or .hdr (linear).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Response curve of the brackets: recover (from the brackets themselves, Debevec &
+    /// Malik's least squares on a smooth curve), srgb, linear, gamma:G (linear = code^G) or
+    /// table:FILE.
+    #[arg(long, value_name = "R", default_value = "recover", value_parser = hdr::parse_response)]
+    response: hdr::HdrResponse,
+    /// Write the recovered response here, as a table that --response table:FILE reads
+    /// (linear values, one row per code) [default: not written].
+    #[arg(long, value_name = "FILE")]
+    response_out: Option<PathBuf>,
+}
+
+/// Runs `matfit hdr`.
+pub fn command(args: HdrCli) -> Result<()> {
+    let HdrCli {
+        images,
+        times,
+        output,
+        response,
+        response_out,
+    } = args;
+    hdr::run(&hdr::HdrArgs {
+        images,
+        times: times.0,
+        output,
+        response,
+        response_out,
+    })
 }

@@ -2,6 +2,7 @@
 //! every global iteration, then write the outputs. `resume` continues a run that was killed
 //! (even by `kill -9`) from its last checkpoint, to exactly the result of an uninterrupted run.
 
+use super::*;
 use matfit::fit::recovery::PhotoView;
 use matfit::fit::recovery::{fingerprint, CHECKPOINT_VERSION};
 use matfit::fit::{recover_resumable, Checkpoint, RecoverOptions, Recovery};
@@ -288,4 +289,220 @@ fn quick_fit_poses(
             )
         })
         .collect())
+}
+
+/// The arguments of `matfit recover` (see `Command::Recover`).
+#[derive(clap::Args)]
+pub struct RecoverCli {
+    #[arg(help = SCENE_HELP)]
+    scene: PathBuf,
+    /// Photograph of the scene: EXR, HDR or PFM (linear), or PNG/JPEG/TIFF (8/16-bit,
+    /// through --response). Several photos are fitted together, photo K through the scene's
+    /// [[view]] K (its camera and lights), each with its own fitted exposure factor.
+    #[arg(required = true, num_args = 1.., value_name = "PHOTO")]
+    photos: Vec<PathBuf>,
+    /// The [[view]] each photo is taken through, in the photos' order: numbers from 1 or
+    /// names, comma-separated [default: 1, 2, 3, ...].
+    #[arg(long, value_name = "V1,V2,...", value_delimiter = ',')]
+    views: Vec<String>,
+    /// Output folder (created if needed; a folder with other files is refused unless --force).
+    #[arg(short, long)]
+    output: PathBuf,
+    #[command(flatten)]
+    fit: FitArgs,
+    #[command(flatten)]
+    photo_args: PhotoCli,
+    /// Continue a run in OUTPUT that was interrupted, from its last checkpoint.
+    #[arg(long)]
+    resume: bool,
+    /// Write into OUTPUT even if it holds files that are not a matfit output.
+    #[arg(long)]
+    force: bool,
+}
+
+/// Runs `matfit recover`.
+pub fn command(args: RecoverCli) -> Result<()> {
+    let RecoverCli {
+        scene,
+        photos,
+        views: view_keys,
+        output,
+        fit,
+        photo_args,
+        resume,
+        force,
+    } = args;
+    let (sc, lighting) = load(&scene)?;
+    checks::require_light(&sc, &lighting)?;
+    let photo_args = PhotoArgs::from(photo_args);
+    // Photo k through view k (or --views); one photo of a scene without views: the
+    // scene itself.
+    if !view_keys.is_empty() && view_keys.len() != photos.len() {
+        bail!(
+            "--views names {} view(s) for {} photo(s): give one per photo",
+            view_keys.len(),
+            photos.len()
+        );
+    }
+    let chosen: Vec<usize> = if view_keys.is_empty() {
+        if photos.len() > sc.views.len().max(1) {
+            bail!(
+                "{} photos given but {} has {} [[view]] table(s): photo K is taken \
+                 through view K (its camera and lights), so give a [[view]] for every \
+                 photo",
+                photos.len(),
+                scene.display(),
+                sc.views.len()
+            );
+        }
+        (0..photos.len()).collect()
+    } else {
+        view_keys
+            .iter()
+            .map(|k| sc.view_index(k))
+            .collect::<Result<_, _>>()
+            .map_err(anyhow::Error::msg)?
+    };
+    let mut scenes: Vec<Scene> = if sc.views.is_empty() {
+        vec![sc.clone()]
+    } else {
+        chosen.iter().map(|&k| sc.in_view(k)).collect()
+    };
+    // Before any work: the output folder must be usable.
+    if !resume {
+        checks::output_folder(&output, force)?;
+    }
+    prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
+    let mut prepared = Vec::new();
+    for (view, photo) in scenes.iter().zip(&photos) {
+        let p = matfit::photo::prepare(view, photo, &photo_args).map_err(anyhow::Error::msg)?;
+        // Once the photo is known to be readable (an unreadable one gets only its error).
+        checks::exposure_warning(photo, &photo_args, &lighting);
+        prepared.push(p);
+    }
+    checks::on_interrupt_say_resume(resume_command());
+    let mut opts = fit.options();
+    if prepared[0].calibration.is_some() {
+        opts.grey_card = photo_args
+            .grey_card
+            .clone()
+            .map(|(group, rho)| matfit::fit::recovery::GreyCard { group, rho });
+    }
+    if photo_args.register && photo_args.refine_pose {
+        let names: Vec<String> = chosen[1..]
+            .iter()
+            .map(|&k| sc.views[k].name.clone())
+            .collect();
+        let quick = recover::refine_poses_with_a_quick_fit(
+            &scenes,
+            &photos,
+            &mut prepared,
+            &names,
+            &photo_args,
+            &opts,
+        )
+        .map_err(anyhow::Error::msg)?;
+        if let Some((n, s)) = quick {
+            outln!(
+                "pose refined again against a quick fit's materials ({n} round{}, \
+                 {s:.1} s): {}",
+                if n == 1 { "" } else { "s" },
+                prepared
+                    .iter()
+                    .filter_map(|p| p.registration.as_ref())
+                    .map(|r| format!(
+                        "turned {:.3}°, moved {:.4} units",
+                        r.rotation_deg,
+                        r.translation.length()
+                    ))
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            );
+        }
+    }
+    for ((view, photo), p) in scenes.iter_mut().zip(&photos).zip(&prepared) {
+        checks::exposure_report(view, photo, &photo_args, p);
+        if let Some(m) = &photo_args.ignore_mask {
+            outln!("{}", checks::masked_summary(view, m, p));
+        }
+        // Render through the camera registered to the photo.
+        view.camera = p.camera.clone();
+    }
+    let mut inputs = recover::inputs(
+        &scene,
+        &photos[0],
+        &prepared[0],
+        photo_args.exposure.is_some(),
+        photo_args.ignore_mask.as_deref(),
+        &opts,
+    );
+    if photos.len() > 1 {
+        inputs.photos = photos.iter().map(|p| p.display().to_string()).collect();
+    }
+    let (first, rest) = scenes.split_first().expect("one photo at least");
+    let views: Vec<matfit::fit::recovery::PhotoView> = rest
+        .iter()
+        .zip(&prepared[1..])
+        .enumerate()
+        .map(|(k, (s, p))| matfit::fit::recovery::PhotoView {
+            name: sc.views[chosen[k + 1]].name.clone(),
+            scene: s,
+            photo: &p.photo,
+            mask: &p.mask,
+        })
+        .collect();
+    let rec = recover::run_recover(
+        first,
+        &prepared[0].photo,
+        &prepared[0].mask,
+        &views,
+        &opts,
+        &output,
+        resume,
+        &inputs,
+    )
+    .map_err(anyhow::Error::msg)?;
+    outln!();
+    out::print(format_args!("{}", table::recovered(&rec)));
+    if !rec.views.is_empty() {
+        outln!("photos fitted together (exposure factor k: photo = k × the recovered scene's radiance; geometric mean 1):");
+        for (v, p) in rec.views.iter().zip(&photos) {
+            outln!(
+                "  {:<12} {}  k = {:.4}  residual {:.2}% over {} px",
+                v.name,
+                p.display(),
+                v.exposure,
+                100.0 * v.residual,
+                v.pixels
+            );
+        }
+    }
+    if let Some(s) = &rec.stray_light {
+        outln!("{}", s.describe());
+    }
+    if let Some(card) = opts
+        .grey_card
+        .as_ref()
+        .filter(|_| rec.exposure_factor != 1.0)
+    {
+        outln!(
+            "exposure k = {:.6} recalibrated from grey card '{}' with the recovered \
+             materials around it (before the fit: {:.6}, the others' materials unknown)",
+            prepared[0].photo.exposure * rec.exposure_factor,
+            card.group,
+            prepared[0].photo.exposure
+        );
+    }
+    outln!(
+        "outputs in {} ({:.1} s): recovered.toml, results.json, report.html",
+        output.display(),
+        rec.total_s
+    );
+    for g in rec.groups.iter() {
+        if let Some(n) = &g.note {
+            outln!("note: {}: {n}", g.name);
+        }
+    }
+    out::repeat_warnings();
+    Ok(())
 }
