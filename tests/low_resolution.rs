@@ -9,7 +9,7 @@
 
 use crate::common::root;
 use matfit::fit::{recover, RecoverOptions};
-use matfit::photo::{prepare, PhotoArgs};
+use matfit::prepare::{prepare, PhotoArgs};
 use matfit::render::film::{render, RenderOptions};
 use matfit::scene::load::parse_scene;
 use matfit::scene::Scene;

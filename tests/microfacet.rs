@@ -8,7 +8,7 @@
 //! Mitsuba's photos and scores the predictions.
 
 use crate::recover::{run_keeping_photo, scaled, truth};
-use matfit::fit::hierarchy::Event;
+use matfit::fit::Event;
 use matfit::fit::{Level, RecoverOptions};
 use matfit::math::Rgb;
 use matfit::render::bsdf::plastic::{fresnel_dielectric, DEFAULT_ETA};

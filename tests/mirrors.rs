@@ -6,7 +6,7 @@
 use crate::common::root;
 use crate::recover::{run_keeping_photo, scaled, state, truth};
 use crate::texture::scores;
-use matfit::fit::hierarchy::Event;
+use matfit::fit::Event;
 use matfit::fit::Level;
 use matfit::math::Rgb;
 

@@ -18,11 +18,10 @@
 use crate::common::{root, run, write, SMALL_SCENE};
 use matfit::io::image::Image;
 use matfit::math::Rgb;
-use matfit::photo::estimate::group_ratio;
-use matfit::photo::register::estimate_shift;
-use matfit::photo::{
-    load_photo, prepare, usable_pixels, MaskOptions, Photo, PhotoArgs, PhotoOptions, Response,
-};
+use matfit::photo::{load_photo, Photo, PhotoOptions, Response};
+use matfit::prepare::estimate::group_ratio;
+use matfit::prepare::register::estimate_shift;
+use matfit::prepare::{prepare, usable_pixels, MaskOptions, PhotoArgs};
 use matfit::render::aov::index_buffers;
 use matfit::render::film::{render, RenderOptions};
 use matfit::scene::load::parse_scene;

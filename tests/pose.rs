@@ -93,7 +93,7 @@ fn reprojection_px(scene: &Scene, a: &Camera, b: &Camera) -> f32 {
         .into_iter()
         .map(|(_, _, h)| h.p)
         .collect();
-    matfit::photo::pose::motion(a, b, &pts).1
+    matfit::prepare::pose::motion(a, b, &pts).1
 }
 
 #[test]

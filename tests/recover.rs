@@ -4,9 +4,10 @@
 //! README and the issue notes).
 
 use crate::common::root;
-use matfit::fit::hierarchy::{Event, Status};
 use matfit::fit::{recover, Level, RecoverOptions, Recovery};
-use matfit::photo::{usable_pixels, Photo};
+use matfit::fit::{Event, Status};
+use matfit::photo::Photo;
+use matfit::prepare::usable_pixels;
 use matfit::render::aov::index_buffers;
 use matfit::render::film::{render, RenderOptions};
 use matfit::scene::load::parse_scene;
@@ -110,7 +111,7 @@ fn table(scene: &Scene, rec: &Recovery) -> String {
         .collect()
 }
 
-pub(crate) fn state<'a>(rec: &'a Recovery, name: &str) -> &'a matfit::fit::hierarchy::GroupState {
+pub(crate) fn state<'a>(rec: &'a Recovery, name: &str) -> &'a matfit::fit::GroupState {
     rec.groups.iter().find(|g| g.name == name).unwrap()
 }
 

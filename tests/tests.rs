@@ -10,6 +10,7 @@ mod export_gltf;
 mod fuzz_replay;
 mod geometry;
 mod import;
+mod layers;
 mod low_resolution;
 mod microfacet;
 mod mirrors;

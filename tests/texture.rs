@@ -7,7 +7,7 @@
 //! the one factor that best fits the truth) shows what dividing the light out buys.
 
 use crate::recover::{run_keeping_photo, scaled, state};
-use matfit::fit::hierarchy::Event;
+use matfit::fit::Event;
 use matfit::fit::Level;
 use matfit::io::image::Image;
 use matfit::math::{Rgb, Vec2, Vec3};

@@ -7,8 +7,9 @@
 use crate::recover::{scaled, truth};
 use matfit::fit::params::Value;
 use matfit::fit::{recover, GroupParams, Level, RecoverOptions};
-use matfit::photo::coverage::pure_pixels;
-use matfit::photo::{usable_pixels_covered, Photo};
+use matfit::photo::Photo;
+use matfit::prepare::coverage::pure_pixels;
+use matfit::prepare::usable_pixels_covered;
 use matfit::render::aov::index_buffers;
 use matfit::render::film::{render, RenderOptions};
 use matfit::scene::{Material, Scene};

@@ -6,8 +6,9 @@ use crate::recover::{scaled, truth};
 use matfit::fit::unseen::{Rule, UnseenEstimate};
 use matfit::fit::{recover, RecoverOptions, Recovery};
 use matfit::math::Rgb;
-use matfit::photo::coverage::pure_pixels;
-use matfit::photo::{usable_pixels_covered, Photo};
+use matfit::photo::Photo;
+use matfit::prepare::coverage::pure_pixels;
+use matfit::prepare::usable_pixels_covered;
 use matfit::render::aov::index_buffers;
 use matfit::render::film::{render, RenderOptions};
 use matfit::scene::Scene;
@@ -147,7 +148,7 @@ fn figure6s_white_ceiling_is_estimated_white() {
     assert!(rec
         .groups
         .iter()
-        .all(|g| g.status != matfit::fit::hierarchy::Status::Analysing));
+        .all(|g| g.status != matfit::fit::Status::Analysing));
     // The estimate's noise from one iteration to the next (0.01–0.03 in ρd, under 1% of the
     // seen light through an influence near 0.2) is not news for the seen groups: their averages
     // go on, and the run stops before the iteration limit (measured: 14 of 16).

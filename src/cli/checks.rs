@@ -3,7 +3,7 @@
 
 use super::out::warn;
 use anyhow::{bail, Result};
-use matfit::photo::{PhotoArgs, PreparedPhoto};
+use matfit::prepare::{PhotoArgs, PreparedPhoto};
 use matfit::scene::lint::{group_name_warnings, lighting, Lighting};
 use matfit::scene::Scene;
 use std::path::Path;

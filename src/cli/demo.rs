@@ -236,18 +236,18 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
             opts.shift.1
         );
     }
-    let args = matfit::photo::args::PhotoArgs {
+    let args = matfit::prepare::args::PhotoArgs {
         register: opts.register,
         ..Default::default()
     };
-    let prepared = matfit::photo::prepare(&model, &photo_path, &args)?;
+    let prepared = matfit::prepare::prepare(&model, &photo_path, &args)?;
     if let Some(r) = &prepared.registration {
         let points: Vec<_> = scene
             .camera_grid_hits(64, 48)
             .into_iter()
             .map(|(_, _, h)| h.p)
             .collect();
-        let (_, off) = matfit::photo::pose::motion(&scene.camera, &prepared.camera, &points);
+        let (_, off) = matfit::prepare::pose::motion(&scene.camera, &prepared.camera, &points);
         crate::outln!(
             "registration: {}; the model's camera is now {:.2} px RMS off the photo's",
             r.found(),

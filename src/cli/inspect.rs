@@ -32,7 +32,7 @@ pub fn command(args: InspectCli) -> Result<()> {
     let photo_args = PhotoArgs::from(photo_args);
     checks::output_folder(&output, force)?;
     prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
-    let report = matfit::photo::inspect::inspect(&sc, &photo, &photo_args, &output)
+    let report = matfit::prepare::inspect::inspect(&sc, &photo, &photo_args, &output)
         .map_err(anyhow::Error::msg)?;
     out::print(format_args!("{report}"));
     checks::exposure_warning(&photo, &photo_args, &lighting);

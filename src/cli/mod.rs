@@ -21,7 +21,8 @@ use clap::{Parser, Subcommand, ValueEnum};
 use matfit::io::atomic::{check_output_file, prepare_output_dir};
 use matfit::io::image::Image;
 use matfit::math::Rgb;
-use matfit::photo::{PhotoArgs, Response};
+use matfit::photo::Response;
+use matfit::prepare::PhotoArgs;
 use matfit::render::aov::{aov_image, Aov};
 use matfit::render::film::{render, RenderOptions};
 use matfit::scene::edit::{load_edited, Edit, EditFlags};
@@ -218,7 +219,7 @@ pub struct PhotoCli {
     pub exposure: Option<f32>,
     /// Calibrate the exposure from a group of known diffuse reflectance: GROUP=RHO or
     /// GROUP=R,G,B (e.g. a grey card: --grey-card card=0.18).
-    #[arg(long, value_name = "GROUP=RHO", value_parser = matfit::photo::args::parse_grey_card,
+    #[arg(long, value_name = "GROUP=RHO", value_parser = matfit::prepare::args::parse_grey_card,
           conflicts_with = "exposure_from_lights")]
     pub grey_card: Option<(String, Rgb)>,
     /// Calibrate the exposure from the light sources seen in the photo (their radiance is known).

@@ -7,7 +7,8 @@ use matfit::fit::recovery::PhotoView;
 use matfit::fit::recovery::{fingerprint, CHECKPOINT_VERSION};
 use matfit::fit::{recover_resumable, Checkpoint, RecoverOptions, Recovery};
 use matfit::io::atomic::write_atomic;
-use matfit::photo::{Photo, UsableMask};
+use matfit::photo::Photo;
+use matfit::prepare::UsableMask;
 use matfit::scene::Scene;
 use std::borrow::Cow;
 use std::io::{Seek, Write};
@@ -133,7 +134,7 @@ pub fn run_recover(
 pub fn inputs(
     scene: &Path,
     photo: &Path,
-    prepared: &matfit::photo::PreparedPhoto,
+    prepared: &matfit::prepare::PreparedPhoto,
     exposure_given: bool,
     ignore_mask: Option<&Path>,
     opts: &RecoverOptions,
@@ -167,7 +168,7 @@ pub fn inputs(
 const QUICK_ITERATIONS: u32 = 6;
 const QUICK_PIXELS: usize = 3000;
 /// At most this many rounds of quick fit and refinement; they stop once a round moves no
-/// camera by [`matfit::photo::pose::APPLY_PX`].
+/// camera by [`matfit::prepare::pose::APPLY_PX`].
 const QUICK_ROUNDS: usize = 3;
 
 /// The pose refinement's second pass (`recover`'s default registration). The first refinement
@@ -181,9 +182,9 @@ const QUICK_ROUNDS: usize = 3;
 pub fn refine_poses_with_a_quick_fit(
     given: &[Scene],
     photos: &[std::path::PathBuf],
-    prepared: &mut [matfit::photo::PreparedPhoto],
+    prepared: &mut [matfit::prepare::PreparedPhoto],
     names: &[String],
-    photo_args: &matfit::photo::PhotoArgs,
+    photo_args: &matfit::prepare::PhotoArgs,
     opts: &RecoverOptions,
 ) -> Result<Option<(usize, f64)>, String> {
     let t = std::time::Instant::now();
@@ -212,14 +213,14 @@ pub fn refine_poses_with_a_quick_fit(
         };
         let mut moved = 0.0f32;
         for (k, p) in poses.into_iter().enumerate() {
-            moved = moved.max(matfit::photo::pose::view_motion(
+            moved = moved.max(matfit::prepare::pose::view_motion(
                 &given[k],
                 &prepared[k].camera,
                 &p.camera,
             ));
-            prepared[k] = matfit::photo::prepare_at(&given[k], &photos[k], photo_args, Some(p))?;
+            prepared[k] = matfit::prepare::prepare_at(&given[k], &photos[k], photo_args, Some(p))?;
         }
-        if moved < matfit::photo::pose::APPLY_PX {
+        if moved < matfit::prepare::pose::APPLY_PX {
             break;
         }
     }
@@ -230,10 +231,10 @@ pub fn refine_poses_with_a_quick_fit(
 /// from there against its materials.
 fn quick_fit_poses(
     given: &[Scene],
-    prepared: &[matfit::photo::PreparedPhoto],
+    prepared: &[matfit::prepare::PreparedPhoto],
     names: &[String],
     opts: &RecoverOptions,
-) -> Result<Vec<matfit::photo::pose::Pose>, String> {
+) -> Result<Vec<matfit::prepare::pose::Pose>, String> {
     let through: Vec<Scene> = given
         .iter()
         .zip(prepared.iter())
@@ -280,12 +281,12 @@ fn quick_fit_poses(
                 o.material = r.material.clone();
             }
             shaded.stray_light = rec.scene.stray_light;
-            matfit::photo::pose::refine_from(
+            matfit::prepare::pose::refine_from(
                 &shaded,
                 &given[k].camera,
                 &p.camera,
                 &p.photo,
-                matfit::photo::pose::Shading::QuickFit,
+                matfit::prepare::pose::Shading::QuickFit,
             )
         })
         .collect())
@@ -375,7 +376,7 @@ pub fn command(args: RecoverCli) -> Result<()> {
     prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
     let mut prepared = Vec::new();
     for (view, photo) in scenes.iter().zip(&photos) {
-        let p = matfit::photo::prepare(view, photo, &photo_args).map_err(anyhow::Error::msg)?;
+        let p = matfit::prepare::prepare(view, photo, &photo_args).map_err(anyhow::Error::msg)?;
         // Once the photo is known to be readable (an unreadable one gets only its error).
         checks::exposure_warning(photo, &photo_args, &lighting);
         prepared.push(p);

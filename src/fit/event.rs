@@ -117,7 +117,7 @@ pub enum Event {
         error_pseudo: f32,
         chose: String,
     },
-    /// Issue 25: the textured group's image in a confirmed mirror joined its cache (`used`), or
+    /// The textured group's image in a confirmed mirror joined its cache (`used`), or
     /// was left out because its level disagreed with the model's by more than
     /// `recovery::MIRROR_SCALE_LIMIT`. `scale`: the factor that brought the photo's image
     /// (divided by the mirror's ρs) to the model's mean over those pixels.

@@ -181,7 +181,7 @@ pub fn pixel_specs(
 /// pixel, a lobe much narrower than the spacing of the cache's directions makes S a few spikes,
 /// and the cross-half cost then rewards narrowing it further (its ρs solve divides by a Σ s₀s₁
 /// that the spikes leave too small); summed over a tile (~70 pixels) the spikes are a small
-/// part of S, and the tiles' pattern still pins the shape (b168191).
+/// part of S, and the tiles' pattern still pins the shape.
 ///
 /// Without `debias` both halves of a tile are its mean: plain least squares on the tiles, whose
 /// cost also holds each tile's noise Σ var(S), smaller for a wider lobe. With it the halves are

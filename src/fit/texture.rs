@@ -47,8 +47,7 @@ pub const SEEN_FRACTION: f32 = 0.1;
 /// Less leaves stripes where pixel and texel grids beat and lets the photo's noise through,
 /// more blurs edges, and which wins depends on how the texture's detail compares with the
 /// photo's pixels, so no one weight suits every texture (the poster scene's full-size poster
-/// asks for 0.003, the facing-mirrors room's painting for 0.1). The sweeps are in 2c4ce38's
-/// message and in the message of the commit that made this list.
+/// asks for 0.003, the facing-mirrors room's painting for 0.1).
 pub const SMOOTHING_CHOICES: [f32; 6] = [0.001, 0.003, 0.01, 0.03, 0.1, 0.3];
 
 /// The folds of [`choose_smoothing`]'s cross-validation: each fit leaves out one pixel in this
@@ -393,7 +392,7 @@ pub fn fit_textured(
 /// A pixel belongs to a varnish's highlight when the lobe gives at least this fraction of its
 /// radiance (summed over the channels). Much lower and most of a varnished surface counts as
 /// highlight (its lobe also reflects the room), leaving too few pixels to solve the texture
-/// from (the sweep is in 9150de9's message).
+/// from.
 pub const HIGHLIGHT_FRACTION: f32 = 0.1;
 
 /// The least share of the highlight's residual (photo − the texture solved without it) that
@@ -415,8 +414,7 @@ pub const HIGHLIGHT_EXPLAINED: f32 = 0.25;
 /// moving it towards its neighbours' mean from the previous texture, so it relaxes towards its
 /// surroundings instead of re-absorbing the current lobe, and over the global iterations the
 /// lobe moves to the one the highlight's shape asks for. Those texels are not interpolated
-/// from around the highlight: the grain interpolated across it is further off than the lobe
-/// (measured in 2b5f3cd's message).
+/// from around the highlight: the grain interpolated across it is further off than the lobe.
 fn texture_without_highlight(
     cache: &GroupCache,
     rows: &TexelRows,
@@ -778,8 +776,7 @@ pub fn fill_unseen(atlas: &Atlas, texels: &mut [Rgb], seen: &[bool], fallback: R
 
 /// How far (in texels) an unseen texel's fill keeps the look of the nearest seen texels before
 /// it fades to its object's mean. Pull–push alone carries the seen edge's texels across a whole
-/// hole, as streaks of whatever detail lies at the edge (the poster scene's desk: 2936adc's
-/// message). Far from every seen texel the object's mean is the estimate with the least
+/// hole, as streaks of whatever detail lies at the edge (the poster scene's desk). Far from every seen texel the object's mean is the estimate with the least
 /// expected error for a texture whose detail is not correlated over more than a few texels.
 const FILL_FADE_TEXELS: f32 = 4.0;
 

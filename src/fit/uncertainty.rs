@@ -1,5 +1,4 @@
-//! The 1σ of a group's fitted parameters (issue 20: no inverse renderer tells its user how far
-//! to trust a number). The model of a group's tile T in channel c is linear in ρd, ρs and,
+//! The 1σ of a group's fitted parameters: how far to trust each number. The model of a group's tile T in channel c is linear in ρd, ρs and,
 //! locally, in the lobe's shape:
 //!
 //!   L_Tc = ρd_c D_Tc + ρs_c S_Tc(ln αx, ln αy, θ)
@@ -23,7 +22,7 @@ use crate::scene::WardVariant;
 /// Above this relative 1σ, a Ward lobe's ρs or α is reported as weakly determined.
 pub const WEAK_LOBE: f32 = 0.5;
 
-/// The note for a group whose Ward lobe the photo hardly determines (issue 20): its ρs or α has
+/// The note for a group whose Ward lobe the photo hardly determines: its ρs or α has
 /// a 1σ above [`WEAK_LOBE`] of its value, which happens when its pixels show little specular
 /// reflection of a light or a bright surface. None for other levels or a determined lobe.
 pub fn weak_lobe(level: Level, params: &GroupParams, sigma: &GroupParams) -> Option<String> {

@@ -1,7 +1,7 @@
 //! Groups no usable pixel speaks for ("unseen": a ceiling out of view, an object behind
 //! another) still reflect light onto the seen groups. Their diffuse reflectance is estimated
 //! from that light, jointly with the seen groups, instead of assumed (the notes' white default
-//! made every seen group of a typical room 2–4% too dark; issue 26).
+//! made every seen group of a typical room 2–4% too dark).
 //!
 //! Every cache measures how its pixels change with each unseen group's ρd_u: its indirect rays
 //! are traced again through the scene with ρd_u moved, with the same random numbers
@@ -29,7 +29,7 @@
 //! instead: the seen groups' area-weighted mean albedo (ρd + ρs). [`UnseenEstimate`] says which
 //! rule gave the value, how well it is determined and what the user can do about it.
 //!
-//! The stray light (`Scene::stray_light`, `recover --stray-light`, issue 23) is one more such
+//! The stray light (`Scene::stray_light`, `recover --stray-light`) is one more such
 //! unknown, tracked last as [`STRAY_LIGHT`]: the probe scene has it moved ([`moved_stray`]),
 //! and its δ is a radiance, not a reflectance (no upper bound; a channel never determined keeps
 //! its given value). Where no ray leaves the scene its column is empty, and the channel is

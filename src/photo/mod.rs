@@ -4,26 +4,15 @@
 //! The fitter reads only [`Photo`] and [`UsableMask`]; everything about cameras' responses,
 //! exposure and robust pixel selection lives here.
 
-pub mod args;
 pub mod brackets;
 pub mod calibrate;
-pub mod coverage;
 pub mod edges;
-pub mod estimate;
-pub mod exposure;
 pub mod hdr;
 pub mod ignore;
-pub mod inspect;
-pub mod mask;
-pub mod openness;
-pub mod pose;
-pub mod register;
 pub mod response;
 pub mod robust;
 pub mod vignetting;
 
-pub use args::{prepare, prepare_at, PhotoArgs, PreparedPhoto};
-pub use mask::{usable_pixels, usable_pixels_covered, GroupPixelStats, MaskOptions, UsableMask};
 pub use response::{Response, ResponseTable};
 
 use crate::io::image::{decode_raw_checked, Image, RawImage};

@@ -194,8 +194,8 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
                         format!(" ({})", r.not_applied_because())
                     },
                     match r.shading {
-                        crate::photo::pose::Shading::SceneFile => "",
-                        crate::photo::pose::Shading::QuickFit =>
+                        crate::prepare::pose::Shading::SceneFile => "",
+                        crate::prepare::pose::Shading::QuickFit =>
                             " (refined against a quick fit's materials)",
                     }
                 )

@@ -108,7 +108,7 @@ pub struct Inputs {
     pub photos: Vec<String>,
     /// The pose correction: rotation (degrees), camera centre's move (scene units), image
     /// motion (px) and whether it was applied.
-    pub registration: Option<crate::photo::pose::Pose>,
+    pub registration: Option<crate::prepare::pose::Pose>,
     /// The user's mask of pixels to ignore (`--ignore-mask`), if one was given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ignore_mask: Option<String>,

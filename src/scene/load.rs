@@ -959,7 +959,7 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
             distribution,
         } => {
             let (alpha, _, _) = lobe(Some(*alpha), None, None, None, "a plastic material")?;
-            let eta = eta.unwrap_or(crate::render::bsdf::plastic::DEFAULT_ETA);
+            let eta = eta.unwrap_or(super::material::DEFAULT_ETA);
             if !(eta.is_finite() && eta > 1.0) {
                 return Err(format!("`eta` must be a number > 1, got {eta}"));
             }

@@ -65,6 +65,10 @@ pub struct Varnish {
     pub theta: f32,
 }
 
+/// The coat's relative index of refraction when none is given: Mitsuba's default for
+/// `roughplastic` (polypropylene, 1.49, in air).
+pub const DEFAULT_ETA: f32 = 1.49;
+
 #[derive(Clone, Debug)]
 pub enum Material {
     /// Lambert: f = ρd / π.

@@ -141,8 +141,7 @@ pub struct UnseenShares {
 
 /// One cached pixel in this many measures the derivatives along the unseen groups: the second
 /// trace of its indirect rays is most of their cost, and a tile's sum over every other pixel,
-/// scaled, estimates the whole tile's (figure6: recovery 1.29 s per iteration with every
-/// pixel, against 0.75 s without the estimate).
+/// scaled, estimates the whole tile's at about half the cost.
 pub const DERIVATIVE_STRIDE: usize = 2;
 
 /// `UnseenProbe::group` and `UnseenShares::groups` entry of the stray light.

@@ -5,7 +5,8 @@
 use super::options::RecoverOptions;
 use crate::fit::group::GroupState;
 use crate::math::sampler::{hash_seed, mix64};
-use crate::photo::{Photo, UsableMask};
+use crate::photo::Photo;
+use crate::prepare::UsableMask;
 use serde::{Deserialize, Serialize};
 
 #[derive(Clone, Debug, Serialize, Deserialize)]

@@ -8,7 +8,8 @@ use crate::fit::level::HierarchyOptions;
 use crate::fit::params::GroupParams;
 use crate::io::image::Image;
 use crate::math::Rgb;
-use crate::photo::{GroupPixelStats, Photo, UsableMask};
+use crate::photo::Photo;
+use crate::prepare::{GroupPixelStats, UsableMask};
 use crate::scene::Scene;
 use serde::{Deserialize, Serialize};
 
@@ -82,11 +83,11 @@ pub struct RecoverOptions {
     /// that are still being analysed read from the photo, and the better hypothesis is used.
     #[serde(default = "yes")]
     pub pseudo_textures: bool,
-    /// Issue 25: a textured group is also fitted from its image in the confirmed ideal mirrors
-    /// (`recovery.rs`, `cache::Primary::Mirror`).
+    /// A textured group is also fitted from its image in the confirmed ideal mirrors
+    /// (`recovery/iterate.rs`, `cache::Primary::Mirror`).
     #[serde(default = "yes")]
     pub mirror_views: bool,
-    /// Issue 23: fit a stray light (a constant environment, `Scene::stray_light`) with the
+    /// Fit a stray light (a constant environment, `Scene::stray_light`) with the
     /// materials, as one more unknown of the unseen groups' joint fit (`unseen.rs`).
     #[serde(default)]
     pub stray_light: bool,

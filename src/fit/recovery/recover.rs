@@ -5,7 +5,8 @@ use super::checkpoint::Checkpoint;
 use super::options::{LogLine, PhotoView, RecoverError, RecoverOptions, Recovery};
 use super::run::RecoveryLoop;
 use crate::fit::event::Event;
-use crate::photo::{Photo, UsableMask};
+use crate::photo::Photo;
+use crate::prepare::UsableMask;
 use crate::render::film::progress_bar;
 use crate::scene::Scene;
 
@@ -87,7 +88,7 @@ mod tests {
     use crate::fit::recovery::options::auto_final_spp;
     use crate::io::image::Image;
     use crate::math::Rgb;
-    use crate::photo::usable_pixels;
+    use crate::prepare::usable_pixels;
     use crate::render::aov::index_buffers;
     use crate::scene::WardVariant;
 

@@ -24,8 +24,9 @@ use crate::fit::schedule;
 use crate::io::image::Image;
 use crate::math::sampler::hash_seed;
 use crate::math::Rgb;
-use crate::photo::openness::{open_scene_warning, OPEN_SCENE};
-use crate::photo::{Photo, UsableMask};
+use crate::photo::Photo;
+use crate::prepare::openness::{open_scene_warning, OPEN_SCENE};
+use crate::prepare::UsableMask;
 use crate::render::film::{render, RenderOptions};
 use crate::scene::atlas::Atlas;
 use crate::scene::texture::{Mapping, Texture};
@@ -109,8 +110,8 @@ fn texture_pixels(
     mask: &UsableMask,
     ib: &crate::render::aov::IndexBuffers,
 ) -> Vec<Vec<usize>> {
-    use crate::photo::mask::Reject;
-    let pure = crate::photo::coverage::pure_pixels(scene, &scene.camera, ib);
+    use crate::prepare::mask::Reject;
+    let pure = crate::prepare::coverage::pure_pixels(scene, &scene.camera, ib);
     let mut out = vec![Vec::new(); scene.groups.len()];
     for (i, (&g, r)) in mask.group.iter().zip(&mask.reason).enumerate() {
         let g = match r {
@@ -651,7 +652,7 @@ pub(super) fn grey_card_factor(
     mask: &UsableMask,
     card: &super::options::GreyCard,
 ) -> Result<f32, String> {
-    crate::photo::exposure::from_grey_card(current, photo, mask, &card.group, card.rho, 4096)
+    crate::prepare::exposure::from_grey_card(current, photo, mask, &card.group, card.rho, 4096)
         .map(|c| c.factor)
 }
 

@@ -34,9 +34,7 @@ use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 use wide::{f32x8, CmpGe, CmpGt, CmpLe};
 
-/// The coat's relative index of refraction when none is given: Mitsuba's default for
-/// `roughplastic` (polypropylene, 1.49, in air).
-pub const DEFAULT_ETA: f32 = 1.49;
+pub use crate::scene::material::DEFAULT_ETA;
 
 /// Entries of the transmittance table (Mitsuba's `MI_ROUGH_TRANSMITTANCE_RES`).
 const RES: usize = 64;

@@ -3,9 +3,10 @@
 //! exposure divided out, index buffers and usable-pixel mask.
 
 use crate::math::Rgb;
-use crate::photo::exposure::{self, ExposureCalibration, ExposureSource};
-use crate::photo::pose::{self, Pose};
-use crate::photo::{coverage, ignore, load_photo, mask, Photo, PhotoOptions, Response, UsableMask};
+use crate::photo::{ignore, load_photo, Photo, PhotoOptions, Response};
+use crate::prepare::exposure::{self, ExposureCalibration, ExposureSource};
+use crate::prepare::pose::{self, Pose};
+use crate::prepare::{coverage, mask, UsableMask};
 use crate::render::aov::{index_buffers, IndexBuffers};
 use crate::scene::{Camera, Scene};
 use std::path::{Path, PathBuf};
@@ -44,7 +45,7 @@ pub struct PhotoArgs {
     /// An image of the photo's size whose marked pixels are ignored (`photo::ignore`).
     pub ignore_mask: Option<PathBuf>,
     /// The lens's vignetting, divided out of the photo first (`photo::vignetting`).
-    pub vignetting: Option<super::vignetting::Vignetting>,
+    pub vignetting: Option<crate::photo::vignetting::Vignetting>,
 }
 
 impl Default for PhotoArgs {
@@ -154,7 +155,7 @@ pub fn prepare_at(
     let mut camera = scene.camera.clone();
     let mut photo = load_photo(path, camera.width, camera.height, &args.photo_options())?;
     if let Some(v) = &args.vignetting {
-        let dark = super::vignetting::correct(&mut photo, v, camera.cx, camera.cy)?;
+        let dark = crate::photo::vignetting::correct(&mut photo, v, camera.cx, camera.cy)?;
         if dark > 0 {
             tracing::warn!(
                 "{}: {dark} pixels too dark in the flat field to correct; not used",

@@ -1,6 +1,6 @@
 //! Usable pixels per group (§3.3 of the notes): the index buffer, minus
 //!
-//! 0. pixels the user asked to ignore (`--ignore-mask`, [`ignore`](super::ignore));
+//! 0. pixels the user asked to ignore (`--ignore-mask`, [`ignore`](crate::photo::ignore));
 //! 1. photo pixels that are not valid (NaN/Inf, negative, saturated: see [`Photo`]);
 //! 2. a band of `band` pixels around every boundary between object ids, so a model a few pixels
 //!    off does not poison a group with its neighbour's pixels;

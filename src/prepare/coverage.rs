@@ -79,7 +79,8 @@ fn sub_samples(i: usize, x: f32, y: f32) -> [Vec2; SUB * SUB + 4] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::photo::{usable_pixels, usable_pixels_covered, MaskOptions, Photo};
+    use crate::photo::Photo;
+    use crate::prepare::{usable_pixels, usable_pixels_covered, MaskOptions};
     use crate::render::aov::index_buffers;
     use crate::render::film::{render, RenderOptions};
 

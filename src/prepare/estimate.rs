@@ -20,7 +20,8 @@
 
 use crate::io::image::Image;
 use crate::math::Rgb;
-use crate::photo::{robust, Photo, UsableMask};
+use crate::photo::{robust, Photo};
+use crate::prepare::UsableMask;
 
 /// Outlier threshold in robust σ of the local ratio.
 pub const RATIO_OUTLIER_K: f32 = 3.5;

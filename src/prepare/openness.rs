@@ -8,7 +8,7 @@
 
 use crate::geometry::{offset_origin, Ray};
 use crate::math::{warp, Sampler, Vec2};
-use crate::photo::mask::{Reject, UsableMask};
+use crate::prepare::mask::{Reject, UsableMask};
 use crate::render::integrator::facing;
 use crate::scene::{Camera, Scene};
 use rayon::prelude::*;

@@ -15,7 +15,8 @@
 
 use crate::io::image::Image;
 use crate::math::{Rgb, Vec2};
-use crate::photo::{estimate, robust, Photo, UsableMask};
+use crate::photo::{robust, Photo};
+use crate::prepare::{estimate, UsableMask};
 use crate::render::aov::IndexBuffers;
 use crate::render::film::render_pixel;
 use crate::render::PathTracer;

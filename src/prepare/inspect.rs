@@ -10,8 +10,9 @@
 
 use crate::io::image::Image;
 use crate::math::Rgb;
-use crate::photo::mask::Reject;
-use crate::photo::{openness, prepare, robust, PhotoArgs, PreparedPhoto};
+use crate::photo::robust;
+use crate::prepare::mask::Reject;
+use crate::prepare::{openness, prepare, PhotoArgs, PreparedPhoto};
 use crate::render::aov::id_color;
 use crate::scene::Scene;
 use std::fmt::Write as _;

@@ -30,7 +30,8 @@
 //! residuals (scale 1.4826 MAD), silhouettes weighted twice creases, a few renders at most.
 
 use crate::math::{luminance_mean, Mat3, Vec2, Vec3};
-use crate::photo::{ignore, register, Photo};
+use crate::photo::{ignore, Photo};
+use crate::prepare::register;
 use crate::render::aov::{index_buffers, IndexBuffers};
 use crate::render::film::{render_where, RenderOptions};
 use crate::scene::{Camera, Scene};
