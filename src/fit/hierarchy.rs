@@ -127,6 +127,19 @@ fn smoothing_event(t: &TextureState) -> Option<Event> {
     })
 }
 
+/// What a climb found ([`GroupState::climb`]).
+struct Climb {
+    /// The best level's fit (the current level's if none earned its place) and its texture.
+    best: LevelFit,
+    texture: Option<TextureState>,
+    /// Whether every level above the one kept was tried (or ruled out) on this cache.
+    exhausted: bool,
+    /// Whether a level not kept lowered ε by the margin (`conclude`).
+    near_miss: bool,
+    /// Level 7 was not tried because a group that lights this one is still analysing.
+    texture_waits: bool,
+}
+
 impl GroupState {
     /// Damps oscillation between global iterations. Groups that see each other (a wall and the
     /// glossy floor reflecting it) can make the fixed-point iteration of the notes alternate
@@ -354,6 +367,49 @@ impl GroupState {
         turn: &Turn,
     ) -> Vec<Event> {
         let mut events = Vec::new();
+        let Some(fit) = self.refit(cache, atlas, variant, opts, &mut events) else {
+            return events;
+        };
+        if self.status != Status::Analysing {
+            return events;
+        }
+        let thr = opts.thresholds.of(self.level);
+        // Fine detail the error's tiles average away (the texture threshold of Algorithm 1).
+        let textured_detail = atlas.is_some()
+            && uniform_detail(cache, self.level, &fit.params, variant)
+                >= opts.thresholds.texture_detail;
+        if fit.error < thr && !textured_detail {
+            self.status = Status::Confirmed;
+            events.push(Event::Confirmed {
+                level: self.level,
+                error: fit.error,
+                below_threshold: true,
+            });
+            return events;
+        }
+        // The count includes this iteration's fit; the rule is on those before it.
+        if !turn.may_climb || !super::schedule::has_settled_at_level(self.iterations_at_level - 1) {
+            return events;
+        }
+        let climb = self.climb(fit, cache, atlas, variant, opts, turn, &mut events);
+        self.conclude(climb, thr, opts, turn, &mut events);
+        events
+    }
+
+    /// The iterative principle: the current level refitted on this cache (level 7: its texture
+    /// too), restarted from a simpler level it contains where its search ended above it, and
+    /// checked against the simpler levels of a confirmed group (two caches in a row that a
+    /// simpler level explains as well demote it). Takes the fit into the group's parameters
+    /// (into its mean once confirmed, damped while analysing) and returns it; None when the
+    /// group's turn ends here (doubted, demoted, or confirmed above level 1).
+    fn refit(
+        &mut self,
+        cache: &GroupCache,
+        atlas: Option<&Atlas>,
+        variant: WardVariant,
+        opts: &HierarchyOptions,
+        events: &mut Vec<Event>,
+    ) -> Option<LevelFit> {
         let (mut fit, texture) = self.fit_current(cache, atlas, variant);
         events.push(Event::Fit {
             level: self.level,
@@ -403,7 +459,7 @@ impl GroupState {
                     error_lower: lower.error,
                 });
             }
-            return events;
+            return None;
         }
         self.doubted = None;
         self.take(&fit);
@@ -426,35 +482,30 @@ impl GroupState {
                 let demoted = matches!(e, Event::Demoted { .. });
                 events.push(e);
                 if demoted {
-                    return events;
+                    return None;
                 }
             }
         }
         if demotable {
-            return events;
+            return None;
         }
-        if self.status != Status::Analysing {
-            return events;
-        }
-        let thr = opts.thresholds.of(self.level);
-        // Fine detail the error's tiles average away (the texture threshold of Algorithm 1).
-        let textured_detail = atlas.is_some()
-            && uniform_detail(cache, self.level, &fit.params, variant)
-                >= opts.thresholds.texture_detail;
-        if fit.error < thr && !textured_detail {
-            self.status = Status::Confirmed;
-            events.push(Event::Confirmed {
-                level: self.level,
-                error: fit.error,
-                below_threshold: true,
-            });
-            return events;
-        }
-        // The count includes this iteration's fit; the rule is on those before it.
-        if !turn.may_climb || !super::schedule::has_settled_at_level(self.iterations_at_level - 1) {
-            return events;
-        }
-        // Climb on the same cache.
+        Some(fit)
+    }
+
+    /// The hierarchical principle: the levels above the current one tried in order on the same
+    /// cache, each kept only where it earns its place over the best so far (and, but for the
+    /// texture, predicts held-back tiles); level 7 only through Algorithm 1's gate.
+    #[allow(clippy::too_many_arguments)]
+    fn climb(
+        &self,
+        fit: LevelFit,
+        cache: &GroupCache,
+        atlas: Option<&Atlas>,
+        variant: WardVariant,
+        opts: &HierarchyOptions,
+        turn: &Turn,
+        events: &mut Vec<Event>,
+    ) -> Climb {
         let mut best = fit.clone();
         let mut tried = vec![fit];
         let mut level = self.level;
@@ -575,6 +626,32 @@ impl GroupState {
         // 10's unbiased cost, the held-out tiles) is a near miss, which a later climb on a
         // settled cache may pass.
         let near_miss = rejected < (1.0 - opts.margin) * best.error;
+        Climb {
+            best,
+            texture,
+            exhausted,
+            near_miss,
+            texture_waits,
+        }
+    }
+
+    /// The climb's outcome: the group moves to the best level it found (or waits for its turn
+    /// to move), or, where none earned its place, is confirmed at its own.
+    fn conclude(
+        &mut self,
+        climb: Climb,
+        thr: f32,
+        opts: &HierarchyOptions,
+        turn: &Turn,
+        events: &mut Vec<Event>,
+    ) {
+        let Climb {
+            best,
+            texture,
+            exhausted,
+            near_miss,
+            texture_waits,
+        } = climb;
         self.texture_waiting = texture_waits;
         if best.level != self.level && !turn.may_move {
             self.waiting += 1;
@@ -631,7 +708,6 @@ impl GroupState {
                 below_threshold: false,
             });
         }
-        events
     }
 }
 

@@ -28,11 +28,10 @@
 //! are scaled up by 1 + 2γ(3), so a ray never slips between boxes that share a face.
 
 use super::aabb::Aabb;
-use super::bvh_build;
 use super::triangle::{intersect4, RayShear, Tri4};
 use super::{Hit, Ray};
 use arrayvec::ArrayVec;
-use glam::{Vec3, Vec3A};
+use glam::Vec3A;
 use wide::{f32x8, CmpLe};
 
 /// A child reference with this bit set is a leaf: the rest is the index of its `Tri4` block.
@@ -189,12 +188,6 @@ pub(super) fn slab_component(c: f32) -> f32 {
 }
 
 impl Bvh {
-    /// Builds the hierarchy over `tris` (the index of a triangle in this slice is what `Hit::prim`
-    /// reports).
-    pub fn build(tris: &[[Vec3; 3]]) -> Bvh {
-        bvh_build::build(tris)
-    }
-
     pub fn bounds(&self) -> Aabb {
         self.bounds
     }
@@ -400,6 +393,7 @@ pub(crate) mod tests {
     use super::super::triangle::intersect;
     use super::*;
     use crate::math::sampler::TestRng as Rng;
+    use glam::Vec3;
 
     /// Reference: test every triangle.
     pub(crate) fn brute(tris: &[[Vec3; 3]], ray: &Ray, t_max: f32) -> Option<Hit> {

@@ -308,6 +308,14 @@ fn best_split(prims: &[BuildPrim], bounds: &Aabb, cbounds: &Aabb) -> Option<(usi
     best
 }
 
+impl Bvh {
+    /// Builds the hierarchy over `tris` (the index of a triangle in this slice is what `Hit::prim`
+    /// reports).
+    pub fn build(tris: &[[Vec3; 3]]) -> Bvh {
+        build(tris)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -150,9 +150,7 @@ fn srgb_encode8(x: f32) -> u8 {
     (srgb_encode(x) * 255.0 + 0.5) as u8
 }
 
-/// Largest image matfit reads or renders, in pixels (2^26, e.g. 8192 × 8192): bigger photos are
-/// refused with a message (downsample them and scale the camera) rather than exhausting memory.
-pub const MAX_PIXELS: usize = 1 << 26;
+pub use super::MAX_PIXELS;
 
 /// Reads an image file's values without applying a response curve.
 pub fn read_raw(path: &Path) -> Result<RawImage, String> {

@@ -3,3 +3,7 @@
 pub mod atomic;
 pub mod image;
 pub mod pfm;
+
+/// Largest image matfit reads or renders, in pixels (2^26, e.g. 8192 × 8192): bigger photos are
+/// refused with a message (downsample them and scale the camera) rather than exhausting memory.
+pub const MAX_PIXELS: usize = 1 << 26;

@@ -51,11 +51,11 @@ pub fn decode(bytes: &[u8]) -> Result<(usize, usize, Vec<Rgb>), String> {
         return Err(format!("bad PFM scale {scale} (must be a non-zero number)"));
     }
     let pixels = w.checked_mul(h).ok_or("PFM dimensions overflow")?;
-    if pixels > crate::io::image::MAX_PIXELS {
+    if pixels > super::MAX_PIXELS {
         return Err(format!(
             "the image is {w}×{h}, more than matfit's limit of {} megapixels; downsample it \
              (and scale the camera: width, height and fx, fy, cx, cy)",
-            crate::io::image::MAX_PIXELS >> 20
+            super::MAX_PIXELS >> 20
         ));
     }
     let need = pixels * channels * 4;

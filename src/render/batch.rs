@@ -385,7 +385,7 @@ pub fn render_pixels(
     trace_jobs(pt, jobs, |i, st| results[i] = st.l);
     // Sums in sample order, as `render_pixel`.
     for (px, samples) in out.iter_mut().zip(results.chunks(spp_n)) {
-        *px = super::film::pixel_mean(samples.iter().copied(), spp);
+        *px = pixel_mean(samples.iter().copied(), spp);
     }
 }
 
@@ -859,4 +859,16 @@ impl SmoothLanes {
             finish(self.lane[j], &lanes[self.lane[j]].st);
         }
     }
+}
+
+/// A pixel's value from its `spp` samples, summed in the order given; non-finite samples are
+/// dropped (and would be a bug).
+pub(super) fn pixel_mean(samples: impl IntoIterator<Item = Rgb>, spp: u32) -> Rgb {
+    let mut sum = Rgb::ZERO;
+    for l in samples {
+        if l.is_finite() {
+            sum += l;
+        }
+    }
+    sum / spp as f32
 }

@@ -107,17 +107,5 @@ pub fn render_pixel(
         let film = Vec2::new(x as f32, y as f32) + sampler.next_2d();
         pt.li(camera.ray(film), &mut sampler)
     });
-    pixel_mean(samples, spp)
-}
-
-/// A pixel's value from its `spp` samples, summed in the order given; non-finite samples are
-/// dropped (and would be a bug).
-pub(super) fn pixel_mean(samples: impl IntoIterator<Item = Rgb>, spp: u32) -> Rgb {
-    let mut sum = Rgb::ZERO;
-    for l in samples {
-        if l.is_finite() {
-            sum += l;
-        }
-    }
-    sum / spp as f32
+    batch::pixel_mean(samples, spp)
 }
