@@ -1,8 +1,7 @@
-//! Photographs: loading as linear radiance, validity of each pixel, and the usable-pixel masks
-//! that decide which pixels speak for each group (§3.3 of the notes).
-//!
-//! The fitter reads only [`Photo`] and [`UsableMask`]; everything about cameras' responses,
-//! exposure and robust pixel selection lives here.
+//! Photographs: loading as linear radiance (response curves, HDR merging of brackets,
+//! vignetting, ignore masks) and the validity of each pixel. Nothing here knows the model: a
+//! photo prepared against it (pose, usable-pixel masks, exposure from the lights) is
+//! [`crate::prepare`]'s.
 
 pub mod brackets;
 pub mod calibrate;
