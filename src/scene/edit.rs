@@ -37,9 +37,10 @@
 //! checked exactly as a written one; an added object's relative paths (meshes, textures) are
 //! relative to its edit file's folder, and its errors point at the edit file's lines.
 
+use super::camera_spec::{check_camera, edited_camera};
 use super::error::SceneError;
-use super::load::{build_objects, build_scene, check_camera};
-use super::schema::{CameraSpec, Color, MaterialSpec, ObjectSpec, SceneFile, ShapeKind};
+use super::load::{build_objects, build_scene};
+use super::schema::{Color, MaterialSpec, ObjectSpec, SceneFile, ShapeKind};
 use super::Scene;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -117,7 +118,7 @@ impl Edit {
     pub fn parse(text: String, path: &Path) -> Result<Edit, SceneError> {
         let file: EditFile = toml::from_str(&text).map_err(|e| SceneError::Toml {
             path: path.to_owned(),
-            message: super::load::with_suggestion(&e.to_string()),
+            message: super::context::with_suggestion(&e.to_string()),
         })?;
         Ok(Edit {
             file,
@@ -151,7 +152,7 @@ pub fn load_edited(path: &Path, edits: &[Edit]) -> Result<Scene, SceneError> {
     })?;
     let mut file: SceneFile = toml::from_str(&text).map_err(|e| SceneError::Toml {
         path: path.to_owned(),
-        message: super::load::with_suggestion(&e.to_string()),
+        message: super::context::with_suggestion(&e.to_string()),
     })?;
     for e in edits {
         apply(&mut file, e)?;
@@ -362,17 +363,6 @@ fn translate(o: &mut ObjectSpec, t: [f32; 3]) {
         ShapeKind::Sphere => add(&mut o.center),
         ShapeKind::Mesh => unreachable!("handled above"),
     }
-}
-
-/// The edit's camera table with the scene's width and height where it gives none.
-pub(super) fn edited_camera(table: &toml::Table, scene: &CameraSpec) -> Result<CameraSpec, String> {
-    let mut t = table.clone();
-    t.entry("width")
-        .or_insert(toml::Value::Integer(scene.width.into()));
-    t.entry("height")
-        .or_insert(toml::Value::Integer(scene.height.into()));
-    CameraSpec::deserialize(toml::Value::Table(t))
-        .map_err(|e| format!("[camera]: {}", super::load::with_suggestion(&e.to_string())))
 }
 
 /// Makes an added object's file references absolute (they are relative to its edit file).

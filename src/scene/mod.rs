@@ -3,6 +3,8 @@
 
 pub mod atlas;
 pub mod camera;
+mod camera_spec;
+mod context;
 pub mod edit;
 pub mod environment;
 pub mod error;

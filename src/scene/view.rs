@@ -104,7 +104,7 @@ pub(super) fn build_views(
     }
     let mut views: Vec<View> = Vec::new();
     for (k, v) in file.views.iter().enumerate() {
-        let line = super::load::line_of(text, v.span().start);
+        let line = super::context::line_of(text, v.span().start);
         let spec = v.get_ref();
         let name = spec.name.clone().unwrap_or(format!("view {}", k + 1));
         let at = |message: String| SceneError::At {
@@ -118,7 +118,7 @@ pub(super) fn build_views(
         let camera = match &spec.camera {
             None => scene.camera.clone(),
             Some(table) => {
-                let cam = super::edit::edited_camera(table, &file.camera).map_err(&at)?;
+                let cam = super::camera_spec::edited_camera(table, &file.camera).map_err(&at)?;
                 let alone = SceneFile {
                     render: None,
                     camera: cam,
@@ -129,7 +129,7 @@ pub(super) fn build_views(
                     stray_light: None,
                     views: Vec::new(),
                 };
-                super::load::check_camera(&alone, "", path).map_err(|e| {
+                super::camera_spec::check_camera(&alone, "", path).map_err(|e| {
                     at(match e {
                         SceneError::Scene { message, .. } | SceneError::At { message, .. } => {
                             message.replace("[camera]", "camera")
