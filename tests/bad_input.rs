@@ -1,4 +1,4 @@
-//! Issue 6: bad inputs beyond the scene file (tests/scene_errors.rs) and the photo file
+//! Bad inputs beyond the scene file (tests/scene_errors.rs) and the photo file
 //! (tests/photo.rs): output places that cannot be written, a resume without a checkpoint,
 //! options out of range, a group with no usable pixel, a photo whose values make a fit diverge.
 //! Each gets a clear message and a non-zero exit (or, for the group without pixels, a warning

@@ -1,4 +1,4 @@
-//! Issue 27: what a new user meets first. Each behaviour through the binary, checking the
+//! What a new user meets first. Each behaviour through the binary, checking the
 //! message and the exit status.
 
 use crate::common::{matfit, root, run, write, QUICK, SMALL_SCENE};

@@ -1,4 +1,4 @@
-//! Issue 22: using the recovered scene (§7 of the notes). Edits given as `matfit render` flags
+//! Using the recovered scene (§7 of the notes). Edits given as `matfit render` flags
 //! or as an edit file render exactly the scene written by hand with those edits; unknown names
 //! are errors that suggest the nearest one; `matfit composite` puts a new object into the photo
 //! by differential rendering, with its shadow and its reflection on the photographed surfaces.

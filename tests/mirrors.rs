@@ -1,4 +1,4 @@
-//! End-to-end mirrors (issue 25, §5.1 of the notes): scenes/facing-mirrors, two non-perfect
+//! End-to-end mirrors (§5.1 of the notes): scenes/facing-mirrors, two non-perfect
 //! mirrors facing each other (ρs 0.85 and 0.7), each seen directly and in the other, and a
 //! textured book seen directly and in the left mirror. Its photo rendered by matfit with the
 //! true materials, recovered blind.

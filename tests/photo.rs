@@ -1,4 +1,4 @@
-//! Issue 4: from a photograph to radiance and trustworthy pixels.
+//! From a photograph to radiance and trustworthy pixels.
 //!
 //! The figure6 tests render "photos" of the validation scene with the path tracer and compare
 //! them with a reference rendering of the model (true materials, the scene's camera). The
@@ -422,7 +422,7 @@ fn bad_photos_get_clear_errors() {
             Box::new(|p| filled(64, 48, Rgb::splat(3.0)).write(p).unwrap()),
             vec!["saturated", "3072 of 3072"],
         ),
-        // Issue 6: more bad photos.
+        // More bad photos.
         (
             "zero.pfm",
             Box::new(|p| std::fs::write(p, b"PF\n0 0\n-1.0\n").unwrap()),

@@ -1,4 +1,4 @@
-//! Issue 23, the photo's inputs: a user mask of pixels to ignore, and LDR brackets merged into
+//! The photo's inputs: a user mask of pixels to ignore, and LDR brackets merged into
 //! one linear photo by `matfit hdr`. Both through the binary on a small scene: a coloured floor
 //! with a grey card on it, lit by a quad light, rendered by `matfit render`.
 

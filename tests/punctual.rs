@@ -416,7 +416,7 @@ fn a_room_lit_by_an_hdr_sky_is_recovered_and_its_envmap_round_trips_through_mits
             matfit::scene::Material::Diffuse { rho_d } => rho_d,
             matfit::scene::Material::Ward { .. } => {
                 // At this size the sky-lit ball's lobe is not pinned down (it may end
-                // diffuse + mirror; issue 23's note): it must at least be glossy.
+                // diffuse + mirror): it must at least be glossy.
                 let rho_s = g["params"]["rho_s"][1].as_f64().unwrap();
                 assert!(rho_s > 0.05, "{name}: {g}");
                 continue;

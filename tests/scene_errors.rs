@@ -192,7 +192,7 @@ fn cases() -> Vec<Case> {
             vec!["scene.toml:12", "object 'floor'", "edge_v"],
         ),
         ("no objects", s[..s.find("[[object]]").unwrap()].to_string(), vec![], vec!["scene.toml", "no objects"]),
-        // Issue 6: more bad inputs.
+        // More bad inputs.
         (
             "NaN in the camera",
             s.replace("eye = [0.0, 2.0, 2.0]", "eye = [nan, 2.0, 2.0]"),

@@ -1,4 +1,4 @@
-//! Stray light (issue 23): `[stray_light]`, a constant environment of radiance S that every ray
+//! Stray light: `[stray_light]`, a constant environment of radiance S that every ray
 //! leaving the scene sees, rendered against the analytic answer, carried through Mitsuba's
 //! `constant` emitter both ways, and fitted with the materials by `recover --stray-light` on an
 //! open room whose photo has it and whose model does not.
