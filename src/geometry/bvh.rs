@@ -10,7 +10,7 @@
 //! branches on how many children were entered, its stack traffic), not the box test. A small
 //! room's leaves all sit under the root, where eight-wide needed a root and two nodes, so a
 //! ray visits fewer nodes; large meshes are unchanged. Eight-wide had replaced four-wide the
-//! same way. The figures are in (`bench/README.md`, "Design measurements").
+//! same way. The figures are in `bench/README.md`, "Design measurements".
 //!
 //! Chosen by measurement over the obvhs crate's eight-wide compressed BVH, which tested one
 //! triangle at a time with the scalar test: the same images to the bit, faster renders and
@@ -365,7 +365,8 @@ impl Bvh {
 /// The ray, its six components read one float at a time (`math::read_apart`): the path loop
 /// writes lanes' rays a float at a time, and reading them whole would stall on those narrow
 /// stores. Writing the rays with wide stores instead (rows of eight-lane transposes) measured
-/// slower: the copy into a `Ray` then split its direction across two stores (`bench/README.md`, "Design measurements").
+/// slower: the copy into a `Ray` then split its direction across two stores
+/// (`bench/README.md`, "Design measurements").
 #[inline(always)]
 fn read_apart(ray: &Ray) -> Ray {
     Ray::new(
