@@ -26,4 +26,5 @@ mod stray_light;
 mod texture;
 mod uncertainty;
 mod unseen;
+mod usage;
 mod views;

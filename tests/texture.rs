@@ -797,7 +797,7 @@ fn a_varnished_uniform_texture_renders_as_ward() {
     tex.write(&d.path().join("t.pfm")).unwrap();
     let scene = |material: &str| {
         let text =
-            crate::common::SMALL_SCENE.replace("{ type = \"diffuse\", rho_d = 0.5 }", material);
+            crate::common::small_scene().replace("{ type = \"diffuse\", rho_d = 0.5 }", material);
         let p = crate::common::write(d.path(), "scene.toml", &text);
         parse_scene(&text, &p).unwrap()
     };
