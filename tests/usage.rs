@@ -1,7 +1,7 @@
 //! docs/USAGE.md against the binary's `--help`: every command and every long option the binary
 //! lists is named in USAGE.md, and USAGE.md names no option the binary does not take, so that
-//! the two cannot drift apart. Also: the links of README.md and docs/USAGE.md lead to files
-//! that exist.
+//! the two cannot drift apart. Also: the links and the repository paths that README.md and
+//! docs/USAGE.md name lead to files that exist.
 
 use crate::common::{matfit, root};
 use std::collections::BTreeSet;
@@ -113,6 +113,9 @@ fn listed_options_and_commands_are_read_from_clap_help() {
         .into_iter()
         .collect();
     assert_eq!(named, ["--a-b", "--c", "--e"]);
+    let paths =
+        named_paths("`src/a.rs`, ```sh\nrun `tests/b.rs`.\n``` `bench/out/x` `fuzz/<t>/` `x/y`");
+    assert_eq!(paths, ["src/a.rs", "tests/b.rs"]);
 }
 
 #[test]
@@ -164,6 +167,37 @@ fn links(text: &str) -> Vec<String> {
         .map(|t| t.split('#').next().unwrap().to_string())
         .filter(|t| !t.is_empty() && !t.contains("://"))
         .collect()
+}
+
+/// Repository paths named in `code` (`src/scene/edit.rs`, `scenes/figure6/edits/`), leaving out
+/// patterns (`<target>`, `*`) and what runs write (`out/`, `.venv`).
+fn named_paths(text: &str) -> Vec<String> {
+    const TOP: [&str; 9] = [
+        "src/", "tests/", "bench/", "scenes/", "docs/", "fuzz/", "tools/", ".cargo/", ".ci/",
+    ];
+    text.replace("```", "")
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .filter(|t| TOP.iter().any(|top| t.starts_with(top)))
+        .filter(|t| !t.contains(|c: char| c.is_whitespace() || "<*{$".contains(c)))
+        .filter(|t| !t.contains("/out/") && !t.contains(".venv"))
+        .map(|t| t.trim_end_matches(['.', ',', ':', ';']).to_string())
+        .collect()
+}
+
+#[test]
+fn paths_named_in_readme_and_usage_exist() {
+    let mut missing = Vec::new();
+    for doc in ["README.md", "docs/USAGE.md"] {
+        let text = std::fs::read_to_string(root().join(doc)).unwrap();
+        for p in named_paths(&text) {
+            if !root().join(&p).exists() {
+                missing.push(format!("{doc}: {p}"));
+            }
+        }
+    }
+    assert!(missing.is_empty(), "paths that do not exist: {missing:?}");
 }
 
 #[test]
