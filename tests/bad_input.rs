@@ -1,10 +1,10 @@
-//! Issue 6: bad inputs beyond the scene file (tests/scene_errors.rs) and the photo file
+//! Bad inputs beyond the scene file (tests/scene_errors.rs) and the photo file
 //! (tests/photo.rs): output places that cannot be written, a resume without a checkpoint,
 //! options out of range, a group with no usable pixel, a photo whose values make a fit diverge.
 //! Each gets a clear message and a non-zero exit (or, for the group without pixels, a warning
 //! and a stated default), quickly: before the long work, never a panic.
 
-use crate::common::{run, write, QUICK, SMALL_SCENE};
+use crate::common::{run, small_room, small_scene, write, QUICK};
 use matfit::io::image::Image;
 use matfit::math::Rgb;
 use std::path::Path;
@@ -12,7 +12,7 @@ use std::time::Instant;
 
 /// The small scene and its photo (a 16-spp rendering) in `dir`, and a regular file `blocker`.
 fn setup(dir: &Path) {
-    write(dir, "scene.toml", SMALL_SCENE);
+    write(dir, "scene.toml", &small_scene());
     let (code, _, err) = run(
         &["render", "scene.toml", "-o", "photo.exr", "--spp", "16"],
         dir,
@@ -198,10 +198,16 @@ fn photo_options_out_of_range() {
 fn a_group_with_no_usable_pixels_gets_a_warning_and_a_stated_default() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    let text = format!(
-        "{SMALL_SCENE}\n[[object]]\nname = \"sticker\"\ngroup = \"sticker\"\nshape = \"quad\"\n\
-         corner = [0.0, 0.001, 0.06]\nedge_u = [0.06, 0.0, 0.0]\nedge_v = [0.0, 0.0, -0.06]\n"
-    );
+    let text = small_room()
+        .quad(
+            "sticker",
+            "sticker",
+            [0.0, 0.001, 0.06],
+            [0.06, 0.0, 0.0],
+            [0.0, 0.0, -0.06],
+            "",
+        )
+        .to_toml();
     write(dir, "scene.toml", &text);
     let (code, _, err) = run(
         &["render", "scene.toml", "-o", "photo.exr", "--spp", "16"],
@@ -282,7 +288,7 @@ fn a_camera_that_sees_nothing_stops_render_and_recover() {
     write(
         dir,
         "away.toml",
-        &SMALL_SCENE.replace("target = [0.0, 0.0, 0.0]", "target = [0.0, 4.0, 4.0]"),
+        &small_scene().replace("target = [0.0, 0.0, 0.0]", "target = [0.0, 4.0, 4.0]"),
     );
     fails(
         dir,

@@ -1,4 +1,4 @@
-//! A simulated real capture (issue 23): figure6 photographed through a distorting, vignetting
+//! A simulated real capture: figure6 photographed through a distorting, vignetting
 //! lens whose pose is not quite the model's, with a non-linear response, noise, and three 8-bit
 //! brackets; merged by `matfit hdr`, recovered by `matfit recover` with the lens, the
 //! vignetting and a grey card given, as a user of a real camera would.
@@ -380,7 +380,7 @@ fn a_simulated_capture_off_by_a_degree_and_2_cm_is_recovered_with_its_pose_refin
     capture_is_recovered(true, (256, 192), 1);
 }
 
-/// The same at figure6's own 512×384, for the issue's absolute figures (ρ within 0.01, α 4%,
+/// The same at figure6's own 512×384, for the absolute figures asked of a capture (ρ within 0.01, α 4%,
 /// θ 2°), printed: `cargo test --profile ci --test tests capture::full -- --ignored
 /// --nocapture` (several minutes).
 #[test]

@@ -1,7 +1,7 @@
-//! Issue 27: what a new user meets first. Each behaviour through the binary, checking the
+//! What a new user meets first. Each behaviour through the binary, checking the
 //! message and the exit status.
 
-use crate::common::{matfit, root, run, write, QUICK, SMALL_SCENE};
+use crate::common::{matfit, root, run, small_room, small_scene, write, QUICK};
 use std::path::Path;
 use std::process::Stdio;
 
@@ -47,7 +47,7 @@ fn a_closed_pipe_ends_quietly() {
 #[test]
 fn zero_samples_per_pixel_is_refused() {
     let d = tempfile::tempdir().unwrap();
-    write(d.path(), "scene.toml", SMALL_SCENE);
+    write(d.path(), "scene.toml", &small_scene());
     let (code, _, err) = run(
         &["render", "scene.toml", "-o", "x.png", "--spp", "0"],
         d.path(),
@@ -60,7 +60,7 @@ fn zero_samples_per_pixel_is_refused() {
 #[test]
 fn render_says_what_it_wrote() {
     let d = tempfile::tempdir().unwrap();
-    write(d.path(), "scene.toml", SMALL_SCENE);
+    write(d.path(), "scene.toml", &small_scene());
     let (code, out, err) = run(
         &["render", "scene.toml", "-o", "x.png", "--spp", "2"],
         d.path(),
@@ -73,7 +73,7 @@ fn render_says_what_it_wrote() {
 #[test]
 fn info_prints_rounded_vectors_materials_and_render_settings() {
     let d = tempfile::tempdir().unwrap();
-    write(d.path(), "scene.toml", SMALL_SCENE);
+    write(d.path(), "scene.toml", &small_scene());
     let (code, out, err) = run(&["info", "scene.toml"], d.path());
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("eye (0, 2, 2)"), "{out}");
@@ -105,16 +105,16 @@ fn a_missing_scene_file_is_reported_once() {
 fn no_light_or_a_light_facing_away_stops_before_the_work() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    write(dir, "scene.toml", SMALL_SCENE);
+    write(dir, "scene.toml", &small_scene());
     render_photo(dir, "photo.exr");
     // The lamp is the last object: without its emission nothing emits.
-    let dark = SMALL_SCENE.replace("emission = 5.0", "");
+    let dark = small_scene().replace("emission = 5.0", "");
     write(dir, "dark.toml", &dark);
     let (code, _, err) = run(&["render", "dark.toml", "-o", "x.exr"], dir);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("dark.toml: no object emits light"), "{err}");
     // edge_v reversed: the lamp's front side faces the ceiling-less sky.
-    let away = SMALL_SCENE.replace("edge_v = [0.0, 0.0, 0.4]", "edge_v = [0.0, 0.0, -0.4]");
+    let away = small_scene().replace("edge_v = [0.0, 0.0, 0.4]", "edge_v = [0.0, 0.0, -0.4]");
     write(dir, "away.toml", &away);
     let (code, _, err) = run(&["render", "away.toml", "-o", "x.exr"], dir);
     assert_eq!(code, 2, "{err}");
@@ -194,7 +194,7 @@ fn help_describes_arguments_defaults_and_the_workflow() {
 fn exposure_default_is_stated_and_an_ldr_photo_without_one_is_warned() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    write(dir, "scene.toml", SMALL_SCENE);
+    write(dir, "scene.toml", &small_scene());
     render_photo(dir, "photo.png");
     let (code, out, err) = run(&["inspect", "scene.toml", "photo.png", "-o", "i1"], dir);
     assert_eq!(code, 0, "{err}");
@@ -226,7 +226,7 @@ fn exposure_default_is_stated_and_an_ldr_photo_without_one_is_warned() {
 fn inspect_states_each_registrations_own_rule() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    write(dir, "scene.toml", SMALL_SCENE);
+    write(dir, "scene.toml", &small_scene());
     render_photo(dir, "photo.exr");
     for (extra, found, rule) in [
         (
@@ -259,7 +259,7 @@ fn inspect_states_each_registrations_own_rule() {
 fn recover_ends_with_the_table_and_repeats_warnings() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    write(dir, "scene.toml", SMALL_SCENE);
+    write(dir, "scene.toml", &small_scene());
     render_photo(dir, "photo.exr");
     // k = 1e-4: the floor (radiance about 0.04 under the lamp of radiance 5) divided by it is
     // far brighter than the lamp itself.
@@ -304,7 +304,7 @@ fn recover_ends_with_the_table_and_repeats_warnings() {
 fn a_folder_of_other_files_is_not_overwritten_without_force() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    write(dir, "scene.toml", SMALL_SCENE);
+    write(dir, "scene.toml", &small_scene());
     render_photo(dir, "photo.exr");
     write(dir, "mine/thesis.tex", "months of work");
     for cmd in [
@@ -349,7 +349,7 @@ fn a_folder_of_other_files_is_not_overwritten_without_force() {
 fn ctrl_c_on_recover_says_how_to_resume() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    write(dir, "scene.toml", SMALL_SCENE);
+    write(dir, "scene.toml", &small_scene());
     render_photo(dir, "photo.exr");
     let child = matfit()
         .args([
@@ -391,10 +391,16 @@ fn ctrl_c_on_recover_says_how_to_resume() {
 #[test]
 fn a_group_name_one_edit_from_another_is_warned() {
     let d = tempfile::tempdir().unwrap();
-    let text = format!(
-        "{SMALL_SCENE}\n[[object]]\nname = \"rug\"\ngroup = \"flor\"\nshape = \"quad\"\n\
-         corner = [-0.5, 0.01, 0.5]\nedge_u = [1.0, 0.0, 0.0]\nedge_v = [0.0, 0.0, -1.0]\n"
-    );
+    let text = small_room()
+        .quad(
+            "rug",
+            "flor",
+            [-0.5, 0.01, 0.5],
+            [1.0, 0.0, 0.0],
+            [0.0, 0.0, -1.0],
+            "",
+        )
+        .to_toml();
     write(d.path(), "scene.toml", &text);
     let (code, _, err) = run(&["info", "scene.toml"], d.path());
     assert_eq!(code, 0, "{err}");
@@ -411,7 +417,7 @@ fn a_group_name_one_edit_from_another_is_warned() {
 fn demo_table_is_aligned_for_long_names_and_explains_the_ratio() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    let long = SMALL_SCENE.replacen("group = \"floor\"", "group = \"a_very_long_floor_name\"", 1);
+    let long = small_scene().replacen("group = \"floor\"", "group = \"a_very_long_floor_name\"", 1);
     write(dir, "scene.toml", &long);
     let mut args = vec![
         "demo",
@@ -449,8 +455,9 @@ fn demo_table_is_aligned_for_long_names_and_explains_the_ratio() {
 fn outputs_keep_the_input_layout_and_fixed_groups_their_material() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
+    let small = small_scene();
     let text = format!(
-        "# the small room\n{SMALL_SCENE}\n[[object]]\nname = \"shelf\"\ngroup = \"shelf\"\n\
+        "# the small room\n{small}\n[[object]]\nname = \"shelf\"\ngroup = \"shelf\"\n\
          shape = \"quad\"\ncorner = [-1.0, 0.0, -1.0]\nedge_u = [2.0, 0.0, 0.0]\n\
          edge_v = [0.0, 1.0, 0.0]\nmaterial = {{ type = \"mirror\", rho_s = 0.8 }}  # kept\n\n\
          [[group]]\nname = \"shelf\"\nfixed = true\n"
@@ -496,7 +503,7 @@ fn outputs_keep_the_input_layout_and_fixed_groups_their_material() {
 fn the_report_is_one_file_with_pictures_plots_inputs_and_a_noise_free_error_map() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    recover_quickly(dir, SMALL_SCENE);
+    recover_quickly(dir, &small_scene());
     let html = std::fs::read_to_string(dir.join("out/report.html")).unwrap();
     // One file: the pictures embedded as PNGs, no links to them.
     use base64::Engine;
@@ -569,7 +576,7 @@ fn the_report_opens_in_a_browser_with_every_picture_and_plot() {
     };
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    recover_quickly(dir, SMALL_SCENE);
+    recover_quickly(dir, &small_scene());
     let page = format!("file://{}", dir.join("out/report.html").display());
     let browser = |extra: &[&str]| {
         let out = std::process::Command::new(&exe)

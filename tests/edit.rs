@@ -1,92 +1,55 @@
-//! Issue 22: using the recovered scene (§7 of the notes). Edits given as `matfit render` flags
+//! Using the recovered scene (§7 of the notes). Edits given as `matfit render` flags
 //! or as an edit file render exactly the scene written by hand with those edits; unknown names
 //! are errors that suggest the nearest one; `matfit composite` puts a new object into the photo
 //! by differential rendering, with its shadow and its reflection on the photographed surfaces.
 
-use crate::common::{root, run, write};
+use crate::common::{diffuse, material, root, run, write, SceneToml};
 use matfit::io::image::{read_linear, Image};
 use matfit::math::{Rgb, Vec2, Vec3};
 use matfit::scene::load_scene;
 use std::path::Path;
 
-const BASE: &str = r#"
-[render]
-spp = 8
-seed = 3
+/// The small room at 48 × 36 pixels with a red block on the floor.
+fn base() -> String {
+    SceneToml::spaced()
+        .render(&[("spp", "8"), ("seed", "3")])
+        .camera_above(48, 36)
+        .floor(&diffuse(&[0.5]))
+        .cuboid(
+            "block",
+            "blocks",
+            [0.2, 0.0, -0.6],
+            [0.6, 0.4, -0.2],
+            &diffuse(&[0.7, 0.2, 0.1]),
+        )
+        .lamp(5.0)
+        .to_toml()
+}
 
-[camera]
-width = 48
-height = 36
-eye = [0.0, 2.0, 2.0]
-target = [0.0, 0.0, 0.0]
-fov_y_deg = 45.0
-
-[[object]]
-name = "floor"
-group = "floor"
-shape = "quad"
-corner = [-1.0, 0.0, 1.0]
-edge_u = [2.0, 0.0, 0.0]
-edge_v = [0.0, 0.0, -2.0]
-material = { type = "diffuse", rho_d = 0.5 }
-
-[[object]]
-name = "block"
-group = "blocks"
-shape = "box"
-min = [0.2, 0.0, -0.6]
-max = [0.6, 0.4, -0.2]
-material = { type = "diffuse", rho_d = [0.7, 0.2, 0.1] }
-
-[[object]]
-name = "lamp"
-group = "lamp"
-shape = "quad"
-corner = [-0.2, 1.5, -0.2]
-edge_u = [0.4, 0.0, 0.0]
-edge_v = [0.0, 0.0, 0.4]
-emission = 5.0
-"#;
-
-/// BASE with the edits of [`FLAGS`] written by hand.
-const EDITED: &str = r#"
-[render]
-spp = 8
-seed = 3
-
-[camera]
-width = 48
-height = 36
-eye = [1.0, 2.0, 2.5]
-target = [0.0, 0.2, 0.0]
-fov_y_deg = 50.0
-
-[[object]]
-name = "floor"
-group = "floor"
-shape = "quad"
-corner = [-1.0, 0.1, 1.0]
-edge_u = [2.0, 0.0, 0.0]
-edge_v = [0.0, 0.0, -2.0]
-material = { type = "diffuse", rho_d = [0.2, 0.4, 0.6] }
-
-[[object]]
-name = "lamp"
-group = "lamp"
-shape = "quad"
-corner = [-0.2, 1.5, -0.2]
-edge_u = [0.4, 0.0, 0.0]
-edge_v = [0.0, 0.0, 0.4]
-emission = 10.0
-
-[[object]]
-name = "ball"
-group = "ball"
-shape = "sphere"
-center = [0.0, 0.4, 0.0]
-radius = 0.3
-material = { type = "ward", rho_d = 0.3, rho_s = 0.2, alpha = 0.1 }
-"#;
+/// [`base`] with the edits of [`FLAGS`] written by hand.
+fn edited() -> String {
+    SceneToml::spaced()
+        .render(&[("spp", "8"), ("seed", "3")])
+        .camera(48, 36, [1.0, 2.0, 2.5], [0.0, 0.2, 0.0], 50.0)
+        .quad(
+            "floor",
+            "floor",
+            [-1.0, 0.1, 1.0],
+            [2.0, 0.0, 0.0],
+            [0.0, 0.0, -2.0],
+            &diffuse(&[0.2, 0.4, 0.6]),
+        )
+        .lamp(10.0)
+        .sphere(
+            "ball",
+            "ball",
+            [0.0, 0.4, 0.0],
+            0.3,
+            None,
+            &material(r#"{ type = "ward", rho_d = 0.3, rho_s = 0.2, alpha = 0.1 }"#),
+        )
+        .to_toml()
+}
 
 const FLAGS: [&str; 16] = [
     "--remove",
@@ -150,8 +113,8 @@ fn render(dir: &Path, scene: &str, out: &str, extra: &[&str]) -> Image {
 fn edits_by_flags_or_file_render_the_hand_edited_scene_to_the_bit() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    write(dir, "scene.toml", BASE);
-    write(dir, "edited.toml", EDITED);
+    write(dir, "scene.toml", &base());
+    write(dir, "edited.toml", &edited());
     write(dir, "edit.toml", EDIT_FILE);
     let truth = render(dir, "edited.toml", "truth.exr", &[]);
     let by_flags = render(dir, "scene.toml", "flags.exr", &FLAGS);
@@ -173,7 +136,7 @@ fn edits_by_flags_or_file_render_the_hand_edited_scene_to_the_bit() {
 fn unknown_names_and_bad_edits_are_errors_that_say_what_to_write() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    write(dir, "scene.toml", BASE);
+    write(dir, "scene.toml", &base());
     let fails = |args: &[&str]| {
         let mut a = vec!["render", "scene.toml", "-o", "x.exr"];
         a.extend(args);

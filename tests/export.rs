@@ -1,5 +1,5 @@
 //! `matfit export mitsuba`: the PLYs carry the scene's triangles exactly, the XML the camera,
-//! filter, two-sided BSDFs and the lights (issue 3, cross-check against an independent renderer).
+//! filter, two-sided BSDFs and the lights (for the cross-check against an independent renderer).
 
 use crate::common::{root, run};
 use matfit::scene::load_scene;

@@ -1,7 +1,7 @@
 //! `matfit export gltf`: the .glb read back with the `gltf` crate (which validates the JSON and
-//! the binary chunk) carries matfit's triangles, materials, textures and camera (issue 22).
+//! the binary chunk) carries matfit's triangles, materials, textures and camera.
 //! With `MATFIT_GLTF_VALIDATOR` set to a node script that runs the Khronos glTF-Validator
-//! (`tools/gltf_validate.js`; README, the `matfit export gltf` row), the files are also checked by the reference validator.
+//! (`tools/gltf_validate.js`; docs/USAGE.md, "export"), the files are also checked by the reference validator.
 
 use crate::common::{root, run};
 use glam::{Mat3, Quat, Vec2, Vec3};

@@ -134,7 +134,7 @@ fn bvh_equals_brute_force_on_100k_rays_with_meshes() {
          [[object]]\nname = \"cube\"\ngroup = \"cube\"\nshape = \"box\"\nmin = [-0.9, 0.0, -0.9]\nmax = [-0.4, 0.5, -0.4]\n\
          transform = {{ rotate_deg = [10.0, 30.0, 0.0] }}\n\
          [[object]]\nname = \"orb\"\ngroup = \"orb\"\nshape = \"sphere\"\ncenter = [0.6, 0.3, 0.4]\nradius = 0.3\n",
-        crate::common::SMALL_SCENE
+        crate::common::small_scene()
     );
     let p = crate::common::write(dir.path(), "scene.toml", &scene_text);
     let scenes = [

@@ -1,4 +1,4 @@
-//! `matfit import mitsuba` (issue 22): the inverse of the exporter (a round trip renders the
+//! `matfit import mitsuba`: the inverse of the exporter (a round trip renders the
 //! same image), a scene written in Mitsuba's own idiom imports as the same scene written by
 //! hand, and bad input is an error naming the file and line.
 

@@ -2,9 +2,9 @@
 //! `figure6_variant`), photographed by matfit through the model's own camera and recovered the
 //! way `matfit recover` does it: `photo::prepare` (registration, masks), then `recover`.
 //!
-//! The registration used to find a 1.2-px vertical misregistration in this photo (the blocks'
-//! lit top faces are 2–3 px tall, and the crease below each top face pulled the outline onto
-//! it), and the "corrected" camera biased the back wall's ρd to 0.63 (true 0.65). The tests in
+//! The blocks' lit top faces are 2–3 px tall here, and a registration that takes the crease
+//! below each top face for the outline finds a 1.2-px vertical misregistration in this photo;
+//! the "corrected" camera then biases the back wall's ρd to 0.63 (true 0.65). The tests in
 //! `tests/recover.rs` build their masks without `prepare`, so they could not see it.
 
 use crate::common::root;

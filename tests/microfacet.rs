@@ -1,4 +1,4 @@
-//! Levels 8, 9 and 10, the microfacet lobes (issue 20). First figure6 with a diffuse floor (ρd 0.5), its small
+//! Levels 8, 9 and 10, the microfacet lobes. First figure6 with a diffuse floor (ρd 0.5), its small
 //! block a rough green metal (Lambert 0 + GGX ρs (0.2, 0.7, 0.3), α 0.2: Mitsuba's
 //! `roughconductor` with `material = "none"`) and its big block a red plastic (ρd (0.7, 0.05,
 //! 0.05) under a GGX coat of IOR 1.49, α 0.1: Mitsuba's `roughplastic`), the photo rendered by

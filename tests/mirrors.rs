@@ -1,4 +1,4 @@
-//! End-to-end mirrors (issue 25, §5.1 of the notes): scenes/facing-mirrors, two non-perfect
+//! End-to-end mirrors (§5.1 of the notes): scenes/facing-mirrors, two non-perfect
 //! mirrors facing each other (ρs 0.85 and 0.7), each seen directly and in the other, and a
 //! textured book seen directly and in the left mirror. Its photo rendered by matfit with the
 //! true materials, recovered blind.
@@ -12,7 +12,7 @@ use matfit::math::Rgb;
 
 #[test]
 fn facing_mirrors_are_confirmed_and_the_book_textured() {
-    // Full size (320×240), 512-spp photo, 90 s. Measured: mirrors ρs (0.850, 0.850, 0.850)
+    // Full size (320×240), 512-spp photo. Measured: mirrors ρs (0.850, 0.850, 0.850)
     // and (0.702, 0.701, 0.700); walls and floor within 0.004; the book 30.7 dB over 2681 seen
     // texels (cut from the photo: 23.5 dB; its own pixels alone, `--no-mirror-views`: 29.9),
     // the painting 31.0 dB (23.6; alone 30.1), each also fitted from its image in the left

@@ -2,7 +2,7 @@
 //! along parallel rays, against analytic answers for each pixel's radiance and for the area of
 //! its silhouette.
 
-use crate::common::{run, write};
+use crate::common::{from_f32, run, vec3, write, SceneToml};
 use matfit::io::image::read_linear;
 use matfit::math::{Vec2, Vec3};
 
@@ -12,27 +12,23 @@ const W: usize = 96;
 const F: f32 = W as f32 / 1.5;
 
 fn scene(material: &str, light: &str) -> String {
-    format!(
-        r#"
-[render]
-spp = 64
-[camera]
-width = {W}
-height = {W}
-projection = "orthographic"
-eye = [0.0, 0.0, 3.0]
-target = [0.0, 0.0, 0.0]
-width_m = 1.5
-[[object]]
-name = "ball"
-group = "ball"
-shape = "sphere"
-center = [0.0, 0.0, 0.0]
-radius = {R}
-segments = 512
-{material}
-{light}"#
-    )
+    let w = W.to_string();
+    SceneToml::compact()
+        .render(&[("spp", "64")])
+        .table(
+            "[camera]",
+            &[
+                ("width", &w),
+                ("height", &w),
+                ("projection", "\"orthographic\""),
+                ("eye", &vec3([0.0, 0.0, 3.0])),
+                ("target", &vec3([0.0; 3])),
+                ("width_m", "1.5"),
+            ],
+        )
+        .sphere("ball", "ball", [0.0; 3], from_f32([R])[0], Some(512), "")
+        .raw(&format!("{material}\n{light}"))
+        .to_toml()
 }
 
 /// Where the orthographic ray through film position `film` meets the sphere, if it does: the

@@ -1,4 +1,4 @@
-//! Issue 4: from a photograph to radiance and trustworthy pixels.
+//! From a photograph to radiance and trustworthy pixels.
 //!
 //! The figure6 tests render "photos" of the validation scene with the path tracer and compare
 //! them with a reference rendering of the model (true materials, the scene's camera). The
@@ -15,7 +15,7 @@
 //! the filtering is what earns the < 1%, the misregistration test also runs with the band and
 //! the edge detector off and requires that to fail the 1% mark.
 
-use crate::common::{root, run, write, SMALL_SCENE};
+use crate::common::{root, run, small_scene, write};
 use matfit::io::image::Image;
 use matfit::math::Rgb;
 use matfit::photo::{load_photo, Photo, PhotoOptions, Response};
@@ -331,7 +331,7 @@ type BadPhoto<'a> = (&'a str, Box<dyn Fn(&Path) + 'a>, Vec<&'a str>);
 fn bad_photos_get_clear_errors() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    let (_, good) = small_photo(SMALL_SCENE, dir);
+    let (_, good) = small_photo(&small_scene(), dir);
     let mut png = Vec::new();
     {
         good.write(&dir.join("good.png")).unwrap();
@@ -421,7 +421,7 @@ fn bad_photos_get_clear_errors() {
             Box::new(|p| filled(64, 48, Rgb::splat(3.0)).write(p).unwrap()),
             vec!["saturated", "3072 of 3072"],
         ),
-        // Issue 6: more bad photos.
+        // More bad photos.
         (
             "zero.pfm",
             Box::new(|p| std::fs::write(p, b"PF\n0 0\n-1.0\n").unwrap()),
@@ -514,7 +514,7 @@ fn exposure_from_a_grey_card_and_from_visible_lights() {
     let dir = d.path();
     let k = 3.7;
     // Grey card: the floor, ρ 0.5 in the scene.
-    let (s, img) = small_photo(SMALL_SCENE, dir);
+    let (s, img) = small_photo(&small_scene(), dir);
     let scaled = Image {
         data: img.data.iter().map(|c| *c * k).collect(),
         ..img.clone()
@@ -539,7 +539,7 @@ fn exposure_from_a_grey_card_and_from_visible_lights() {
     assert!(e.contains("no group 'flor'") && e.contains("floor"), "{e}");
 
     // Lights: a camera under the lamp sees its emitting side.
-    let text = SMALL_SCENE
+    let text = small_scene()
         .replace("eye = [0.0, 2.0, 2.0]", "eye = [0.0, 0.3, 1.2]")
         .replace("target = [0.0, 0.0, 0.0]", "target = [0.0, 1.5, 0.0]");
     let (s, img) = small_photo(&text, dir);

@@ -1,8 +1,8 @@
-//! Issue 23, the photo's inputs: a user mask of pixels to ignore, and LDR brackets merged into
+//! The photo's inputs: a user mask of pixels to ignore, and LDR brackets merged into
 //! one linear photo by `matfit hdr`. Both through the binary on a small scene: a coloured floor
 //! with a grey card on it, lit by a quad light, rendered by `matfit render`.
 
-use crate::common::{run, write, QUICK};
+use crate::common::{diffuse, from_f32, run, write, SceneToml, QUICK};
 use matfit::io::image::{read_linear, Image};
 use matfit::math::Rgb;
 use matfit::photo::Response;
@@ -11,45 +11,26 @@ use std::path::Path;
 /// The floor's true ρd.
 const FLOOR: [f32; 3] = [0.6, 0.45, 0.3];
 
-const SCENE: &str = r#"
-[camera]
-width = 64
-height = 48
-eye = [0.0, 2.0, 2.0]
-target = [0.0, 0.0, 0.0]
-fov_y_deg = 45.0
-
-[[object]]
-name = "floor"
-group = "floor"
-shape = "quad"
-corner = [-1.0, 0.0, 1.0]
-edge_u = [2.0, 0.0, 0.0]
-edge_v = [0.0, 0.0, -2.0]
-material = { type = "diffuse", rho_d = [0.6, 0.45, 0.3] }
-
-[[object]]
-name = "card"
-group = "card"
-shape = "quad"
-corner = [-0.8, 0.01, -0.2]
-edge_u = [0.5, 0.0, 0.0]
-edge_v = [0.0, 0.0, -0.5]
-material = { type = "diffuse", rho_d = 0.2 }
-
-[[object]]
-name = "lamp"
-group = "lamp"
-shape = "quad"
-corner = [-0.2, 1.5, -0.2]
-edge_u = [0.4, 0.0, 0.0]
-edge_v = [0.0, 0.0, 0.4]
-emission = 5.0
-"#;
+/// The small room with a floor of ρd [`FLOOR`] and a dark card on it.
+fn scene() -> String {
+    SceneToml::spaced()
+        .camera_above(64, 48)
+        .floor(&diffuse(&from_f32(FLOOR)))
+        .quad(
+            "card",
+            "card",
+            [-0.8, 0.01, -0.2],
+            [0.5, 0.0, 0.0],
+            [0.0, 0.0, -0.5],
+            &diffuse(&[0.2]),
+        )
+        .lamp(5.0)
+        .to_toml()
+}
 
 /// Writes the scene into `dir` and renders its photo (64 spp) to `dir/photo.exr`.
 fn photo(dir: &Path) -> Image {
-    write(dir, "scene.toml", SCENE);
+    write(dir, "scene.toml", &scene());
     let (code, _, err) = run(
         &["render", "scene.toml", "-o", "photo.exr", "--spp", "64"],
         dir,

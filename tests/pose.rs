@@ -2,7 +2,7 @@
 //! object is lit, a camera turned by ~1° and moved by 2 cm is found, and `--camera-is-calibrated`
 //! skips it all.
 
-use crate::common::{run, write, QUICK};
+use crate::common::{diffuse, run, write, SceneToml, QUICK};
 use matfit::math::{Mat3, Vec3};
 use matfit::scene::{load_scene, Camera, Scene};
 use std::path::Path;
@@ -10,34 +10,19 @@ use std::path::Path;
 /// A Lambert sphere lit from the side by the sun, against black, and a box beside it, seen
 /// through `camera` (the `[camera]` lines after width and height).
 fn side_lit(camera: &str) -> String {
-    format!(
-        r#"
-[camera]
-width = 160
-height = 120
-{camera}
-[[object]]
-name = "ball"
-group = "ball"
-shape = "sphere"
-center = [0.0, 0.0, 0.0]
-radius = 0.5
-segments = 128
-material = {{ type = "diffuse", rho_d = 0.7 }}
-[[object]]
-name = "block"
-group = "block"
-shape = "box"
-min = [0.6, -0.5, -0.3]
-max = [1.0, 0.1, 0.2]
-material = {{ type = "diffuse", rho_d = 0.4 }}
-[[light]]
-name = "sun"
-type = "directional"
-direction = [-1.0, -0.3, -0.4]
-irradiance = 3.0
-"#
-    )
+    SceneToml::compact()
+        .table("[camera]", &[("width", "160"), ("height", "120")])
+        .raw(&format!("{camera}\n"))
+        .sphere("ball", "ball", [0.0; 3], 0.5, Some(128), &diffuse(&[0.7]))
+        .cuboid(
+            "block",
+            "block",
+            [0.6, -0.5, -0.3],
+            [1.0, 0.1, 0.2],
+            &diffuse(&[0.4]),
+        )
+        .raw("[[light]]\nname = \"sun\"\ntype = \"directional\"\ndirection = [-1.0, -0.3, -0.4]\nirradiance = 3.0\n")
+        .to_toml()
 }
 
 const MODEL: &str = "eye = [0.2, 0.3, 3.0]\ntarget = [0.2, 0.0, 0.0]\nfov_y_deg = 35";

@@ -3,7 +3,7 @@
 //! L = ρ/π · E cos θ (directional, irradiance E), ρ/π · I cos θ / d² (point), and the spot's
 //! falloff (linear in angle from the beam to the cutoff, Mitsuba 3's) times the latter.
 
-use crate::common::{run, write};
+use crate::common::{diffuse, from_f32, run, write, SceneToml};
 use matfit::math::{Rgb, Vec2, Vec3};
 use matfit::render::film::{render, RenderOptions};
 use matfit::scene::load::parse_scene;
@@ -13,27 +13,12 @@ const RHO: [f32; 3] = [0.2, 0.5, 0.8];
 
 /// A camera looking down at a large Lambert floor (y = 0), `extra` appended (lights, blockers).
 fn floor_scene(extra: &str) -> matfit::scene::Scene {
-    let text = format!(
-        r#"
-[render]
-max_depth = 8
-[camera]
-width = 24
-height = 18
-eye = [0.0, 3.0, 0.5]
-target = [0.0, 0.0, 0.0]
-fov_y_deg = 50.0
-[[object]]
-name = "floor"
-group = "floor"
-shape = "quad"
-corner = [-20.0, 0.0, 20.0]
-edge_u = [40.0, 0.0, 0.0]
-edge_v = [0.0, 0.0, -40.0]
-material = {{ type = "diffuse", rho_d = [{}, {}, {}] }}
-{extra}"#,
-        RHO[0], RHO[1], RHO[2]
-    );
+    let text = SceneToml::compact()
+        .render(&[("max_depth", "8")])
+        .camera(24, 18, [0.0, 3.0, 0.5], [0.0; 3], 50.0)
+        .floor_sized(20.0, &diffuse(&from_f32(RHO)))
+        .raw(extra)
+        .to_toml();
     parse_scene(&text, Path::new("inline.toml")).unwrap()
 }
 
@@ -206,21 +191,10 @@ fn a_blocker_casts_the_directional_lights_shadow() {
 #[test]
 fn lights_are_checked_listed_and_exported_through_the_binary() {
     let dir = tempfile::tempdir().unwrap();
-    let base = r#"
-[camera]
-width = 32
-height = 24
-eye = [0.0, 2.0, 2.0]
-target = [0.0, 0.0, 0.0]
-fov_y_deg = 45.0
-[[object]]
-name = "floor"
-group = "floor"
-shape = "quad"
-corner = [-1.0, 0.0, 1.0]
-edge_u = [2.0, 0.0, 0.0]
-edge_v = [0.0, 0.0, -2.0]
-"#;
+    let base = SceneToml::compact()
+        .camera_above(32, 24)
+        .floor("")
+        .to_toml();
     // A scene lit only by a punctual light is a scene with light.
     let ok = write(
         dir.path(),
@@ -351,28 +325,9 @@ fn a_uniform_environment_lights_a_floor_to_rho_times_its_radiance() {
     let mut map = matfit::io::image::Image::new(6, 4);
     map.data.fill(Rgb::new(0.5, 1.0, 2.0));
     map.write(&dir.path().join("sky.pfm")).unwrap();
-    let text = r#"
-[render]
-max_depth = 2
-[camera]
-width = 24
-height = 18
-eye = [0.0, 1.0, 2.0]
-target = [0.0, 0.0, 0.0]
-fov_y_deg = 60.0
-[[object]]
-name = "floor"
-group = "floor"
-shape = "quad"
-corner = [-1.0, 0.0, 1.0]
-edge_u = [2.0, 0.0, 0.0]
-edge_v = [0.0, 0.0, -2.0]
-material = { type = "diffuse", rho_d = [0.2, 0.5, 0.8] }
-[environment]
-file = "sky.pfm"
-scale = 1.5
-rotate_deg = [10, 40, 0]
-"#;
+    let text = &SceneToml::open_floor()
+        .raw("[environment]\nfile = \"sky.pfm\"\nscale = 1.5\nrotate_deg = [10, 40, 0]\n")
+        .to_toml();
     let path = write(dir.path(), "scene.toml", text);
     let sc = matfit::scene::load_scene(&path).unwrap();
     let img = rendered(&sc, 64);
@@ -416,7 +371,7 @@ fn a_room_lit_by_an_hdr_sky_is_recovered_and_its_envmap_round_trips_through_mits
             matfit::scene::Material::Diffuse { rho_d } => rho_d,
             matfit::scene::Material::Ward { .. } => {
                 // At this size the sky-lit ball's lobe is not pinned down (it may end
-                // diffuse + mirror; issue 23's note): it must at least be glossy.
+                // diffuse + mirror): it must at least be glossy.
                 let rho_s = g["params"]["rho_s"][1].as_f64().unwrap();
                 assert!(rho_s > 0.05, "{name}: {g}");
                 continue;
@@ -675,26 +630,12 @@ fn a_lambert_sphere_matches_the_analytic_irradiance_of_a_sun_and_of_a_sky() {
     sky.write(&dir.path().join("sky.exr")).unwrap();
     let l = Vec3::new(-0.4, 0.7, 0.6).normalize();
     let sphere = |lights: &str| {
-        format!(
-            r#"
-[render]
-max_depth = 2
-[camera]
-width = 64
-height = 64
-eye = [0.0, 0.0, 4.0]
-target = [0.0, 0.0, 0.0]
-fov_y_deg = 30.0
-[[object]]
-name = "ball"
-group = "ball"
-shape = "sphere"
-center = [0.0, 0.0, 0.0]
-radius = 1.0
-segments = 512
-material = {{ type = "diffuse", rho_d = 0.6 }}
-{lights}"#
-        )
+        SceneToml::compact()
+            .render(&[("max_depth", "2")])
+            .camera(64, 64, [0.0, 0.0, 4.0], [0.0; 3], 30.0)
+            .sphere("ball", "ball", [0.0; 3], 1.0, Some(512), &diffuse(&[0.6]))
+            .raw(lights)
+            .to_toml()
     };
     let sun = format!(
         "[[light]]\nname = \"sun\"\ntype = \"directional\"\ndirection = [{}, {}, {}]\nirradiance = 3.0\n",

@@ -1,7 +1,7 @@
 //! End-to-end recovery: the bundled scenes rendered by matfit with their true materials, then
 //! recovered blind. Run at reduced resolution (a quarter of the pixels) to fit CI's time; the
 //! tolerances are stated per test. The full-resolution figures are `matfit demo`'s (see the
-//! README and the issue notes).
+//! README and bench/README.md).
 
 use crate::common::root;
 use matfit::fit::{recover, Level, RecoverOptions, Recovery};
@@ -208,7 +208,7 @@ fn glossy_scene_groups_are_confirmed_at_their_own_levels() {
     // Every group at its own level; ρ within 0.03 and α within 5% at a quarter of the pixels.
     // Measured here: walls and floor within 0.002, mirror ρs −0.011, lacquer box ρd +0.015 /
     // ρs −0.020 (its mirror part is nearly collinear with its diffuse shading), sphere ρ within
-    // 0.004 and α +1.1%. Issue 5 asks 0.01 / 3%: not met yet for the mirror and the box.
+    // 0.004 and α +1.1%. The target is 0.01 / 3%: not met yet for the mirror and the box.
     let scene = scaled("scenes/glossy/scene.toml", 0.5);
     let (rec, _) = run(&scene, 256);
     eprintln!("{}", table(&scene, &rec));
@@ -237,12 +237,12 @@ fn glossy_scene_groups_are_confirmed_at_their_own_levels() {
     assert!((a / 0.15 - 1.0).abs() < 0.05, "α {a}");
 }
 
-/// The stall of issue 26: a group whose parameters keep moving by more than the settle
-/// tolerance (here built by a tolerance below the Monte Carlo jitter of every fit, 0.002, as a
-/// weakly determined lobe does at the default one) kept the scene from ever "settling", so no
-/// group could climb after the first ones: on the glossy scene the groups stayed diffuse and
-/// the run ended with them analysing. Now parameters that stopped converging count as settled,
-/// every group reaches its own level, and every group ends decided.
+/// A stall: a group whose parameters keep moving by more than the settle tolerance (here built
+/// by a tolerance below the Monte Carlo jitter of every fit, 0.002, as a weakly determined lobe
+/// does at the default one) would keep the scene from ever "settling", so that no group could
+/// climb after the first ones (on the glossy scene the groups would stay diffuse and the run end
+/// with them analysing). Parameters that stopped converging count as settled, so every group
+/// reaches its own level and ends decided.
 #[test]
 fn jitter_above_the_settle_tolerance_does_not_stall_the_hierarchy() {
     let scene = scaled("scenes/glossy/scene.toml", 0.5);

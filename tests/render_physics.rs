@@ -1,6 +1,6 @@
 //! The path tracer against analytic answers (the kind pbrt-v4's integrators_test keeps).
 
-use crate::common::{run, write, SMALL_SCENE};
+use crate::common::{diffuse, emission, mirror, run, small_scene, vec3, write, SceneToml};
 use matfit::math::Rgb;
 use matfit::render::film::{render, RenderOptions};
 use matfit::scene::load::parse_scene;
@@ -120,38 +120,58 @@ fn form_factor_corner(a: f64, b: f64, c: f64) -> f64 {
     (x / sx * (y / sx).atan() + y / sy * (x / sy).atan()) / (2.0 * std::f64::consts::PI)
 }
 
+/// A Lambert floor (ρ 0.5) under a 0.8 × 0.6 quad light at height 0.5, seen straight down
+/// through a 0.5° field of view, direct light only.
+fn floor_under_a_lamp() -> String {
+    SceneToml::compact()
+        .render(&[("max_depth", "2")])
+        .table(
+            "[camera]",
+            &[
+                ("width", "3"),
+                ("height", "3"),
+                ("eye", &vec3([0.0, 0.25, 0.0])),
+                ("target", &vec3([0.0; 3])),
+                ("up", &vec3([0.0, 0.0, -1.0])),
+                ("fov_y_deg", "0.5"),
+            ],
+        )
+        .floor_sized(5.0, &diffuse(&[0.5]))
+        .quad(
+            "lamp",
+            "lamp",
+            [-0.4, 0.5, -0.3],
+            [0.8, 0.0, 0.0],
+            [0.0, 0.0, 0.6],
+            &emission(&[3.0]),
+        )
+        .to_toml()
+}
+
+/// A mirror floor of reflectance (0.7, 0.5, 0.3) seen at 45°, reflecting an emitter of
+/// radiance 2.
+fn mirror_floor() -> String {
+    SceneToml::compact()
+        .render(&[("max_depth", "3")])
+        .camera(5, 5, [0.0, 1.0, 1.0], [0.0; 3], 2.0)
+        .floor_sized(2.0, &mirror(&[0.7, 0.5, 0.3]))
+        .quad(
+            "lamp",
+            "lamp",
+            [-1.0, -1.0, -2.0],
+            [2.0, 0.0, 0.0],
+            [0.0, 4.0, 2.0],
+            &emission(&[2.0]),
+        )
+        .to_toml()
+}
+
 #[test]
 fn lambert_plane_under_a_quad_light_matches_the_form_factor() {
     // Floor ρ = 0.5 at y = 0; emitter 0.8 × 0.6 at height 0.5, centred above the origin, facing
     // down, radiance 3. Direct light only. Radiance of the floor at the origin:
     // L = ρ/π · E = ρ · Le · F, with F = 4 F_corner(0.4, 0.3, 0.5) by symmetry.
-    let text = r#"
-[render]
-max_depth = 2
-[camera]
-width = 3
-height = 3
-eye = [0.0, 0.25, 0.0]
-target = [0.0, 0.0, 0.0]
-up = [0.0, 0.0, -1.0]
-fov_y_deg = 0.5
-[[object]]
-name = "floor"
-group = "floor"
-shape = "quad"
-corner = [-5.0, 0.0, 5.0]
-edge_u = [10.0, 0.0, 0.0]
-edge_v = [0.0, 0.0, -10.0]
-material = { type = "diffuse", rho_d = 0.5 }
-[[object]]
-name = "lamp"
-group = "lamp"
-shape = "quad"
-corner = [-0.4, 0.5, -0.3]
-edge_u = [0.8, 0.0, 0.0]
-edge_v = [0.0, 0.0, 0.6]
-emission = 3.0
-"#;
+    let text = &floor_under_a_lamp();
     let sc = scene(text);
     let img = render(
         &sc,
@@ -175,32 +195,7 @@ emission = 3.0
 #[test]
 fn mirror_shows_the_emitter_times_rho_s() {
     // A mirror floor of reflectance (0.7, 0.5, 0.3) seen at 45° reflects an emitter of radiance 2.
-    let text = r#"
-[render]
-max_depth = 3
-[camera]
-width = 5
-height = 5
-eye = [0.0, 1.0, 1.0]
-target = [0.0, 0.0, 0.0]
-fov_y_deg = 2.0
-[[object]]
-name = "floor"
-group = "floor"
-shape = "quad"
-corner = [-2.0, 0.0, 2.0]
-edge_u = [4.0, 0.0, 0.0]
-edge_v = [0.0, 0.0, -4.0]
-material = { type = "mirror", rho_s = [0.7, 0.5, 0.3] }
-[[object]]
-name = "lamp"
-group = "lamp"
-shape = "quad"
-corner = [-1.0, -1.0, -2.0]
-edge_u = [2.0, 0.0, 0.0]
-edge_v = [0.0, 4.0, 2.0]
-emission = 2.0
-"#;
+    let text = &mirror_floor();
     let sc = scene(text);
     let img = render(
         &sc,
@@ -221,7 +216,7 @@ emission = 2.0
 #[test]
 fn same_seed_gives_bit_identical_images_on_one_and_two_threads() {
     let dir = tempfile::tempdir().unwrap();
-    write(dir.path(), "scene.toml", SMALL_SCENE);
+    write(dir.path(), "scene.toml", &small_scene());
     let mut outputs = Vec::new();
     for threads in ["1", "2"] {
         let out = format!("t{threads}.pfm");

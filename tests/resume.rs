@@ -1,5 +1,5 @@
 //! A recovery killed with SIGKILL after a checkpoint and resumed with `--resume` ends with
-//! exactly the results of an uninterrupted run (issue 6).
+//! exactly the results of an uninterrupted run.
 
 use crate::common::{matfit, root, run};
 use std::path::Path;

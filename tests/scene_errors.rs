@@ -1,7 +1,7 @@
 //! Bad scene files: each gets a clear message naming the file and the line, key or object at
 //! fault, and a non-zero exit, never a panic.
 
-use crate::common::{run, write, SMALL_SCENE};
+use crate::common::{run, small_scene, write};
 
 /// (case, scene text, extra files, substrings the error must contain)
 type Case = (
@@ -12,7 +12,7 @@ type Case = (
 );
 
 fn cases() -> Vec<Case> {
-    let s = SMALL_SCENE;
+    let s = small_scene();
     let floor_mesh = |file: &str| {
         s.replace(
             "shape = \"quad\"\ncorner = [-1.0, 0.0, 1.0]",
@@ -192,7 +192,7 @@ fn cases() -> Vec<Case> {
             vec!["scene.toml:12", "object 'floor'", "edge_v"],
         ),
         ("no objects", s[..s.find("[[object]]").unwrap()].to_string(), vec![], vec!["scene.toml", "no objects"]),
-        // Issue 6: more bad inputs.
+        // More bad inputs.
         (
             "NaN in the camera",
             s.replace("eye = [0.0, 2.0, 2.0]", "eye = [nan, 2.0, 2.0]"),
@@ -430,7 +430,7 @@ fn missing_scene_file_and_unwritable_output() {
     let (code, _, err) = run(&["render", "absent.toml", "-o", "x.png"], dir.path());
     assert_eq!(code, 2);
     assert!(err.contains("absent.toml"), "{err}");
-    write(dir.path(), "scene.toml", SMALL_SCENE);
+    write(dir.path(), "scene.toml", &small_scene());
     let (code, _, err) = run(
         &[
             "render",

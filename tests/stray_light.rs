@@ -1,9 +1,9 @@
-//! Stray light (issue 23): `[stray_light]`, a constant environment of radiance S that every ray
+//! Stray light: `[stray_light]`, a constant environment of radiance S that every ray
 //! leaving the scene sees, rendered against the analytic answer, carried through Mitsuba's
 //! `constant` emitter both ways, and fitted with the materials by `recover --stray-light` on an
 //! open room whose photo has it and whose model does not.
 
-use crate::common::{result_group, results, root, run, write, SMALL_SCENE};
+use crate::common::{result_group, results, root, run, small_scene, write, SceneToml};
 use matfit::math::Rgb;
 use matfit::render::film::{render, RenderOptions};
 use matfit::scene::load::parse_scene;
@@ -12,33 +12,18 @@ use matfit::scene::{load_scene, Material};
 const S: [f32; 3] = [0.3, 0.6, 0.9];
 
 /// A grey-blue floor seen from above, open to the sky, lit by the stray light alone.
-const FLOOR: &str = r#"
-[render]
-max_depth = 2
-[camera]
-width = 24
-height = 18
-eye = [0.0, 1.0, 2.0]
-target = [0.0, 0.0, 0.0]
-fov_y_deg = 60.0
-[[object]]
-name = "floor"
-group = "floor"
-shape = "quad"
-corner = [-1.0, 0.0, 1.0]
-edge_u = [2.0, 0.0, 0.0]
-edge_v = [0.0, 0.0, -2.0]
-material = { type = "diffuse", rho_d = [0.2, 0.5, 0.8] }
-[stray_light]
-radiance = [0.3, 0.6, 0.9]
-"#;
+fn floor() -> String {
+    SceneToml::open_floor()
+        .raw("[stray_light]\nradiance = [0.3, 0.6, 0.9]\n")
+        .to_toml()
+}
 
 #[test]
 fn a_stray_light_lights_an_open_floor_to_rho_times_its_radiance() {
     // An unoccluded Lambert floor under a constant environment S receives π S and reflects ρ S
     // (a cosine-sampled bounce weighs every direction alike: no noise); rays that miss see S.
     let dir = tempfile::tempdir().unwrap();
-    let sc = parse_scene(FLOOR, &dir.path().join("floor.toml")).unwrap();
+    let sc = parse_scene(&floor(), &dir.path().join("floor.toml")).unwrap();
     let img = render(
         &sc,
         &sc.camera,
@@ -73,7 +58,7 @@ fn a_stray_light_lights_an_open_floor_to_rho_times_its_radiance() {
 #[test]
 fn a_stray_light_goes_to_mitsuba_as_a_constant_emitter_and_comes_back() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = write(dir.path(), "floor.toml", FLOOR);
+    let scene = write(dir.path(), "floor.toml", &floor());
     let (code, out, err) = run(
         &["export", "mitsuba", scene.to_str().unwrap(), "-o", "mi"],
         dir.path(),
@@ -97,7 +82,7 @@ fn a_stray_light_goes_to_mitsuba_as_a_constant_emitter_and_comes_back() {
 #[test]
 fn a_negative_stray_light_is_an_error_naming_its_line() {
     let dir = tempfile::tempdir().unwrap();
-    let text = FLOOR.replace("[0.3, 0.6, 0.9]", "[0.3, -0.6, 0.9]");
+    let text = floor().replace("[0.3, 0.6, 0.9]", "[0.3, -0.6, 0.9]");
     let scene = write(dir.path(), "floor.toml", &text);
     let (code, _, err) = run(
         &["render", scene.to_str().unwrap(), "-o", "x.exr"],
@@ -283,7 +268,7 @@ fn a_recovery_of_an_open_scene_says_what_it_assumes_of_the_outside() {
     // option (and the summary repeats it); with it there is no such warning.
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    write(d, "scene.toml", SMALL_SCENE);
+    write(d, "scene.toml", &small_scene());
     let (code, _, err) = run(&["render", "scene.toml", "--spp", "8", "-o", "p.exr"], d);
     assert_eq!(code, 0, "{err}");
     let quick = ["--max-iterations", "1", "--final-spp", "2"];
@@ -310,8 +295,8 @@ fn inspect_measures_the_open_share_before_any_fit() {
     let d = dir.path();
     let sun = "\n[[light]]\nname = \"sun\"\ntype = \"directional\"\n\
                direction = [0.3, -1.0, -0.2]\nirradiance = [2.0, 2.0, 2.0]\n";
-    let lit = format!("{FLOOR}{sun}");
-    let open = format!("{}{sun}", FLOOR.split("[stray_light]").next().unwrap());
+    let lit = format!("{}{sun}", floor());
+    let open = format!("{}{sun}", SceneToml::open_floor().to_toml());
     let figure6 = std::fs::read_to_string(root().join("scenes/figure6/scene.toml"))
         .unwrap()
         .replace("width = 512", "width = 64")

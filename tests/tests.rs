@@ -27,4 +27,5 @@ mod stray_light;
 mod texture;
 mod uncertainty;
 mod unseen;
+mod usage;
 mod views;

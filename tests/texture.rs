@@ -1,4 +1,4 @@
-//! End-to-end textures (issue 21, §5.2 of the notes): the bundled poster scene's photo rendered
+//! End-to-end textures (§5.2 of the notes): the bundled poster scene's photo rendered
 //! by matfit with its true textures, recovered blind. The recovered texels are scored against
 //! the true reflectance box-filtered onto the recovered atlas (each texel the mean of the true
 //! texture over the texel's square, sampled at 16+ points per texel on the true surface), over
@@ -707,7 +707,7 @@ fn poster_scene_textures_are_recovered_as_reflectance() {
     }
 }
 
-/// Issue 21's acceptance figures at full resolution (480×360, 1024-spp photo), where a poster
+/// The acceptance figures at full resolution (480×360, 1024-spp photo), where a poster
 /// or book texel spans about two photo pixels (its finest detail, a one-texel line, is the
 /// finest one photo resolves); a few minutes on two cores:
 ///   cargo test --profile ci --test tests texture::poster_scene_at_full_resolution -- --ignored --nocapture
@@ -735,7 +735,7 @@ fn poster_scene_at_full_resolution() {
     for name in ["poster", "books", "desk"] {
         assert_eq!(state(&f.rec, name).level, Level::Textured, "{name}");
     }
-    // Issue 21's figures, on the true textures' own grid: PSNR ≥ 35 dB and Σ|Δ|/Σ < 1% for
+    // The acceptance figures, on the true textures' own grid: PSNR ≥ 35 dB and Σ|Δ|/Σ < 1% for
     // every textured group, and far better than the texture cut from the photo.
     for name in ["poster", "books", "desk"] {
         let s = f.texture(name);
@@ -797,7 +797,7 @@ fn a_varnished_uniform_texture_renders_as_ward() {
     tex.write(&d.path().join("t.pfm")).unwrap();
     let scene = |material: &str| {
         let text =
-            crate::common::SMALL_SCENE.replace("{ type = \"diffuse\", rho_d = 0.5 }", material);
+            crate::common::small_scene().replace("{ type = \"diffuse\", rho_d = 0.5 }", material);
         let p = crate::common::write(d.path(), "scene.toml", &text);
         parse_scene(&text, &p).unwrap()
     };

@@ -1,4 +1,4 @@
-//! Are the error bars honest? (issue 20) Reduced figure6 and glossy rooms, each rendered and
+//! Are the error bars honest? Reduced figure6 and glossy rooms, each rendered and
 //! recovered with several seeds (photo and recovery alike): the true value of every parameter
 //! must lie within ±2σ of the recovered one for ≥ 90% of them, and the σ must not be inflated
 //! (the RMS of error/σ at least 0.5). A group that ends at another level than its truth's counts
@@ -101,11 +101,9 @@ fn z_scores(scene: &Scene, seed: u64, lines: &mut String) -> Vec<f32> {
 
 #[test]
 fn error_bars_hold_the_truth_at_the_stated_rate() {
-    // Measured (6 seeds each, 2026-11-24): figure6 at 128×96 with the ceiling given white as
-    // in the notes, 98% within 2σ, RMS z 0.85; glossy at 200×150, 88% and 1.14 (the lacquer
-    // box's ρd +0.007 at every seed: a bias of the diffuse + mirror fit the σ does not see).
-    // 2026-12-02, the same 6 seeds: figure6 93.8% of 144, RMS z 0.95; glossy 98.8% of 168,
-    // 0.92.
+    // Measured over 6 seeds each: figure6 at 128×96 with the ceiling given white as in the
+    // notes, 93.8% of 144 within 2σ, RMS z 0.95; glossy at 200×150, 98.8% of 168, 0.92
+    // (bench/README.md, "Design measurements", has an earlier run).
     let mut f6 = scaled("scenes/figure6/scene.toml", 0.25);
     let ceiling = f6.group_index("ceiling").unwrap();
     f6.groups[ceiling].fixed = true;

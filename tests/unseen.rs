@@ -1,4 +1,4 @@
-//! Groups no pixel sees (issue 26): scenes/room-unseen, whose ceiling is out of view with its
+//! Groups no pixel sees: scenes/room-unseen, whose ceiling is out of view with its
 //! own group and a non-white paint, recovered with the ceiling's ρd estimated from the light it
 //! reflects (fit::unseen) and, for comparison, with the old white default.
 
@@ -99,7 +99,7 @@ fn an_unseen_ceiling_is_estimated_and_the_seen_groups_come_out_right() {
     );
     eprintln!("{report}");
     assert_eq!(est.rule, Rule::Estimated, "{report}");
-    // Issue 26: the unseen group within 0.05 with an honest σ, every seen group within 0.005.
+    // The unseen group within 0.05 with an honest σ, every seen group within 0.005.
     for c in 0..3 {
         let err = (est.rho_d[c] - truth_c[c]).abs();
         assert!(err < 0.05, "{report}");
@@ -196,7 +196,7 @@ fn an_object_no_pixel_shows_is_estimated_too() {
 #[test]
 fn a_wall_seen_only_in_a_mirror_is_estimated_from_its_image_there() {
     // scenes/room-mirror: the wall behind the camera is in no pixel directly, only in the
-    // mirror on the back wall (issue 25). The mirror's cache carries the radiance along its
+    // mirror on the back wall. The mirror's cache carries the radiance along its
     // reflection and that radiance's derivative along the wall's ρd, so the wall is fitted from
     // its own image in the mirror, jointly with the mirror's ρs. Full size, 256-spp photo.
     // Measured: wall (0.302, 0.604, 0.401) ± 0.01 for (0.3, 0.6, 0.4); mirror ρs (0.797,

@@ -1,7 +1,7 @@
 //! Several photos of one scene (`[[view]]`, `recover SCENE PHOTO...`): one set of materials
 //! fitted to all, each photo with its own exposure factor; views checked and rendered.
 
-use crate::common::{json_rgb, results, root, run, write, SMALL_SCENE};
+use crate::common::{json_rgb, results, root, run, small_scene, write};
 use matfit::render::film::{render, RenderOptions};
 use matfit::scene::load::parse_scene;
 use std::path::Path;
@@ -144,7 +144,7 @@ fn three_photos_share_one_material_and_absorb_a_light_calibration_error() {
 fn two_lights() -> String {
     let sun = "\n[[light]]\nname = \"sun\"\ntype = \"directional\"\n\
                direction = [0.3, -1.0, -0.2]\nirradiance = 2.0\n";
-    SMALL_SCENE.replace("group = \"lamp\"", "group = \"lamps\"") + sun
+    small_scene().replace("group = \"lamp\"", "group = \"lamps\"") + sun
 }
 
 /// A view with only the sun on renders to the bit what the same scene renders with the lamp a

@@ -1,7 +1,7 @@
 // Validates .glb/.gltf files with the Khronos glTF-Validator (npm package `gltf-validator`) and
 // prints, per file, "FILE: errors E warnings W infos I hints H" and every issue; exits 1 if any
 // file has an error or a warning. Used by tests/export_gltf.rs when MATFIT_GLTF_VALIDATOR names
-// this script (README, the `matfit export gltf` row); not part of CI, which has no node.
+// this script (docs/USAGE.md, "export"); not part of CI, which has no node.
 //
 //   npm install --prefix /tmp/gv gltf-validator
 //   NODE_PATH=/tmp/gv/node_modules node tools/gltf_validate.js out.glb

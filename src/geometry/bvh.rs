@@ -7,20 +7,15 @@
 //!
 //! Sixteen-wide over eight-wide by measurement. A room's rays start inside the root's box and
 //! enter several children of every node they visit, so what costs is the node visit (its
-//! branches on how many children were entered, its stack traffic), not the box test. figure6's
-//! 15 leaves now all sit under the root, where eight-wide needed a root and two nodes (the back
-//! wall with the light; the two blocks): random rays in the room (`bench rays --ray-file`)
-//! 51.7 → 44.6 ns per closest hit and 31.5 → 23.3 ns per shadow ray, Mitsuba 3's Embree
-//! 39.1 / 22.2 ns on the same rays; a 1-thread figure6 render 0.459 → 0.409 s (median of 7,
-//! same image to the bit); primary rays on a 2M-triangle sphere unchanged (6.3 Mrays/s; 106k
-//! nodes instead of 198k). Eight-wide had replaced four-wide the same way (figure6's node
-//! visits per closest-hit ray 3.3 → 1.7, per shadow ray 3.7 → 2.4).
+//! branches on how many children were entered, its stack traffic), not the box test. A small
+//! room's leaves all sit under the root, where eight-wide needed a root and two nodes, so a
+//! ray visits fewer nodes; large meshes are unchanged. Eight-wide had replaced four-wide the
+//! same way. The figures are in `bench/README.md`, "Design measurements".
 //!
-//! Chosen by measurement over the obvhs crate's eight-wide compressed BVH (used before this file,
-//! in git history), which tested one triangle at a time with the scalar test: same images to the
-//! bit; 1-thread user time of a figure6 render (256×192, 16 spp) 1.08 s → 0.95 s; primary rays
-//! on a 400k-triangle sphere 2.8 → 5.0 Mrays/s (on figure6's 38 triangles, 7.8 → 6.7: the
-//! camera's coherent rays favoured obvhs's ordered eight-wide nodes).
+//! Chosen by measurement over the obvhs crate's eight-wide compressed BVH, which tested one
+//! triangle at a time with the scalar test: the same images to the bit, faster renders and
+//! primary rays on large meshes (only the camera's coherent rays on a tiny scene favoured
+//! obvhs's ordered eight-wide nodes).
 //!
 //! Traversal is front-to-back for closest hits (children sorted by entry distance, popped
 //! entries culled against the closest hit so far) and stops at the first hit for shadow rays.
@@ -361,10 +356,10 @@ impl Bvh {
 }
 
 /// The ray, its six components read one float at a time (`math::read_apart`): the path loop
-/// writes lanes' rays a float at a time. Measured on figure6 (1 thread, 16 spp, fastest of 15
-/// runs in turns): 0.357 → 0.340 s. Writing the rays with wide stores instead (rows of
-/// eight-lane transposes) measured slower, 0.397 s: the copy into a `Ray` then split its
-/// direction across two stores.
+/// writes lanes' rays a float at a time, and reading them whole would stall on those narrow
+/// stores. Writing the rays with wide stores instead (rows of eight-lane transposes) measured
+/// slower: the copy into a `Ray` then split its direction across two stores
+/// (`bench/README.md`, "Design measurements").
 #[inline(always)]
 fn read_apart(ray: &Ray) -> Ray {
     Ray::new(

@@ -16,8 +16,8 @@ const MAX_LEAF: usize = 4;
 /// lighter). Set low by measurement: the SAH's area ratios assume rays from outside the box,
 /// while a room's rays start inside it and meet a thin wall's box only near that wall. At 0.5,
 /// figure6's ceiling and right wall shared one leaf whose box was the whole room; at 0.1 every
-/// wall has its own leaf: leaf tests per shadow ray 2.09 → 0.30, per closest-hit ray
-/// 2.16 → 1.24; 1-thread render −8% (median of 11); the 801k-triangle sphere unchanged.
+/// wall has its own leaf, and rays test far fewer leaves (`bench/README.md`, "Design
+/// measurements").
 const TRAVERSAL_COST: f32 = 0.1;
 /// Below this depth of the binary tree, splits fall back to the object median, which halves
 /// the count: the tree's depth stays below SAH_DEPTH + log2(n) however the SAH behaves.

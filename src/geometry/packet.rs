@@ -12,10 +12,9 @@
 //! that ray alone (`Bvh::intersect_subtree`).
 //!
 //! Used for camera rays (`render::batch::render_pixels`: a pixel's samples, nearly one ray).
-//! For incoherent rays a packet does more work than it saves: 1M random rays in figure6's room
-//! (`matfit bench rays --ray-file`, `bench/rays.py`) cost 54 → 73 ns each for closest hits and
-//! 31 → 46 ns for shadow rays, with 2.7 inner-node and 5 leaf visits per packet against 1.5 and
-//! 1.1 per single ray.
+//! For incoherent rays a packet does more work than it saves: its rays part ways near the
+//! root, and the packet visits the union of the nodes and leaves each ray alone would visit
+//! (`bench/README.md`, "Design measurements").
 //!
 //! Every answer is `Bvh::intersect`'s (or `occluded`'s) for the same ray to the bit: the
 //! triangle test is `triangle::intersect4`'s arithmetic lane for lane, and the closest hit is

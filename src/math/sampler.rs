@@ -6,14 +6,11 @@
 //!
 //! Only the first `SOBOL_DIMS` dimensions of a sample (the pixel position and the first five
 //! bounces) are Sobol points; the rest of the path draws from a per-sample SplitMix64 stream
-//! (Steele et al. 2014), as pbrt's padded samplers do. Five bounces rather than two (the
-//! choice until 116aade), measured on figure6 with a diffuse floor (256×192, max_depth 8, rr
-//! from segment 5): with the Sobol dimensions computed eight at a time, the three more
-//! registers per sample cost less than the hashes they replace and than the mispredicted
-//! branch of lanes switching between Sobol and hash numbers at different depths (`next_n`):
-//! 1 thread, 16 spp, 0.409 → 0.388 s (fastest of 11, this change alone: the flat Lambert
-//! path of `render::batch` in both builds; three or four bounces measured the same); RMSE against the bench's reference 1.5% lower at 64 spp (0.01301 → 0.01281,
-//! mean of 4 seeds; 16 spp: 0.02987 → 0.02970).
+//! (Steele et al. 2014), as pbrt's padded samplers do. Five bounces rather than two: with the
+//! Sobol dimensions computed eight at a time, the three more registers per sample cost less
+//! than the hashes they replace and than the mispredicted branch of lanes switching between
+//! Sobol and hash numbers at different depths (`next_n`), and the error is lower too
+//! (`bench/README.md`, "Design measurements").
 
 use super::Vec2;
 use sobol_burley::parts;
@@ -219,8 +216,8 @@ fn sobol_tables() -> &'static [NibbleTable; OCTETS] {
 /// (`sobol_tables()[d / 8]`): a Sobol point is the XOR of the direction vectors of its
 /// index's set bits (Joe & Kuo 2008), so it is the XOR of one precomputed value per nibble of
 /// the index's top 16 bits, the only ones `sobol_rev` reads. Four loads in place of a loop
-/// over the set bits whose unpredictable exit cost a branch miss per call (the loop was 40%
-/// of the time spent computing Sobol points on figure6).
+/// over the set bits whose unpredictable exit cost a branch miss per call (the loop was most
+/// of the time spent computing Sobol points; `bench/README.md`, "Design measurements").
 #[inline(always)]
 fn sobol_x8_rev(t: &NibbleTable, index_rev: u32) -> u32x8 {
     let nibble = |k: usize| ((index_rev >> (16 + 4 * k)) & 15) as usize;

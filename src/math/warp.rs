@@ -35,7 +35,8 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
 
 /// (sin x, cos x) for |x| ≤ π/4 by their Taylor series to x⁹ and x¹⁰: the truncation error is
 /// below 2·10⁻⁹, a small fraction of an f32 ulp. Inlined polynomials instead of libm's
-/// `sincosf`, which was 4% of a figure6 render.
+/// `sincosf`, a call the renderer's hot loop cannot inline (`bench/README.md`, "Design
+/// measurements").
 #[inline(always)]
 pub(crate) fn sin_cos_quarter(x: f32) -> (f32, f32) {
     let x2 = x * x;

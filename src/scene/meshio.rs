@@ -754,7 +754,7 @@ mod tests {
     }
 
     /// Inputs that made the parsers underneath panic, loop or exhaust memory are refused with a
-    /// message instead (issue 6).
+    /// message instead.
     #[test]
     fn hostile_mesh_files_are_refused_not_crashed_on() {
         let p = |name: &str| Path::new(name).to_path_buf();

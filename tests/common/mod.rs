@@ -1,6 +1,9 @@
 //! Helpers shared by the end-to-end tests.
 #![allow(dead_code)]
 
+mod scene;
+pub use scene::*;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -79,33 +82,19 @@ pub fn film_hits(sc: &matfit::scene::Scene, x: usize, y: usize) -> usize {
         .count()
 }
 
-/// A small valid scene: a floor quad seen from above, lit by a quad light.
-pub const SMALL_SCENE: &str = r#"
-[camera]
-width = 64
-height = 48
-eye = [0.0, 2.0, 2.0]
-target = [0.0, 0.0, 0.0]
-fov_y_deg = 45.0
+/// A small valid scene: a floor quad seen from above at 64 × 48 pixels, lit by a quad light,
+/// to which a test may add objects.
+pub fn small_room() -> SceneToml {
+    SceneToml::spaced()
+        .camera_above(64, 48)
+        .floor(&diffuse(&[0.5]))
+        .lamp(5.0)
+}
 
-[[object]]
-name = "floor"
-group = "floor"
-shape = "quad"
-corner = [-1.0, 0.0, 1.0]
-edge_u = [2.0, 0.0, 0.0]
-edge_v = [0.0, 0.0, -2.0]
-material = { type = "diffuse", rho_d = 0.5 }
-
-[[object]]
-name = "lamp"
-group = "lamp"
-shape = "quad"
-corner = [-0.2, 1.5, -0.2]
-edge_u = [0.4, 0.0, 0.0]
-edge_v = [0.0, 0.0, 0.4]
-emission = 5.0
-"#;
+/// [`small_room`]'s text.
+pub fn small_scene() -> String {
+    small_room().to_toml()
+}
 
 /// Fit options that make `recover` on the small scene take a second or two.
 pub const QUICK: [&str; 10] = [

@@ -102,8 +102,8 @@ pub struct RecoveryLoop<'a> {
 /// against the same; on a textured group the edges are mostly the texture's own strokes (a
 /// poster's dark band and its lettering next to its frame, a book spine's label), and the band
 /// hides the texels along the outline (a book spine's margins), which could then only be
-/// guessed. The model is registered to the photo before masking (`photo/register.rs`), so a
-/// pixel the object covers wholly (`photo/coverage.rs`) sees that object in the photo too;
+/// guessed. The model is registered to the photo before masking (`prepare/register.rs`), so a
+/// pixel the object covers wholly (`prepare/coverage.rs`) sees that object in the photo too;
 /// pixels that mix two objects stay out.
 fn texture_pixels(
     scene: &Scene,
