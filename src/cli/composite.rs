@@ -152,7 +152,8 @@ pub struct CompositeCli {
     /// Random seed of both renders [default: the scene's [render] seed].
     #[arg(long, value_name = "S")]
     seed: Option<u64>,
-    /// Response curve of an 8/16-bit photo: srgb, linear, gamma:G or table:FILE.
+    /// Response curve of an 8/16-bit photo: srgb, linear, gamma:G (linear = code^G) or
+    /// table:FILE.
     #[arg(long, default_value = "srgb", value_parser = Response::parse)]
     response: Response,
     /// Exposure factor k of the photo (its linear values = k × radiance) [default: the one

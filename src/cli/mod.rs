@@ -51,7 +51,7 @@ pub struct Cli {
 
 /// The scene file (TOML: camera, objects with their groups and materials, lights).
 const SCENE_HELP: &str =
-    "Scene file (TOML): camera, objects with their groups and materials, lights; see README";
+    "Scene file (TOML): camera, objects with their groups and materials, lights; see docs/USAGE.md";
 /// The photograph.
 const PHOTO_HELP: &str = "Photograph of the scene taken through the scene's camera: EXR, HDR or \
                           PFM (linear), or PNG/JPEG (8/16-bit, through --response); merge \
@@ -126,7 +126,7 @@ impl From<AovArg> for Aov {
 }
 
 /// Edits of the scene before rendering (`render` and `composite`): edit files and flags,
-/// applied in that order (edit file format: `matfit::scene::edit`, README "Editing").
+/// applied in that order (edit file format: docs/USAGE.md, "Edits").
 #[derive(clap::Args, Clone, Debug, Default)]
 pub struct EditCli {
     /// Apply the edit file FILE (TOML: remove, camera, object, material, move, light);
@@ -210,7 +210,7 @@ fn parse_param(s: &str) -> Result<(String, String), String> {
 #[derive(clap::Args, Clone, Debug)]
 pub struct PhotoCli {
     /// Response curve of 8/16-bit photos: srgb, linear, gamma:G (linear = code^G) or
-    /// table:FILE (format in README, "Photographs"). EXR/HDR/PFM photos are linear.
+    /// table:FILE (format in docs/USAGE.md, "Photographs"). EXR/HDR/PFM photos are linear.
     #[arg(long, default_value = "srgb", value_parser = Response::parse)]
     pub response: Response,
     /// Exposure factor k, the photo's linear values = k × radiance [default: 1, unless
@@ -315,7 +315,7 @@ pub struct FitArgs {
     /// --max-pixels (0: --max-pixels from the start).
     #[arg(long, value_name = "N", default_value_t = 1500)]
     first_pixels: usize,
-    /// Samples per pixel of the final render (at least 2: its two halves give the noise floor).
+    /// Samples per pixel of the final render (at least 2: its two halves give the noise floor)
     /// [default: 64 up to 960×540 pixels; above, the same 2^25 samples in all, at least 16]
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(2..))]
     final_spp: Option<u32>,
@@ -336,11 +336,11 @@ pub struct FitArgs {
     /// level 7 even with a small ε.
     #[arg(long, value_name = "D", default_value_t = 0.02, value_parser = positive_f32)]
     texture_detail: f32,
-    /// Never climb to level 7 (textures): uniform materials only, as before textures existed.
+    /// Never climb to level 7 (textures): uniform materials only.
     #[arg(long)]
     no_textures: bool,
     /// Never try levels 8, 9 and 10, the microfacet lobes (isotropic, plastic, anisotropic): the
-    /// Ward lobes alone, as before they existed (to measure what they gain).
+    /// Ward lobes alone, to measure what those lobes gain.
     #[arg(long)]
     no_microfacet: bool,
     /// Fit mirrors only against a render of what they reflect, never against the photo's
