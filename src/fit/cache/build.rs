@@ -196,346 +196,39 @@ pub struct CacheRequest<'a> {
 /// Builds the cache `req` asks for, tracing through `scene` as it is now (`pt` traces it).
 pub fn build(scene: &Scene, pt: &PathTracer, req: &CacheRequest) -> GroupCache {
     let CacheRequest {
-        group,
-        primary,
         pixels,
         tiles,
         n_tiles,
-        photo,
         needs,
         atlas,
         unseen,
         pseudo,
         opts,
-        seed,
+        ..
     } = *req;
-    let cam = &scene.camera;
     let k = unseen.len();
     let atlas = atlas.filter(|_| needs.texels);
-    let w = cam.width as usize;
+    let w = scene.camera.width as usize;
     let (nl, ni) = (opts.light_samples.max(1), opts.indirect_samples.max(1));
     let cw = needs.cosine_weight();
     let images = super::mirror_images::MirrorImages::new(scene);
+    let trace = PixelTrace {
+        scene,
+        pt,
+        req,
+        images: &images,
+        atlas,
+        w,
+        nl,
+        ni,
+        cw,
+        k,
+    };
     let per_pixel: Vec<BuiltPixel> = pixels
         .par_iter()
         .zip(tiles)
         .enumerate()
-        .map(|(i, (&p, &tile))| {
-            let probed = i % DERIVATIVE_STRIDE == 0;
-            let (x, y) = ((p % w) as f32, (p / w) as f32);
-            let mut samples: [Vec<Sample>; 2] = [Vec::new(), Vec::new()];
-            let mut d_half = [Rgb::ZERO; 2];
-            let mut stray = 0usize;
-            // Each half is its own stratified sample set with its own scramble: Sobol points of
-            // even and odd index fall into complementary halves of every dimension, so halves
-            // split by index parity would not be independent estimates of the same integral.
-            let (hl, hi) = (nl.div_ceil(2), ni.div_ceil(2));
-            let (nl, ni) = (2 * hl, 2 * hi);
-            // Every sample up to its indirect path; the paths, eight at a time; then the
-            // samples in their order (so the sums are the same to the bit as one by one).
-            // At their final size (a ray holds its sampler, ~400 bytes: growing by doubling
-            // copied each pixel's rays five times).
-            let mut entries: Vec<Entry> = Vec::with_capacity(2 * (hl + hi) as usize);
-            let mut rays: Vec<IndirectRay> = Vec::with_capacity(2 * hi as usize);
-            // Σ cos θ / (pdf n) over the indirect rays that leave the scene at once (× 1/π:
-            // the open share of the cosine-weighted hemisphere).
-            let mut open = 0.0f32;
-            // Primary hits per half that read the atlas (the share of the pixel on the group).
-            let mut tapped = [0u32; 2];
-            // Each half's stream, scrambled once per pixel (`Sampler::new` hashes its Owen
-            // scrambles; a copy whose sample is started anew draws the same numbers).
-            let streams: [Sampler; 2] = std::array::from_fn(|half| {
-                Sampler::new(seed ^ (0x9E37_79B9 * (half as u64 + 1)), p as u64)
-            });
-            for (half, k) in (0..2usize).flat_map(|h| (0..hl + hi).map(move |k| (h, k))) {
-                let mut sampler = streams[half].clone();
-                sampler.start_sample(k);
-                let film = Vec2::new(x, y) + sampler.next_2d();
-                let Some((ray, hit)) = primary_hit(scene, film, primary, Some(group)) else {
-                    stray += 1;
-                    continue;
-                };
-                let wo_world = -ray.d;
-                let taps = atlas.and_then(|a| a.taps(hit.object, hit.p, hit.ng));
-                tapped[half] += taps.is_some() as u32;
-                let (frame, ng) = facing(hit.frame, hit.ng, wo_world);
-                let wo = frame.to_local(wo_world);
-                let mix = super::mixture::Mixture::at(cw, &images, hit.p, frame);
-                if k < hl {
-                    // Next-event estimation: a point on an area light and a direction to the
-                    // environment, MIS-weighted against the mixture, and every punctual light
-                    // (found by light sampling alone).
-                    let area = pt.lights.sample(hit.p, &mut sampler);
-                    let env = pt.lights.sample_environment(hit.p, &mut sampler);
-                    let punctual = pt.lights.punctual_samples(hit.p);
-                    let discs = (0..pt.lights.disc_count())
-                        .filter_map(|k| pt.lights.sample_disc(k, hit.p, &mut sampler));
-                    for ls in area.into_iter().chain(env).chain(punctual).chain(discs) {
-                        let wi = frame.to_local(ls.wi);
-                        if wi.z <= 0.0 || ng.dot(ls.wi) <= 0.0 {
-                            continue;
-                        }
-                        if !pt
-                            .lights
-                            .visible(scene, offset_origin(hit.p, ng, ls.wi), &ls)
-                        {
-                            continue;
-                        }
-                        let w_l = if ls.delta {
-                            1.0
-                        } else {
-                            let pm = mix.pdf(wo, wi);
-                            nl as f32 * ls.pdf / (nl as f32 * ls.pdf + ni as f32 * pm)
-                        };
-                        entries.push(Entry {
-                            half,
-                            wo,
-                            wi,
-                            weight: Weight::Known(
-                                ls.radiance * (wi.z * w_l / (ls.pdf * nl as f32)),
-                            ),
-                            taps,
-                        });
-                    }
-                } else {
-                    let Some(wi) = mix.sample(wo, &mut sampler) else {
-                        continue;
-                    };
-                    let wi_world = frame.to_world(wi);
-                    if ng.dot(wi_world) <= 0.0 {
-                        continue;
-                    }
-                    let pm = mix.pdf(wo, wi);
-                    let r = Ray::new(offset_origin(hit.p, ng, wi_world), wi_world);
-                    // Emission at the first hit, MIS-weighted against light sampling; the rest
-                    // of the path as the path tracer computes it.
-                    let h2 = scene.intersect_hit(&r, f32::INFINITY);
-                    let from = h2.map_or(u32::MAX, |h| {
-                        let o = scene.geometry.tris[h.prim as usize].object;
-                        scene.objects[o as usize].group as u32
-                    });
-                    let mut emitted = None;
-                    if let Some(h2) = h2.map(|h| scene.surface_hit(&r, &h)) {
-                        let o2 = &scene.objects[h2.object as usize];
-                        if o2.is_emitter() && h2.ng.dot(-wi_world) > 0.0 {
-                            let pl = pt.lights.pdf(h2.prim, h2.t, wi_world, h2.ng);
-                            let w_b = ni as f32 * pm / (nl as f32 * pl + ni as f32 * pm);
-                            emitted = Some(o2.emission * w_b);
-                        }
-                    } else {
-                        open += wi.z / (pm * ni as f32);
-                        pt.lights.at_infinity(wi_world, |le, pl| {
-                            let w_b = ni as f32 * pm / (nl as f32 * pl + ni as f32 * pm);
-                            *emitted.get_or_insert(Rgb::ZERO) += le * w_b;
-                        });
-                    }
-                    entries.push(Entry {
-                        half,
-                        wo,
-                        wi: frame.to_local(wi_world),
-                        weight: Weight::Path {
-                            job: rays.len(),
-                            emitted,
-                            scale: wi.z / (pm * ni as f32),
-                            from,
-                        },
-                        taps,
-                    });
-                    rays.push(IndirectRay {
-                        ray: r,
-                        hit: h2,
-                        sampler,
-                    });
-                }
-            }
-            let probes = if probed && unseen.iter().any(|u| u.moved.is_some()) {
-                Some(rays.clone())
-            } else {
-                None
-            };
-            let (traced, touched): (Vec<Rgb>, Vec<_>) =
-                indirect_radiance(pt, rays).into_iter().unzip();
-            // A probe's path is traced again in its moved scene only where it can come back
-            // otherwise (`UnseenProbe::moves`).
-            let moved: Vec<Option<Vec<Rgb>>> = unseen
-                .iter()
-                .filter(|_| probed)
-                .map(|u| {
-                    let (m, rays) = (u.moved?, probes.as_ref()?);
-                    let again: Vec<usize> =
-                        (0..rays.len()).filter(|&j| u.moves(&touched[j])).collect();
-                    let retraced =
-                        indirect_radiance(m, again.iter().map(|&j| rays[j].clone()).collect());
-                    let mut radiance = traced.clone();
-                    for (&j, (l, _)) in again.iter().zip(retraced) {
-                        radiance[j] = l;
-                    }
-                    Some(radiance)
-                })
-                .collect();
-            let mut rows: [Vec<(u32, Rgb)>; 2] = [Vec::new(), Vec::new()];
-            let mut shares = vec![[Rgb::ZERO; 2]; k];
-            let mut dcs: [Vec<Rgb>; 2] = [Vec::new(), Vec::new()];
-            let mut dc = vec![Rgb::ZERO; k];
-            let mut light_from = vec![0.0f32; scene.groups.len()];
-            let mut light_total = 0.0f32;
-            for e in entries {
-                let mut first = u32::MAX;
-                let c = match e.weight {
-                    Weight::Known(c) => {
-                        dc.fill(Rgb::ZERO);
-                        c
-                    }
-                    Weight::Path {
-                        job,
-                        emitted,
-                        scale,
-                        from,
-                    } => {
-                        first = from;
-                        dc.fill(Rgb::ZERO);
-                        for (d, (m, u)) in dc.iter_mut().zip(moved.iter().zip(unseen)) {
-                            let Some(m) = m else { continue };
-                            // Emission at the first hit is not in the traced radiance; of what
-                            // the probes move, only the stray light is (weight 1: not sampled).
-                            let escape = if from == u32::MAX && u.group == STRAY_LIGHT {
-                                u.step
-                            } else {
-                                Rgb::ZERO
-                            };
-                            *d = (m[job] - traced[job] + escape) * scale / u.step;
-                        }
-                        let mut li = traced[job];
-                        if let Some(le) = emitted {
-                            li += le;
-                        }
-                        li * scale
-                    }
-                };
-                // A sample that brings no light is kept while it has a derivative (a ray that
-                // leaves the scene before the stray light is lit).
-                if !(c.is_finite())
-                    || (c.max_element() <= 0.0 && dc.iter().all(|d| *d == Rgb::ZERO))
-                {
-                    continue;
-                }
-                let lum = c.x + c.y + c.z;
-                light_total += lum;
-                if let Some(f) = light_from.get_mut(first as usize) {
-                    *f += lum;
-                }
-                d_half[e.half] += c * INV_PI;
-                for (s, d) in shares.iter_mut().zip(&dc) {
-                    if d.is_finite() {
-                        s[e.half] += *d * INV_PI;
-                    }
-                }
-                if let Some(taps) = e.taps {
-                    for (t, w) in taps {
-                        if w > 0.0 {
-                            rows[e.half].push((t, c * (w * INV_PI)));
-                        }
-                    }
-                }
-                if needs.lobe_samples {
-                    samples[e.half].push(Sample::new(e.wo, e.wi, c));
-                    dcs[e.half].extend(
-                        dc.iter()
-                            .map(|d| if d.is_finite() { *d } else { Rgb::ZERO }),
-                    );
-                }
-            }
-            let mut mirror_half = [Rgb::ZERO; 2];
-            // The same with pseudo-textured hits read from the photo: sums, samples read, groups.
-            let mut read = ([Rgb::ZERO; 2], 0u32, Vec::<u32>::new());
-            // ∂(mirror radiance)/∂ρd_u per tracked group, per half (probed pixels only).
-            let mut dmirror = vec![[Rgb::ZERO; 2]; if probed { k } else { 0 }];
-            if needs.mirror {
-                let m = needs.mirror_samples_per_half(opts);
-                let mut n_half = [0u32; 2];
-                let streams: [Sampler; 2] = std::array::from_fn(|half| {
-                    Sampler::new(seed ^ (0x6D69_7272 * (half as u64 + 1)), p as u64)
-                });
-                for (half, k) in (0..2usize).flat_map(|h| (0..m).map(move |k| (h, k))) {
-                    let mut sm = streams[half].clone();
-                    sm.start_sample(k);
-                    let film = Vec2::new(x, y) + sm.next_2d();
-                    n_half[half] += 1;
-                    // As for the samples, but a ray that leaves the group still reads its reflection.
-                    let Some((ray, hit)) = primary_hit(scene, film, primary, None) else {
-                        continue;
-                    };
-                    let Some(reflected) = mirror_ray(&ray, &hit) else {
-                        continue;
-                    };
-                    let before = sm.clone();
-                    // One intersection for the three uses (the moved scenes share the geometry).
-                    let first = scene.intersect_hit(&reflected, f32::INFINITY);
-                    let path = pt.trace_path(reflected, first, &mut sm, 1, true);
-                    let l = path.l;
-                    if let Some(ps) = pseudo {
-                        match first.and_then(|h| ps.radiance(scene, &reflected, &h)) {
-                            Some((lp, g)) => {
-                                read.0[half] += lp;
-                                read.1 += 1;
-                                if !read.2.contains(&(g as u32)) {
-                                    read.2.push(g as u32);
-                                }
-                            }
-                            None if l.is_finite() => read.0[half] += l,
-                            None => {}
-                        }
-                    }
-                    if l.is_finite() {
-                        mirror_half[half] += l;
-                        for (d, u) in dmirror.iter_mut().zip(unseen) {
-                            let Some(moved) = u.moved else { continue };
-                            // Otherwise it would come back the same and add 0.
-                            if !u.moves(&path.touched) {
-                                continue;
-                            }
-                            let lm =
-                                moved.trace_from(reflected, first, &mut before.clone(), 1, true);
-                            if lm.is_finite() {
-                                d[half] += (lm - l) / u.step;
-                            }
-                        }
-                    }
-                }
-                for h in 0..2 {
-                    mirror_half[h] /= n_half[h].max(1) as f32;
-                    read.0[h] /= n_half[h].max(1) as f32;
-                    for d in dmirror.iter_mut() {
-                        d[h] /= n_half[h].max(1) as f32;
-                    }
-                }
-            }
-            let px = CachePixel {
-                pixel: p as u32,
-                photo: photo[p],
-                d: d_half[0] + d_half[1],
-                d_half: [d_half[0] * 2.0, d_half[1] * 2.0],
-                mirror: 0.5 * (mirror_half[0] + mirror_half[1]),
-                mirror_half,
-                start: 0,
-                mid: 0,
-                end: 0,
-                tile,
-            };
-            let shares = shares.into_iter().map(|h| [h[0] * 2.0, h[1] * 2.0]);
-            (
-                px,
-                samples,
-                stray,
-                (
-                    rows.map(merge_rows),
-                    tapped.map(|t| t as f32 / (hl + hi) as f32),
-                ),
-                (shares.collect(), dcs, probed, dmirror),
-                (light_from, light_total, open * INV_PI),
-                read,
-            )
-        })
+        .map(|(i, (&p, &tile))| trace_pixel(&trace, i, p, tile))
         .collect();
     let mut cache = GroupCache {
         tiles: n_tiles,
@@ -643,6 +336,358 @@ type BuiltPixel = (
     (Vec<f32>, f32, f32),
     ([Rgb; 2], u32, Vec<u32>),
 );
+
+/// What every pixel of one cache build shares ([`trace_pixel`]).
+struct PixelTrace<'a> {
+    scene: &'a Scene,
+    pt: &'a PathTracer<'a>,
+    req: &'a CacheRequest<'a>,
+    images: &'a super::mirror_images::MirrorImages,
+    /// The group's atlas where the cache needs its texel rows.
+    atlas: Option<&'a Atlas>,
+    /// The image's width, the light and indirect samples per pixel (at least one each), the
+    /// cosine's weight in the defensive mixture, and the number of unseen probes.
+    w: usize,
+    nl: u32,
+    ni: u32,
+    cw: f32,
+    k: usize,
+}
+
+/// One cached pixel traced: the `i`-th chosen pixel `p`, in tile `tile`. Its samples in two
+/// halves, each its own stratified set; their weights; the unseen groups' derivatives where it
+/// is `DERIVATIVE_STRIDE`'s pixel; its texel rows, light shares and what it read from the photo.
+fn trace_pixel(t: &PixelTrace, i: usize, p: usize, tile: u32) -> BuiltPixel {
+    let PixelTrace {
+        scene,
+        pt,
+        req,
+        images,
+        atlas,
+        w,
+        nl,
+        ni,
+        cw,
+        k,
+    } = *t;
+    let CacheRequest {
+        group,
+        primary,
+        photo,
+        needs,
+        unseen,
+        pseudo,
+        opts,
+        seed,
+        ..
+    } = *req;
+    let probed = i.is_multiple_of(DERIVATIVE_STRIDE);
+    let (x, y) = ((p % w) as f32, (p / w) as f32);
+    let mut samples: [Vec<Sample>; 2] = [Vec::new(), Vec::new()];
+    let mut d_half = [Rgb::ZERO; 2];
+    let mut stray = 0usize;
+    // Each half is its own stratified sample set with its own scramble: Sobol points of
+    // even and odd index fall into complementary halves of every dimension, so halves
+    // split by index parity would not be independent estimates of the same integral.
+    let (hl, hi) = (nl.div_ceil(2), ni.div_ceil(2));
+    let (nl, ni) = (2 * hl, 2 * hi);
+    // Every sample up to its indirect path; the paths, eight at a time; then the
+    // samples in their order (so the sums are the same to the bit as one by one).
+    // At their final size (a ray holds its sampler, ~400 bytes: growing by doubling
+    // copied each pixel's rays five times).
+    let mut entries: Vec<Entry> = Vec::with_capacity(2 * (hl + hi) as usize);
+    let mut rays: Vec<IndirectRay> = Vec::with_capacity(2 * hi as usize);
+    // Σ cos θ / (pdf n) over the indirect rays that leave the scene at once (× 1/π:
+    // the open share of the cosine-weighted hemisphere).
+    let mut open = 0.0f32;
+    // Primary hits per half that read the atlas (the share of the pixel on the group).
+    let mut tapped = [0u32; 2];
+    // Each half's stream, scrambled once per pixel (`Sampler::new` hashes its Owen
+    // scrambles; a copy whose sample is started anew draws the same numbers).
+    let streams: [Sampler; 2] = std::array::from_fn(|half| {
+        Sampler::new(seed ^ (0x9E37_79B9 * (half as u64 + 1)), p as u64)
+    });
+    for (half, k) in (0..2usize).flat_map(|h| (0..hl + hi).map(move |k| (h, k))) {
+        let mut sampler = streams[half].clone();
+        sampler.start_sample(k);
+        let film = Vec2::new(x, y) + sampler.next_2d();
+        let Some((ray, hit)) = primary_hit(scene, film, primary, Some(group)) else {
+            stray += 1;
+            continue;
+        };
+        let wo_world = -ray.d;
+        let taps = atlas.and_then(|a| a.taps(hit.object, hit.p, hit.ng));
+        tapped[half] += taps.is_some() as u32;
+        let (frame, ng) = facing(hit.frame, hit.ng, wo_world);
+        let wo = frame.to_local(wo_world);
+        let mix = super::mixture::Mixture::at(cw, images, hit.p, frame);
+        if k < hl {
+            // Next-event estimation: a point on an area light and a direction to the
+            // environment, MIS-weighted against the mixture, and every punctual light
+            // (found by light sampling alone).
+            let area = pt.lights.sample(hit.p, &mut sampler);
+            let env = pt.lights.sample_environment(hit.p, &mut sampler);
+            let punctual = pt.lights.punctual_samples(hit.p);
+            let discs = (0..pt.lights.disc_count())
+                .filter_map(|k| pt.lights.sample_disc(k, hit.p, &mut sampler));
+            for ls in area.into_iter().chain(env).chain(punctual).chain(discs) {
+                let wi = frame.to_local(ls.wi);
+                if wi.z <= 0.0 || ng.dot(ls.wi) <= 0.0 {
+                    continue;
+                }
+                if !pt
+                    .lights
+                    .visible(scene, offset_origin(hit.p, ng, ls.wi), &ls)
+                {
+                    continue;
+                }
+                let w_l = if ls.delta {
+                    1.0
+                } else {
+                    let pm = mix.pdf(wo, wi);
+                    nl as f32 * ls.pdf / (nl as f32 * ls.pdf + ni as f32 * pm)
+                };
+                entries.push(Entry {
+                    half,
+                    wo,
+                    wi,
+                    weight: Weight::Known(ls.radiance * (wi.z * w_l / (ls.pdf * nl as f32))),
+                    taps,
+                });
+            }
+        } else {
+            let Some(wi) = mix.sample(wo, &mut sampler) else {
+                continue;
+            };
+            let wi_world = frame.to_world(wi);
+            if ng.dot(wi_world) <= 0.0 {
+                continue;
+            }
+            let pm = mix.pdf(wo, wi);
+            let r = Ray::new(offset_origin(hit.p, ng, wi_world), wi_world);
+            // Emission at the first hit, MIS-weighted against light sampling; the rest
+            // of the path as the path tracer computes it.
+            let h2 = scene.intersect_hit(&r, f32::INFINITY);
+            let from = h2.map_or(u32::MAX, |h| {
+                let o = scene.geometry.tris[h.prim as usize].object;
+                scene.objects[o as usize].group as u32
+            });
+            let mut emitted = None;
+            if let Some(h2) = h2.map(|h| scene.surface_hit(&r, &h)) {
+                let o2 = &scene.objects[h2.object as usize];
+                if o2.is_emitter() && h2.ng.dot(-wi_world) > 0.0 {
+                    let pl = pt.lights.pdf(h2.prim, h2.t, wi_world, h2.ng);
+                    let w_b = ni as f32 * pm / (nl as f32 * pl + ni as f32 * pm);
+                    emitted = Some(o2.emission * w_b);
+                }
+            } else {
+                open += wi.z / (pm * ni as f32);
+                pt.lights.at_infinity(wi_world, |le, pl| {
+                    let w_b = ni as f32 * pm / (nl as f32 * pl + ni as f32 * pm);
+                    *emitted.get_or_insert(Rgb::ZERO) += le * w_b;
+                });
+            }
+            entries.push(Entry {
+                half,
+                wo,
+                wi: frame.to_local(wi_world),
+                weight: Weight::Path {
+                    job: rays.len(),
+                    emitted,
+                    scale: wi.z / (pm * ni as f32),
+                    from,
+                },
+                taps,
+            });
+            rays.push(IndirectRay {
+                ray: r,
+                hit: h2,
+                sampler,
+            });
+        }
+    }
+    let probes = if probed && unseen.iter().any(|u| u.moved.is_some()) {
+        Some(rays.clone())
+    } else {
+        None
+    };
+    let (traced, touched): (Vec<Rgb>, Vec<_>) = indirect_radiance(pt, rays).into_iter().unzip();
+    // A probe's path is traced again in its moved scene only where it can come back
+    // otherwise (`UnseenProbe::moves`).
+    let moved: Vec<Option<Vec<Rgb>>> = unseen
+        .iter()
+        .filter(|_| probed)
+        .map(|u| {
+            let (m, rays) = (u.moved?, probes.as_ref()?);
+            let again: Vec<usize> = (0..rays.len()).filter(|&j| u.moves(&touched[j])).collect();
+            let retraced = indirect_radiance(m, again.iter().map(|&j| rays[j].clone()).collect());
+            let mut radiance = traced.clone();
+            for (&j, (l, _)) in again.iter().zip(retraced) {
+                radiance[j] = l;
+            }
+            Some(radiance)
+        })
+        .collect();
+    let mut rows: [Vec<(u32, Rgb)>; 2] = [Vec::new(), Vec::new()];
+    let mut shares = vec![[Rgb::ZERO; 2]; k];
+    let mut dcs: [Vec<Rgb>; 2] = [Vec::new(), Vec::new()];
+    let mut dc = vec![Rgb::ZERO; k];
+    let mut light_from = vec![0.0f32; scene.groups.len()];
+    let mut light_total = 0.0f32;
+    for e in entries {
+        let mut first = u32::MAX;
+        let c = match e.weight {
+            Weight::Known(c) => {
+                dc.fill(Rgb::ZERO);
+                c
+            }
+            Weight::Path {
+                job,
+                emitted,
+                scale,
+                from,
+            } => {
+                first = from;
+                dc.fill(Rgb::ZERO);
+                for (d, (m, u)) in dc.iter_mut().zip(moved.iter().zip(unseen)) {
+                    let Some(m) = m else { continue };
+                    // Emission at the first hit is not in the traced radiance; of what
+                    // the probes move, only the stray light is (weight 1: not sampled).
+                    let escape = if from == u32::MAX && u.group == STRAY_LIGHT {
+                        u.step
+                    } else {
+                        Rgb::ZERO
+                    };
+                    *d = (m[job] - traced[job] + escape) * scale / u.step;
+                }
+                let mut li = traced[job];
+                if let Some(le) = emitted {
+                    li += le;
+                }
+                li * scale
+            }
+        };
+        // A sample that brings no light is kept while it has a derivative (a ray that
+        // leaves the scene before the stray light is lit).
+        if !(c.is_finite()) || (c.max_element() <= 0.0 && dc.iter().all(|d| *d == Rgb::ZERO)) {
+            continue;
+        }
+        let lum = c.x + c.y + c.z;
+        light_total += lum;
+        if let Some(f) = light_from.get_mut(first as usize) {
+            *f += lum;
+        }
+        d_half[e.half] += c * INV_PI;
+        for (s, d) in shares.iter_mut().zip(&dc) {
+            if d.is_finite() {
+                s[e.half] += *d * INV_PI;
+            }
+        }
+        if let Some(taps) = e.taps {
+            for (t, w) in taps {
+                if w > 0.0 {
+                    rows[e.half].push((t, c * (w * INV_PI)));
+                }
+            }
+        }
+        if needs.lobe_samples {
+            samples[e.half].push(Sample::new(e.wo, e.wi, c));
+            dcs[e.half].extend(
+                dc.iter()
+                    .map(|d| if d.is_finite() { *d } else { Rgb::ZERO }),
+            );
+        }
+    }
+    let mut mirror_half = [Rgb::ZERO; 2];
+    // The same with pseudo-textured hits read from the photo: sums, samples read, groups.
+    let mut read = ([Rgb::ZERO; 2], 0u32, Vec::<u32>::new());
+    // ∂(mirror radiance)/∂ρd_u per tracked group, per half (probed pixels only).
+    let mut dmirror = vec![[Rgb::ZERO; 2]; if probed { k } else { 0 }];
+    if needs.mirror {
+        let m = needs.mirror_samples_per_half(opts);
+        let mut n_half = [0u32; 2];
+        let streams: [Sampler; 2] = std::array::from_fn(|half| {
+            Sampler::new(seed ^ (0x6D69_7272 * (half as u64 + 1)), p as u64)
+        });
+        for (half, k) in (0..2usize).flat_map(|h| (0..m).map(move |k| (h, k))) {
+            let mut sm = streams[half].clone();
+            sm.start_sample(k);
+            let film = Vec2::new(x, y) + sm.next_2d();
+            n_half[half] += 1;
+            // As for the samples, but a ray that leaves the group still reads its reflection.
+            let Some((ray, hit)) = primary_hit(scene, film, primary, None) else {
+                continue;
+            };
+            let Some(reflected) = mirror_ray(&ray, &hit) else {
+                continue;
+            };
+            let before = sm.clone();
+            // One intersection for the three uses (the moved scenes share the geometry).
+            let first = scene.intersect_hit(&reflected, f32::INFINITY);
+            let path = pt.trace_path(reflected, first, &mut sm, 1, true);
+            let l = path.l;
+            if let Some(ps) = pseudo {
+                match first.and_then(|h| ps.radiance(scene, &reflected, &h)) {
+                    Some((lp, g)) => {
+                        read.0[half] += lp;
+                        read.1 += 1;
+                        if !read.2.contains(&(g as u32)) {
+                            read.2.push(g as u32);
+                        }
+                    }
+                    None if l.is_finite() => read.0[half] += l,
+                    None => {}
+                }
+            }
+            if l.is_finite() {
+                mirror_half[half] += l;
+                for (d, u) in dmirror.iter_mut().zip(unseen) {
+                    let Some(moved) = u.moved else { continue };
+                    // Otherwise it would come back the same and add 0.
+                    if !u.moves(&path.touched) {
+                        continue;
+                    }
+                    let lm = moved.trace_from(reflected, first, &mut before.clone(), 1, true);
+                    if lm.is_finite() {
+                        d[half] += (lm - l) / u.step;
+                    }
+                }
+            }
+        }
+        for h in 0..2 {
+            mirror_half[h] /= n_half[h].max(1) as f32;
+            read.0[h] /= n_half[h].max(1) as f32;
+            for d in dmirror.iter_mut() {
+                d[h] /= n_half[h].max(1) as f32;
+            }
+        }
+    }
+    let px = CachePixel {
+        pixel: p as u32,
+        photo: photo[p],
+        d: d_half[0] + d_half[1],
+        d_half: [d_half[0] * 2.0, d_half[1] * 2.0],
+        mirror: 0.5 * (mirror_half[0] + mirror_half[1]),
+        mirror_half,
+        start: 0,
+        mid: 0,
+        end: 0,
+        tile,
+    };
+    let shares = shares.into_iter().map(|h| [h[0] * 2.0, h[1] * 2.0]);
+    (
+        px,
+        samples,
+        stray,
+        (
+            rows.map(merge_rows),
+            tapped.map(|t| t as f32 / (hl + hi) as f32),
+        ),
+        (shares.collect(), dcs, probed, dmirror),
+        (light_from, light_total, open * INV_PI),
+        read,
+    )
+}
 
 /// One half's texel rows with each texel once, in texel order (the sums are taken in a fixed
 /// order, so they are the same on any thread count).
