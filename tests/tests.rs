@@ -24,6 +24,7 @@ mod resume;
 mod scene_errors;
 mod stray_light;
 mod texture;
+mod trust;
 mod uncertainty;
 mod unseen;
 mod views;

@@ -521,6 +521,11 @@ pub struct FitArgs {
     /// hierarchy's models against.
     #[arg(long)]
     lambert: bool,
+    /// Only models that this format expresses exactly: `mitsuba` skips levels 5 and 6 (Ward,
+    /// which Mitsuba lacks; the microfacet lobes stand in), so that `export mitsuba` of the
+    /// result says "Approximations: none" [default: none, every level].
+    #[arg(long, value_name = "FORMAT")]
+    exportable: Option<recover::Exportable>,
 }
 
 /// A finite number > 0, for thresholds.
@@ -563,6 +568,7 @@ impl FitArgs {
                     ..d.hierarchy.thresholds.clone()
                 },
                 microfacet: !self.no_microfacet,
+                ward: self.exportable != Some(recover::Exportable::Mitsuba),
                 ..d.hierarchy.clone()
             },
             cache: matfit::fit::cache::CacheOptions {
@@ -756,8 +762,11 @@ pub fn run(cmd: Command) -> Result<()> {
                 chosen.iter().map(|&k| sc.in_view(k)).collect()
             };
             // Before any work: the output folder must be usable.
-            if !resume {
+            if resume {
+                checks::resumable(&output)?;
+            } else {
                 checks::output_folder(&output, force)?;
+                checks::remove_old_results(&output)?;
             }
             prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
             let mut prepared = Vec::new();
@@ -768,6 +777,12 @@ pub fn run(cmd: Command) -> Result<()> {
                 checks::exposure_warning(photo, &photo_args, &lighting);
                 prepared.push(p);
             }
+            checks::some_usable(
+                &scenes,
+                &photos,
+                &prepared,
+                photo_args.ignore_mask.as_deref(),
+            )?;
             checks::on_interrupt_say_resume(resume_command());
             let mut opts = fit.options();
             if prepared[0].calibration.is_some() {

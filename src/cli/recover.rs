@@ -169,6 +169,12 @@ const QUICK_PIXELS: usize = 3000;
 /// camera by [`matfit::photo::pose::APPLY_PX`].
 const QUICK_ROUNDS: usize = 3;
 
+/// The formats `recover --exportable` can keep to.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Exportable {
+    Mitsuba,
+}
+
 /// The pose refinement's second pass (`recover`'s default registration). The first refinement
 /// located the model's edges in renderings shaded by the scene file's materials, often
 /// placeholders; the estimator's shading bias cancels only as far as that shading is the

@@ -786,7 +786,7 @@ fn ward_stand_in(
     warnings.push(format!(
         "object '{name}': {what} has no Mitsuba equivalent; exported as ρd·Lambert + \
          k·ρs·{} microfacet (roughconductor, {}, k = {:.3}; Ward's {}), fitted to the lobe over \
-         {} camera views of its group and {} through one diffuse bounce: it differs from Ward \
+         {} camera views of its group and {} through diffuse bounces: it differs from Ward \
          by {:.1}% of the lobe's radiance (L1) and {:.1}% of all the group reflects there (mean \
          {:+.1}%); Beckmann with Ward's α would leave {:.1}% of the lobe. Views other than this \
          camera's may differ more",

@@ -8,9 +8,10 @@
 //! Σ L_ward of the lobe's outgoing radiance, with the weight k on ρs that keeps the total
 //! (Σ k·L_mf = Σ L_ward: the group as bright on average as Ward makes it), over what this
 //! scene makes of the group: the camera's view of its surfaces (a grid of camera rays that
-//! land on it) and its view through one diffuse bounce (rays from the camera's view of the
-//! other surfaces, cosine-distributed, weighted by their ρd: a wall lit by a glossy floor
-//! shows the floor's lobe in directions the camera never looks along), and at each of those
+//! land on it) and its view through diffuse bounces (camera paths off the other surfaces,
+//! cosine-distributed, weighted by their ρd: a wall lit by a glossy floor, directly or through
+//! the ceiling the floor sends the lamp's highlight to, shows the floor's lobe in directions
+//! the camera never looks along), and at each of those
 //! points a fixed set of incident directions with the radiance that arrives along them,
 //! path-traced once through the scene (the fitter's incident-radiance cache, in small). The
 //! directions come from a defensive mixture of the Ward lobe itself, the area lights and the
@@ -20,7 +21,8 @@
 //! there (diffuse part included), which is what a user sees in a render.
 
 use crate::geometry::{offset_origin, Ray};
-use crate::math::{warp, Rgb, Sampler, Vec3};
+use crate::math::sampler::{mix64, unit_f32};
+use crate::math::{warp, Rgb, Sampler, Vec2, Vec3};
 use crate::render::bsdf::{MicrofacetLobe, WardLobe};
 use crate::render::integrator::facing;
 use crate::render::PathTracer;
@@ -43,7 +45,7 @@ pub struct StandIn {
     pub bias: f32,
     /// What a Beckmann lobe of Ward's own α, with its best k, leaves (the naive mapping).
     pub naive_error: f32,
-    /// Camera views of the group the fit used, and views through one diffuse bounce.
+    /// Camera views of the group the fit used, and views through diffuse bounces.
     pub views: usize,
     pub bounced: usize,
 }
@@ -51,8 +53,10 @@ pub struct StandIn {
 /// Incident directions per camera view: half from the Ward lobe, a quarter each from the area
 /// lights and the cosine.
 const DIRECTIONS: u32 = 64;
-/// At most this many camera views of a group (evenly thinned).
+/// At most this many camera views of a group, and as many through bounces (evenly thinned).
 const MAX_VIEWS: usize = 384;
+/// Diffuse bounces a camera path may take before it lands on the group.
+const BOUNCES: u32 = 3;
 
 /// One camera view of the group: ωo in the lobe's frame, the incident samples (ωi in that
 /// frame, Li cos θi / (N q(ωi))), and the material's reflectances there.
@@ -61,7 +65,7 @@ struct View {
     samples: Vec<(Vec3, Rgb)>,
     rho_d: Rgb,
     rho_s: Rgb,
-    /// Seen through a diffuse bounce (ρd and ρs then carry its reflectance).
+    /// Seen through diffuse bounces (ρd and ρs then carry their reflectance).
     bounced: bool,
 }
 
@@ -212,8 +216,8 @@ fn best_scale(model: &[Rgb], target: &[Rgb]) -> (f32, f64) {
 }
 
 /// The camera's views of `objects` with their incident samples (module comment): the points
-/// the camera sees on them, and the points it sees through one diffuse bounce off another
-/// surface (a wall lit by a glossy floor), weighted by that bounce's reflectance.
+/// the camera sees on them, and the points it sees through diffuse bounces off the other
+/// surfaces (a wall lit by a glossy floor), weighted by the bounces' reflectance.
 fn views(scene: &Scene, objects: &[usize], lobe: WardLobe, theta: f32) -> Vec<View> {
     let on_group = |h: &crate::scene::SurfaceHit| objects.contains(&(h.object as usize));
     let mut hits = Vec::new();
@@ -235,37 +239,43 @@ fn views(scene: &Scene, objects: &[usize], lobe: WardLobe, theta: f32) -> Vec<Vi
         .filter(|(_, _, h)| on_group(h))
         .map(|(_, r, h)| (*r, *h, Rgb::ONE, 1))
         .collect();
-    // One cosine-distributed bounce from every other diffuse surface the camera sees: where it
-    // lands on the group, the group's light reaches the image with that surface's ρd.
+    // Camera paths through up to BOUNCES cosine-distributed bounces off the other surfaces,
+    // to where they first land on the group: its light reaches the image there with the
+    // product of the bounces' ρd (a glossy floor lights the walls directly, and through the
+    // ceiling it sends the lamp's highlight to).
     let bounced: Vec<_> = (hits.iter().enumerate())
         .filter(|(_, (_, _, h))| !on_group(h))
         .filter_map(|(i, (_, ray, h))| {
-            let o = &scene.objects[h.object as usize];
-            let rho = match &o.material {
-                Material::Diffuse { rho_d }
-                | Material::DiffuseMirror { rho_d, .. }
-                | Material::Ward { rho_d, .. }
-                | Material::Microfacet { rho_d, .. }
-                | Material::Plastic { rho_d, .. } => *rho_d,
-                Material::Textured { texture, scale, .. } => *scale * texture.at(h),
-                _ => return None,
-            };
-            if o.is_emitter() || rho.max_element() <= 0.0 {
-                return None;
+            let (mut ray, mut h, mut weight) = (*ray, *h, Rgb::ONE);
+            for depth in 2..(2 + BOUNCES).min(scene.render.max_depth) {
+                let o = &scene.objects[h.object as usize];
+                let rho = match &o.material {
+                    Material::Diffuse { rho_d }
+                    | Material::DiffuseMirror { rho_d, .. }
+                    | Material::Ward { rho_d, .. }
+                    | Material::Microfacet { rho_d, .. }
+                    | Material::Plastic { rho_d, .. } => *rho_d,
+                    Material::Textured { texture, scale, .. } => *scale * texture.at(&h),
+                    _ => return None,
+                };
+                weight *= rho;
+                if o.is_emitter() || weight.max_element() <= 0.0 {
+                    return None;
+                }
+                let (frame, ng) = facing(h.frame, h.ng, -ray.d);
+                let hash = mix64(0x424f_554e_4345 ^ ((i as u64) << 8) ^ u64::from(depth));
+                let u = Vec2::new(unit_f32(hash), unit_f32(mix64(hash)));
+                let d = frame.to_world(warp::cosine_hemisphere(u));
+                if d.dot(ng) <= 0.0 {
+                    return None;
+                }
+                ray = Ray::new(offset_origin(h.p, ng, d), d);
+                h = scene.intersect(&ray, f32::INFINITY)?;
+                if on_group(&h) {
+                    return Some((ray, h, weight, depth));
+                }
             }
-            let (frame, ng) = facing(h.frame, h.ng, -ray.d);
-            let hash = crate::math::sampler::mix64(0x424f_554e_4345 ^ i as u64);
-            let u = crate::math::Vec2::new(
-                crate::math::sampler::unit_f32(hash),
-                crate::math::sampler::unit_f32(crate::math::sampler::mix64(hash)),
-            );
-            let d = frame.to_world(warp::cosine_hemisphere(u));
-            if d.dot(ng) <= 0.0 {
-                return None;
-            }
-            let r = Ray::new(offset_origin(h.p, ng, d), d);
-            let g = scene.intersect(&r, f32::INFINITY)?;
-            on_group(&g).then_some((r, g, rho, 2))
+            None
         })
         .collect();
     let all: Vec<_> = thin(direct).into_iter().chain(thin(bounced)).collect();
