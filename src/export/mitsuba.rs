@@ -309,7 +309,10 @@ fn header(scene: &Scene, warnings: &[String]) -> String {
 
 /// The stand-ins fitted so far, by group and lobe: a group's objects usually share one.
 #[derive(Default)]
-struct StandIns(Vec<((usize, [u32; 3]), Option<StandIn>)>);
+struct StandIns(Vec<(LobeKey, Option<StandIn>)>);
+
+/// A group and the bits of its lobe's αx, αy and θ.
+type LobeKey = (usize, [u32; 3]);
 
 /// Object `oi`'s BSDF element (without `twosided`); a Ward lobe's stand-in (a Ward material's
 /// or a texture's varnish) is fitted over the camera's view of all of `group` (its group's

@@ -298,7 +298,7 @@ fn views(scene: &Scene, objects: &[usize], lobe: WardLobe, theta: f32) -> Vec<Vi
             if wo.z <= 0.0 {
                 return None;
             }
-            let mut sampler = Sampler::new(0x5354_414e_4449_4e, i as u64);
+            let mut sampler = Sampler::new(0x0053_5441_4e44_494e, i as u64);
             let mut samples = Vec::with_capacity(DIRECTIONS as usize);
             let n = DIRECTIONS as f32;
             for s in 0..DIRECTIONS {

@@ -191,27 +191,25 @@ fn with_camera(text: &str, c: &super::Camera) -> Option<String> {
     ] {
         t.remove(k);
     }
+    // The f32's shortest decimal form (57.941124, not 57.941123962402344).
+    let num = |x: f32| x.to_string().parse::<f64>().unwrap_or(f64::from(x));
     let arr = |v: [f32; 3]| {
         let mut a = toml_edit::Array::new();
         for x in v {
-            a.push(f64::from(x));
+            a.push(num(x));
         }
-        toml_edit::value(a)
+        a
     };
-    t.insert("fx", toml_edit::value(f64::from(c.fx)));
-    t.insert("fy", toml_edit::value(f64::from(c.fy)));
-    t.insert("cx", toml_edit::value(f64::from(c.cx - 0.5)));
-    t.insert("cy", toml_edit::value(f64::from(c.cy - 0.5)));
+    t.insert("fx", toml_edit::value(num(c.fx)));
+    t.insert("fy", toml_edit::value(num(c.fy)));
+    t.insert("cx", toml_edit::value(num(c.cx - 0.5)));
+    t.insert("cy", toml_edit::value(num(c.cy - 0.5)));
     let mut rows = toml_edit::Array::new();
     for i in 0..3 {
-        let mut a = toml_edit::Array::new();
-        for x in c.r.row(i).to_array() {
-            a.push(f64::from(x));
-        }
-        rows.push(a);
+        rows.push(arr(c.r.row(i).to_array()));
     }
     t.insert("rotation", toml_edit::value(rows));
-    t.insert("translation", arr(c.t.to_array()));
+    t.insert("translation", toml_edit::value(arr(c.t.to_array())));
     Some(doc.to_string())
 }
 
