@@ -382,3 +382,63 @@ fn warnings_have_one_style_and_keep_the_group() {
         "{err}"
     );
 }
+
+/// A composite counts the pixels its edit changed beyond the renders' Monte Carlo noise: those
+/// an added ball covers and its shadow, not the whole noisy floor.
+#[test]
+fn a_composite_counts_changes_beyond_the_noise() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    write(dir, "scene.toml", SMALL_SCENE);
+    let (code, _, err) = run(
+        &[
+            "render",
+            "scene.toml",
+            "-o",
+            "photo.exr",
+            "--spp",
+            "16",
+            "--seed",
+            "9",
+        ],
+        dir,
+    );
+    assert_eq!(code, 0, "{err}");
+    let (code, out, err) = run(
+        &[
+            "composite",
+            "scene.toml",
+            "photo.exr",
+            "-o",
+            "c.exr",
+            "--spp",
+            "16",
+            "--add",
+            "{ name = \"ball\", group = \"ball\", shape = \"sphere\", center = [0.4, 0.15, 0.4], \
+             radius = 0.15, material = { type = \"diffuse\", rho_d = 0.5 } }",
+        ],
+        dir,
+    );
+    assert_eq!(code, 0, "{err}");
+    let line = out
+        .lines()
+        .find(|l| l.contains("pixels changed beyond the Monte Carlo noise"))
+        .unwrap_or_else(|| panic!("{out}"));
+    let num = |before: &str| -> f64 {
+        let head = &line[..line.find(before).unwrap()];
+        head.rsplit([' ', ':'])
+            .find(|w| !w.is_empty())
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let (changed, covered) = (
+        num(" pixels changed beyond"),
+        num(" covered by added objects"),
+    );
+    eprintln!("{line}");
+    assert!(
+        changed >= covered && changed < 3.0 * covered + 100.0,
+        "{line}"
+    );
+}

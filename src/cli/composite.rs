@@ -98,13 +98,15 @@ pub fn run(a: &CompositeArgs) -> Result<()> {
     }
     out.write(&a.output).map_err(anyhow::Error::msg)?;
     outln!(
-        "wrote {} ({}×{}, 2 renders of {} spp) in {:.1} s: {} pixels changed beyond the Monte \
+        "wrote {} ({}×{}, 2 renders of {} spp, one of {} for their noise) in {:.1} s: {} pixels \
+         changed beyond the Monte \
          Carlo noise (by more than 1% and {NOISE_SIGMAS}σ of the renders' noise), {:.0} covered \
          by added objects",
         a.output.display(),
         out.width,
         out.height,
         ropts.spp,
+        noise_opts.spp,
         t.elapsed().as_secs_f64(),
         changed,
         cover.iter().sum::<f32>()
