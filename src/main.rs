@@ -13,8 +13,8 @@ fn main() -> ExitCode {
                 .unwrap_or_else(|_| "warn".into()),
         )
         .with_writer(|| cli::out::LogWriter)
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .without_time()
+        .with_ansi(false)
+        .event_format(cli::out::LogFormat)
         .init();
     if let Some(n) = args.threads {
         if let Err(e) = rayon::ThreadPoolBuilder::new()

@@ -119,6 +119,15 @@ fn a_right_camera_stays_a_wrong_one_is_found_and_a_calibrated_one_is_kept() {
     let after = reprojection_px(&truth, &cam, &truth.camera);
     eprintln!("reprojection error {before:.2} px → {after:.3} px");
     assert!(before > 3.0 && after < 0.3, "{before} → {after}");
+    // recovered.toml has the refined camera, and says so.
+    let rec = load_scene(&d.join("found/recovered.toml")).unwrap();
+    let written = reprojection_px(&truth, &rec.camera, &truth.camera);
+    assert!(written < 0.3, "recovered.toml's camera is {written} px off");
+    let text = std::fs::read_to_string(d.join("found/recovered.toml")).unwrap();
+    assert!(
+        text.contains("# Camera: the scene's, refined to the photo and applied"),
+        "{text}"
+    );
     // The materials are those recovered through the true camera.
     let reference = recover(d, "true.toml", "reference", &["--camera-is-calibrated"]);
     for g in ["ball", "block"] {

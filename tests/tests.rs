@@ -25,6 +25,7 @@ mod resume;
 mod scene_errors;
 mod stray_light;
 mod texture;
+mod trust;
 mod uncertainty;
 mod unseen;
 mod usage;

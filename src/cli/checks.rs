@@ -47,6 +47,53 @@ pub fn masked_summary(sc: &Scene, mask: &Path, p: &PreparedPhoto) -> String {
     )
 }
 
+/// Refuses a fit with nothing to fit: no pixel of any group that reflects light is usable in
+/// any photo. With an ignore mask, that is most often the mask's polarity (a mask of what to
+/// keep given as what to ignore): said so.
+pub fn some_usable(
+    scenes: &[Scene],
+    photos: &[std::path::PathBuf],
+    prepared: &[PreparedPhoto],
+    ignore_mask: Option<&Path>,
+) -> Result<()> {
+    let reflects = |sc: &Scene, g: usize| {
+        !sc.groups[g]
+            .objects
+            .iter()
+            .any(|&o| sc.objects[o].is_emitter())
+    };
+    let any = scenes.iter().zip(prepared).any(|(sc, p)| {
+        (p.mask.stats.iter().enumerate()).any(|(g, st)| st.usable > 0 && reflects(sc, g))
+    });
+    if any || scenes.is_empty() || !(0..scenes[0].groups.len()).any(|g| reflects(&scenes[0], g)) {
+        return Ok(());
+    }
+    let p = &prepared[0];
+    let visible: usize = (p.mask.stats.iter().enumerate())
+        .filter(|(g, _)| reflects(&scenes[0], *g))
+        .map(|(_, st)| st.visible)
+        .sum();
+    let photo = photos[0].display();
+    if let Some(m) = ignore_mask {
+        let ignored = p.photo.ignored.iter().filter(|&&x| x).count();
+        let share = 100.0 * ignored as f64 / p.photo.ignored.len().max(1) as f64;
+        let user: usize = p.mask.stats.iter().map(|st| st.user).sum();
+        bail!(
+            "{photo}: no usable pixel is left to fit: the ignore mask {} ignores {share:.0}% of \
+             the photo, {user} of the {visible} pixels where the model's surfaces are seen. \
+             Is it inverted? --ignore-mask marks what to IGNORE (white, or opaque alpha); a mask \
+             of the object to keep must be inverted first (e.g. `magick {} -negate \
+             ignore.png`)",
+            m.display(),
+            m.display()
+        );
+    }
+    bail!(
+        "{photo}: no usable pixel is left to fit ({visible} pixels show the model's surfaces, \
+         none of them usable): see `matfit inspect` for why each was rejected"
+    )
+}
+
 /// Refuses a scene whose render would be black (no light, or every light facing away from
 /// what the camera sees); warns of each light that faces away while others do not.
 pub fn require_light(sc: &Scene, l: &Lighting) -> Result<()> {
@@ -223,6 +270,57 @@ pub fn output_folder(dir: &Path, force: bool) -> Result<()> {
         if names.len() == 1 { "y" } else { "ies" },
         names[0]
     )
+}
+
+/// `recover --resume` continues a run in `dir`: the folder and its checkpoint must be there
+/// (creating an empty folder would only end in "no checkpoint" after the photo's preparation).
+pub fn resumable(dir: &Path) -> Result<()> {
+    if !dir.is_dir() {
+        bail!(
+            "cannot resume: {} does not exist, so there is no checkpoint.json to resume from \
+             (run without --resume to start)",
+            dir.display()
+        );
+    }
+    if !dir.join("checkpoint.json").is_file() {
+        bail!(
+            "cannot resume: {} holds no checkpoint.json (run without --resume to start afresh)",
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
+/// What a finished `recover` writes besides its log (`report::write_outputs`), and its
+/// checkpoint.
+const RESULT_FILES: &[&str] = &[
+    "results.json",
+    "report.html",
+    "recovered.toml",
+    "synthetic.exr",
+    "synthetic.png",
+    "error.exr",
+    "error.png",
+    "checkpoint.json",
+];
+
+/// A new `recover` into an old output: the old run's results go first, so that a run stopped
+/// before its end leaves its own log alone rather than beside another run's report (and an
+/// old checkpoint, whose log offset no longer matches, cannot be resumed from).
+pub fn remove_old_results(dir: &Path) -> Result<()> {
+    // Only from a matfit output: a folder written into with --force keeps what it holds.
+    if !OUTPUT_MARKS.iter().any(|m| dir.join(m).exists()) {
+        return Ok(());
+    }
+    for name in RESULT_FILES {
+        let p = dir.join(name);
+        match std::fs::remove_file(&p) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => bail!("cannot remove the old {}: {e}", p.display()),
+        }
+    }
+    Ok(())
 }
 
 /// On Ctrl-C during `recover`: say how to continue from the last checkpoint, then stop.

@@ -74,28 +74,82 @@ pub fn run(a: &CompositeArgs) -> Result<()> {
         .collect();
     let cover = coverage(&edited, &base.camera, &added);
     let mut out = differential(&photo.image, &with, &without, &cover);
+    // The two renders share their seed, so their noise mostly cancels, but not where the
+    // edit's light changes the paths: a pixel counts as changed when the change is beyond
+    // what a third, independent render says the noise is there, as well as above 1%.
+    let noise_opts = RenderOptions {
+        spp: (ropts.spp / 4).max(1),
+        seed: ropts.seed.wrapping_add(1),
+        progress: true,
+    };
+    let other = render(&base, &base.camera, &noise_opts);
+    let sigma = noise_sigma(&without, &other, ropts.spp, noise_opts.spp);
     let changed = out
         .data
         .iter()
         .zip(&photo.image.data)
-        .filter(|(o, p)| (**o - **p).abs().max_element() > 0.01 * p.max_element().max(1e-3))
+        .zip(&sigma)
+        .filter(|((o, p), s)| {
+            let d = (**o - **p).abs();
+            (0..3).any(|c| d[c] > 0.01 * p.max_element().max(1e-3) && d[c] > NOISE_SIGMAS * s[c])
+        })
         .count();
     for c in &mut out.data {
         *c *= k;
     }
     out.write(&a.output).map_err(anyhow::Error::msg)?;
     outln!(
-        "wrote {} ({}×{}, 2 renders of {} spp) in {:.1} s: {} pixels changed by more than 1%, \
-         {:.0} covered by added objects",
+        "wrote {} ({}×{}, 2 renders of {} spp, one of {} for their noise) in {:.1} s: {} pixels \
+         changed beyond the Monte \
+         Carlo noise (by more than 1% and {NOISE_SIGMAS}σ of the renders' noise), {:.0} covered \
+         by added objects",
         a.output.display(),
         out.width,
         out.height,
         ropts.spp,
+        noise_opts.spp,
         t.elapsed().as_secs_f64(),
         changed,
         cover.iter().sum::<f32>()
     );
     Ok(())
+}
+
+/// How many standard deviations of the renders' noise a change must exceed to count.
+const NOISE_SIGMAS: f32 = 4.0;
+
+/// Per pixel and channel, the standard deviation of the difference of two renders of `spp`
+/// samples whose noise does not cancel, from `a` (`spp` samples) and an independent `b` (`spp_b`):
+/// the variance of a − b is σ²(1 + spp/spp_b) for σ² that of one render, and twice σ² is the
+/// difference's. Averaged over the 3×3 neighbourhood: one pixel's square is too noisy a guess.
+fn noise_sigma(
+    a: &matfit::io::image::Image,
+    b: &matfit::io::image::Image,
+    spp: u32,
+    spp_b: u32,
+) -> Vec<matfit::math::Rgb> {
+    let (w, h) = (a.width, a.height);
+    let sq: Vec<matfit::math::Rgb> = a
+        .data
+        .iter()
+        .zip(&b.data)
+        .map(|(x, y)| (*x - *y) * (*x - *y))
+        .collect();
+    let ratio = 2.0 / (1.0 + spp as f32 / spp_b.max(1) as f32);
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let mut sum = matfit::math::Rgb::ZERO;
+            let mut n = 0.0;
+            for yy in y.saturating_sub(1)..(y + 2).min(h) {
+                for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                    sum += sq[yy * w + xx];
+                    n += 1.0;
+                }
+            }
+            (sum / n * ratio).map(f32::sqrt)
+        })
+        .collect()
 }
 
 /// The exposure: given, else the one the recovery used (results.json beside the scene), else 1;

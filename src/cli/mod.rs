@@ -363,6 +363,11 @@ pub struct FitArgs {
     /// hierarchy's models against.
     #[arg(long)]
     lambert: bool,
+    /// Only models that this format expresses exactly: `mitsuba` skips levels 5 and 6 (Ward,
+    /// which Mitsuba lacks; the microfacet lobes stand in), so that `export mitsuba` of the
+    /// result says "Approximations: none" [default: none, every level].
+    #[arg(long, value_name = "FORMAT")]
+    exportable: Option<recover::Exportable>,
 }
 
 /// A finite number > 0, for thresholds.
@@ -405,6 +410,7 @@ impl FitArgs {
                     ..d.hierarchy.thresholds.clone()
                 },
                 microfacet: !self.no_microfacet,
+                ward: self.exportable != Some(recover::Exportable::Mitsuba),
                 ..d.hierarchy.clone()
             },
             cache: matfit::fit::cache::CacheOptions {

@@ -64,19 +64,46 @@ pub fn repeat_warnings() {
     }
 }
 
-/// The log's writer: standard error, keeping the library's WARN lines for [`repeat_warnings`].
+/// The log's lines in the style of [`warn`]: `warning: MSG`, `error: MSG`, `info: MSG`, so that
+/// the library's warnings and the command's read alike; debug and trace lines (`MATFIT_LOG`)
+/// also name their module.
+pub struct LogFormat;
+
+impl<S, N> tracing_subscriber::fmt::FormatEvent<S, N> for LogFormat
+where
+    S: tracing::Subscriber + for<'a> tracing_subscriber::registry::LookupSpan<'a>,
+    N: for<'a> tracing_subscriber::fmt::FormatFields<'a> + 'static,
+{
+    fn format_event(
+        &self,
+        ctx: &tracing_subscriber::fmt::FmtContext<'_, S, N>,
+        mut writer: tracing_subscriber::fmt::format::Writer<'_>,
+        event: &tracing::Event<'_>,
+    ) -> std::fmt::Result {
+        use tracing::Level;
+        let meta = event.metadata();
+        match *meta.level() {
+            Level::ERROR => write!(writer, "error: ")?,
+            Level::WARN => write!(writer, "warning: ")?,
+            Level::INFO => write!(writer, "info: ")?,
+            Level::DEBUG => write!(writer, "debug {}: ", meta.target())?,
+            Level::TRACE => write!(writer, "trace {}: ", meta.target())?,
+        }
+        ctx.field_format().format_fields(writer.by_ref(), event)?;
+        writeln!(writer)
+    }
+}
+
+/// The log's writer: standard error, keeping the library's warnings ([`LogFormat`]'s
+/// `warning: ` lines) for [`repeat_warnings`].
 pub struct LogWriter;
 
 impl Write for LogWriter {
     fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
         let text = String::from_utf8_lossy(buf);
         for line in text.lines() {
-            if let Some(pos) = line.find("WARN") {
-                // Drop the level and the module path: keep the message.
-                let rest = line[pos + 4..].trim_start();
-                let msg = rest.split_once(": ").map(|(_, m)| m).unwrap_or(rest);
-                let msg = strip_ansi(msg);
-                remember(msg);
+            if let Some(msg) = line.strip_prefix("warning: ") {
+                remember(strip_ansi(msg));
             }
         }
         std::io::stderr().write_all(buf)?;

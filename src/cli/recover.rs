@@ -171,6 +171,12 @@ const QUICK_PIXELS: usize = 3000;
 /// camera by [`matfit::prepare::pose::APPLY_PX`].
 const QUICK_ROUNDS: usize = 3;
 
+/// The formats `recover --exportable` can keep to.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Exportable {
+    Mitsuba,
+}
+
 /// The pose refinement's second pass (`recover`'s default registration). The first refinement
 /// located the model's edges in renderings shaded by the scene file's materials, often
 /// placeholders; the estimator's shading bias cancels only as far as that shading is the
@@ -370,8 +376,11 @@ pub fn command(args: RecoverCli) -> Result<()> {
         chosen.iter().map(|&k| sc.in_view(k)).collect()
     };
     // Before any work: the output folder must be usable.
-    if !resume {
+    if resume {
+        checks::resumable(&output)?;
+    } else {
         checks::output_folder(&output, force)?;
+        checks::remove_old_results(&output)?;
     }
     prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
     let mut prepared = Vec::new();
@@ -381,6 +390,12 @@ pub fn command(args: RecoverCli) -> Result<()> {
         checks::exposure_warning(photo, &photo_args, &lighting);
         prepared.push(p);
     }
+    checks::some_usable(
+        &scenes,
+        &photos,
+        &prepared,
+        photo_args.ignore_mask.as_deref(),
+    )?;
     checks::on_interrupt_say_resume(resume_command());
     let mut opts = fit.options();
     if prepared[0].calibration.is_some() {

@@ -207,7 +207,8 @@ pub fn recovered(rec: &Recovery) -> String {
             [
                 st.name.clone(),
                 level,
-                format!("{:?}", st.status).to_lowercase(),
+                matfit::report::status_word(st.status, rec.unseen.iter().find(|u| u.group == g))
+                    .to_string(),
                 rd,
                 rs,
                 lobe,

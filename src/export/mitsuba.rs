@@ -34,25 +34,19 @@
 //!   atlas's chart positions for recovered textures). A varnish is the Ward blend below with
 //!   the bitmap as its diffuse part. Black → `diffuse` 0 (Mitsuba would otherwise give a shape
 //!   its default 50% grey).
-//! - **Ward** has no Mitsuba form; the closest is the same blend with the mirror replaced by
-//!   `roughconductor` (`material = "none"`, `distribution = "beckmann"`, `alpha_u` = αx,
-//!   `alpha_v` = αy, `specular_reflectance` = k·ρs/w). Ward's lobe is a Gaussian in the half
-//!   vector's slopes, which is Beckmann's distribution D: the microfacet BRDF D·G/(4 cosθi cosθo)
-//!   differs from Ward 1992's exp(−E)/(4π αx αy √(cosθi cosθo)) (module `render::bsdf::ward`)
-//!   by the factor G/(cos⁴δ √(cosθi cosθo)): 1 at normal incidence, up to several times brighter
-//!   at the grazing views a floor is photographed from. k rescales the lobe by the ratio of the
-//!   two lobes' albedos over the camera's view of the object ([`ward_scale`]), so that on average
-//!   it reflects what Ward reflects where the photo saw it; no constant makes the shapes agree.
-//!   So it is a warning, and the error is measured per group (`bench/crosscheck.py`, cases
-//!   figure6-ward and glossy; table in bench/CROSSCHECK.md). Mitsuba orients αu along the mesh's
-//!   dp/du: an anisotropic Ward object's PLY gets, per triangle, UVs u = s·p, v = t·p in matfit's
-//!   shading frame (the object's tangent, else dp/du, rotated by θ), so that dp/du = s.
+//! - **Ward** has no Mitsuba form; it becomes the same blend with the mirror replaced by a
+//!   `roughconductor` (`material = "none"`) *fitted* to the Ward lobe over the directions this
+//!   scene uses ([`super::standin`]): Beckmann or GGX, α (or αu, αv), and a weight k on ρs.
+//!   What the fit leaves is stated per group, in a warning and in the file's header. Mitsuba
+//!   orients αu along the mesh's dp/du: an anisotropic Ward object's PLY gets, per triangle, UVs
+//!   u = s·p, v = t·p in matfit's shading frame (the object's tangent, else dp/du, rotated by
+//!   θ), so that dp/du = s.
 //! - **Emitters.** `area` with rgb `radiance` = the object's emission, one-sided like matfit's.
 
+use super::standin::StandIn;
 use super::ExportReport;
-use crate::math::sampler::{mix64, unit_f32};
 use crate::math::{Rgb, Vec2, Vec3};
-use crate::render::bsdf::{MicrofacetLobe, WardLobe};
+use crate::render::bsdf::WardLobe;
 use crate::scene::texture::{Mapping, Texture};
 use crate::scene::{Distribution, Material, Punctual, PunctualLight, Scene, Varnish};
 use std::fmt::Write as _;
@@ -67,13 +61,6 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
         .map_err(|e| format!("cannot create {}: {e}", meshes.display()))?;
 
     let mut xml = String::new();
-    xml.push_str("<?xml version=\"1.0\" encoding=\"utf-8\"?>\n");
-    let _ = writeln!(
-        xml,
-        "<!-- Exported by matfit {} from {}. Geometry in world space (meshes/*.ply). -->",
-        env!("CARGO_PKG_VERSION"),
-        escape(&scene.path.display().to_string())
-    );
     xml.push_str("<scene version=\"3.0.0\">\n");
     write_integrator(&mut xml, scene);
     write_sensor(&mut xml, scene, &mut report.warnings);
@@ -87,13 +74,14 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
     let mut bsdfs: Vec<(String, Vec<String>)> = vec![Default::default(); scene.objects.len()];
     let mut shared: Vec<Option<String>> = vec![None; scene.groups.len()];
     let mut textures = TextureFiles::default();
+    let mut fits = StandIns::default();
     for (g, group) in scene.groups.iter().enumerate() {
         let objs: Vec<usize> = (0..scene.objects.len())
             .filter(|&oi| scene.objects[oi].group == g)
             .collect();
         for &oi in &objs {
             let mut warnings = Vec::new();
-            let bsdf = object_bsdf(scene, oi, &objs, &mut textures, &mut warnings);
+            let bsdf = object_bsdf(scene, oi, &objs, &mut fits, &mut textures, &mut warnings);
             bsdfs[oi] = (bsdf, warnings);
         }
         let id = mitsuba_id(&group.name, 'g');
@@ -207,6 +195,7 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
         );
     }
     xml.push_str("</scene>\n");
+    let xml = header(scene, &report.warnings) + &xml;
     let texture_files = textures.write(dir)?;
 
     let xml_path = dir.join("scene.xml");
@@ -295,13 +284,44 @@ fn mitsuba_id(name: &str, prefix: char) -> String {
     }
 }
 
-/// Object `oi`'s BSDF element (without `twosided`); a Ward lobe's scale k (a Ward material's
-/// or a texture's varnish) is taken over the camera's view of all of `group` (its group's
+/// The XML declaration and the comment that says what wrote the file and lists every
+/// approximation (`warnings`), or that there is none.
+fn header(scene: &Scene, warnings: &[String]) -> String {
+    let mut h = format!(
+        "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n<!-- Exported by matfit {} from {}. Geometry \
+         in world space (meshes/*.ply).\n",
+        env!("CARGO_PKG_VERSION"),
+        scene.path.display().to_string().replace("--", "- -")
+    );
+    if warnings.is_empty() {
+        h.push_str("     Approximations: none. -->\n");
+    } else {
+        h.push_str("     Approximations:\n");
+        for w in warnings {
+            // A comment holds any text but "--".
+            let w = w.replace(['\n', '\r'], " ").replace("--", "- -");
+            let _ = writeln!(h, "     - {w}");
+        }
+        h.push_str("-->\n");
+    }
+    h
+}
+
+/// The stand-ins fitted so far, by group and lobe: a group's objects usually share one.
+#[derive(Default)]
+struct StandIns(Vec<(LobeKey, Option<StandIn>)>);
+
+/// A group and the bits of its lobe's αx, αy and θ.
+type LobeKey = (usize, [u32; 3]);
+
+/// Object `oi`'s BSDF element (without `twosided`); a Ward lobe's stand-in (a Ward material's
+/// or a texture's varnish) is fitted over the camera's view of all of `group` (its group's
 /// objects), so that the group shares one BSDF.
 fn object_bsdf(
     scene: &Scene,
     oi: usize,
     group: &[usize],
+    fits: &mut StandIns,
     textures: &mut TextureFiles,
     warnings: &mut Vec<String>,
 ) -> String {
@@ -330,13 +350,19 @@ fn object_bsdf(
         &obj.name,
         || {
             let (alpha_x, alpha_y, theta) = lobe?;
+            let key = (obj.group, [alpha_x, alpha_y, theta].map(f32::to_bits));
+            if let Some((_, s)) = fits.0.iter().find(|(k, _)| *k == key) {
+                return *s;
+            }
             let variant = scene.render.ward_variant;
             let ward = WardLobe {
                 alpha_x,
                 alpha_y,
                 variant,
             };
-            ward_scale(scene, group, ward, theta)
+            let s = super::standin::fit_ward(scene, group, ward, theta);
+            fits.0.push((key, s));
+            s
         },
         textures,
         warnings,
@@ -546,48 +572,12 @@ fn write_sampler_and_film(xml: &mut String, scene: &Scene) {
     );
 }
 
-/// The scale k of the Beckmann lobe that stands for a Ward lobe in Mitsuba (matfit's Beckmann
-/// microfacet lobe, `render::bsdf::microfacet`, which is that plugin's): the ratio of the
-/// two lobes' albedos ∫ f cosθi dωi, summed over the camera's view directions of `objects` (a
-/// 64 × 48 grid of camera rays) and estimated with 32 of Ward's own samples per view (common to
-/// both lobes, fixed hash: deterministic). `None` where the camera does not see them.
-fn ward_scale(scene: &Scene, objects: &[usize], lobe: WardLobe, theta: f32) -> Option<f32> {
-    let spv = 32u64;
-    let beckmann = MicrofacetLobe {
-        alpha_x: lobe.alpha_x,
-        alpha_y: lobe.alpha_y,
-        distribution: Distribution::Beckmann,
-    };
-    let (mut ward, mut micro) = (0.0f64, 0.0f64);
-    for (v, ray, hit) in scene.camera_grid_hits(64, 48) {
-        if !objects.contains(&(hit.object as usize)) {
-            continue;
-        }
-        let mut wo = hit.frame.rotated(theta).to_local(-ray.d);
-        wo.z = wo.z.abs(); // both renderers' surfaces are two-sided
-        for k in 0..spv {
-            let h = mix64(u64::from(v) * spv + k);
-            let u = Vec2::new(unit_f32(h), unit_f32(mix64(h)));
-            let Some(wi) = lobe.sample(wo, u) else {
-                continue;
-            };
-            let pdf = lobe.pdf(wo, wi);
-            if !(pdf > 0.0) || wi.z <= 0.0 {
-                continue;
-            }
-            ward += f64::from(lobe.eval(wo, wi) * wi.z / pdf);
-            micro += f64::from(beckmann.eval(wo, wi) * wi.z / pdf);
-        }
-    }
-    (micro > 0.0).then(|| (ward / micro) as f32)
-}
-
-/// The (one-sided) BSDF element of a material, without the `twosided` wrapper. `ward_scale`
-/// (see [`ward_scale`]) is called for Ward materials only.
+/// The (one-sided) BSDF element of a material, without the `twosided` wrapper. `stand_in`
+/// (the fitted microfacet lobe, [`super::standin`]) is called for Ward lobes only.
 fn bsdf_xml(
     m: &Material,
     name: &str,
-    ward_scale: impl FnOnce() -> Option<f32>,
+    stand_in: impl FnOnce() -> Option<StandIn>,
     textures: &mut TextureFiles,
     warnings: &mut Vec<String>,
 ) -> String {
@@ -610,9 +600,9 @@ fn bsdf_xml(
             alpha_y,
             ..
         } => {
-            let lobe = |c: Rgb| rough_conductor("beckmann", *alpha_x, *alpha_y, c);
-            let k = ward_k(ward_scale, name, "Ward", warnings);
-            blend(*rho_d, *rho_s * k, lobe, name, "ward", warnings)
+            let s = ward_stand_in(stand_in, *alpha_x, *alpha_y, name, "Ward", warnings);
+            let lobe = |c: Rgb| rough_conductor(s.distribution.name(), s.alpha_x, s.alpha_y, c);
+            blend(*rho_d, *rho_s * s.k, lobe, name, "ward", warnings)
         }
         Material::Microfacet {
             rho_d,
@@ -662,8 +652,15 @@ fn bsdf_xml(
                      which here are the texture's: the varnish's direction (θ) is not carried"
                 ));
             }
-            let lobe = |c: Rgb| rough_conductor("beckmann", v.alpha_x, v.alpha_y, c);
-            let k = ward_k(ward_scale, name, "the varnish, a Ward lobe,", warnings);
+            let s = ward_stand_in(
+                stand_in,
+                v.alpha_x,
+                v.alpha_y,
+                name,
+                "the varnish, a Ward lobe,",
+                warnings,
+            );
+            let lobe = |c: Rgb| rough_conductor(s.distribution.name(), s.alpha_x, s.alpha_y, c);
             let d = texture
                 .texels
                 .iter()
@@ -673,7 +670,7 @@ fn bsdf_xml(
             blend_with(
                 d,
                 diffuse_part,
-                v.rho_s * k,
+                v.rho_s * s.k,
                 lobe,
                 name,
                 "textured",
@@ -751,28 +748,67 @@ fn blend_with(
     )
 }
 
-/// The scale k of the Beckmann lobe standing for a Ward lobe ([`ward_scale`]; 1 where the
-/// camera does not see the object), with the warning that says so.
-fn ward_k(
-    ward_scale: impl FnOnce() -> Option<f32>,
+/// The microfacet lobe standing for a Ward lobe of roughness (`alpha_x`, `alpha_y`) (fitted by
+/// `stand_in`, else, where the camera does not see the object, Beckmann with Ward's α and
+/// k = 1), with the warning that says what it is and what it leaves.
+fn ward_stand_in(
+    stand_in: impl FnOnce() -> Option<StandIn>,
+    alpha_x: f32,
+    alpha_y: f32,
     name: &str,
     what: &str,
     warnings: &mut Vec<String>,
-) -> f32 {
-    let (k, seen) = match ward_scale() {
-        Some(k) => (
-            k,
-            "Ward's albedo over Beckmann's, from the camera's view of it",
-        ),
-        None => (1.0, "the camera does not see the object"),
+) -> StandIn {
+    let alphas = |x: f32, y: f32| {
+        if x == y {
+            format!("α {x:.4}")
+        } else {
+            format!("αu {x:.4}, αv {y:.4}")
+        }
+    };
+    let Some(s) = stand_in() else {
+        warnings.push(format!(
+            "object '{name}': {what} has no Mitsuba equivalent; exported as ρd·Lambert + \
+             ρs·Beckmann microfacet (roughconductor, {}), not fitted: the camera does not see \
+             the object, so its error is not known",
+            alphas(alpha_x, alpha_y)
+        ));
+        return StandIn {
+            distribution: Distribution::Beckmann,
+            alpha_x,
+            alpha_y,
+            k: 1.0,
+            lobe_error: f32::NAN,
+            error: f32::NAN,
+            bias: f32::NAN,
+            naive_error: f32::NAN,
+            views: 0,
+            bounced: 0,
+        };
     };
     warnings.push(format!(
         "object '{name}': {what} has no Mitsuba equivalent; exported as ρd·Lambert + \
-         k·ρs·Beckmann microfacet (roughconductor, α as Ward's) with k = {k:.3} \
-         ({seen}), which matches Ward's highlight from this camera and differs from \
-         other views (bench/CROSSCHECK.md measures the difference)"
+         k·ρs·{} microfacet (roughconductor, {}, k = {:.3}; Ward's {}), fitted to the lobe over \
+         {} camera views of its group and {} through diffuse bounces: it differs from Ward \
+         by {:.1}% of the lobe's radiance (L1) and {:.1}% of all the group reflects there (mean \
+         {:+.1}%); Beckmann with Ward's α would leave {:.1}% of the lobe. Views other than this \
+         camera's may differ more",
+        match s.distribution {
+            Distribution::Ggx => "GGX",
+            Distribution::Beckmann => "Beckmann",
+        },
+        alphas(s.alpha_x, s.alpha_y),
+        s.k,
+        alphas(alpha_x, alpha_y),
+        s.views,
+        s.bounced,
+        100.0 * s.lobe_error,
+        100.0 * s.error,
+        // Rounded first, so that a mean of −0.01% reads 0.0%, not −0.0%.
+        (1000.0 * s.bias).round() / 10.0 + 0.0,
+        100.0 * s.naive_error,
     ));
-    k
+    s
 }
 
 /// Binary little-endian PLY of object `oi`'s triangles: positions, normals, uvs, matfit's vertex
@@ -997,7 +1033,20 @@ mod tests {
                 theta: 0.3,
             },
             "floor",
-            || Some(0.5),
+            || {
+                Some(StandIn {
+                    distribution: Distribution::Beckmann,
+                    alpha_x: 0.07,
+                    alpha_y: 0.11,
+                    k: 0.5,
+                    lobe_error: 0.01,
+                    error: 0.005,
+                    bias: 0.0,
+                    naive_error: 0.1,
+                    views: 100,
+                    bounced: 100,
+                })
+            },
             &mut TextureFiles::default(),
             &mut warnings,
         );

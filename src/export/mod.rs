@@ -3,6 +3,7 @@
 
 pub mod gltf;
 pub mod mitsuba;
+pub mod standin;
 
 /// The formats `matfit export` writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

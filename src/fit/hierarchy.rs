@@ -316,7 +316,10 @@ impl GroupState {
     ) -> Option<Event> {
         cache.texels.as_ref()?;
         let mut best = fit_level(cache, Level::Diffuse, &self.params, variant);
-        for level in [Level::Isotropic, Level::Anisotropic] {
+        for level in [Level::Isotropic, Level::Anisotropic]
+            .into_iter()
+            .filter(|_| opts.ward)
+        {
             let f = fit_level(cache, level, &best.params, variant);
             if Self::earns(&best, &f, opts).0 {
                 best = f;
@@ -425,7 +428,7 @@ impl GroupState {
         let nested: Vec<LevelFit> = if demotable {
             let needs = self.cache_needs_for(self.level, false);
             (Level::FITTED.iter().copied())
-                .filter(|&l| l < self.level)
+                .filter(|&l| l < self.level && (opts.ward || !l.is_ward()))
                 .filter(|&l| {
                     (!l.has_lobe() || needs.lobe_samples) && (!l.is_mirror() || needs.mirror)
                 })
@@ -520,8 +523,15 @@ impl GroupState {
             let started = std::time::Instant::now();
             // Levels 8 and 10 reshape a lobe: a group on which no specular level earned its
             // place has none to reshape (a wall whose ε is its noise would only fit the noise).
-            let no_lobe = next.is_microfacet() && best.level == Level::Diffuse;
-            if ((next.is_microfacet() || next == Level::Plastic) && !opts.microfacet) || no_lobe {
+            // Without the Ward levels, level 8 is the first lobe a group can take.
+            let no_lobe = next.is_microfacet()
+                && best.level == Level::Diffuse
+                && (opts.ward || next != Level::Microfacet);
+            let no_ward = next.is_ward() && !opts.ward;
+            if ((next.is_microfacet() || next == Level::Plastic) && !opts.microfacet)
+                || no_lobe
+                || no_ward
+            {
                 level = next;
                 continue;
             }

@@ -230,6 +230,10 @@ pub struct HierarchyOptions {
     /// hierarchy of the notes and the Ward lobes alone, for comparison).
     #[serde(default = "yes")]
     pub microfacet: bool,
+    /// Whether levels 5 and 6, the Ward lobes, are tried (off: only models with an exact Mitsuba
+    /// form, the microfacet lobes standing in from the first glossy level on).
+    #[serde(default = "yes")]
+    pub ward: bool,
     /// Whether a group whose error its neighbours' stale models cannot explain climbs before
     /// the scene settles (`schedule::gross`).
     #[serde(default = "yes")]
@@ -247,6 +251,7 @@ impl Default for HierarchyOptions {
             margin: 0.15,
             noise_factor: 3.0,
             microfacet: true,
+            ward: true,
             gross_climbs: true,
         }
     }

@@ -103,11 +103,19 @@ impl UnseenEstimate {
                 "not determined by the photo: given the seen groups' area-weighted mean albedo"
             }
         };
-        // σ < 0: the photo gave no estimate at all in that channel.
-        let sigma = if self.sigma.iter().all(|&s| s >= 0.0) {
-            format!("photo's 1σ ({sr:.3}, {sg:.3}, {sb:.3})")
+        // σ < 0: the photo gave no estimate at all in that channel; σ ≥ 1 (the cap) spans all
+        // of [0, 1]. Neither is an error bar.
+        let one = |s: f32| {
+            if (0.0..1.0).contains(&s) {
+                format!("{s:.3}")
+            } else {
+                "not determined".to_string()
+            }
+        };
+        let sigma = if self.sigma.iter().all(|&s| s < 0.0) {
+            "no estimate from the photo".to_string()
         } else {
-            "no estimate from the photo in some channel".to_string()
+            format!("photo's 1σ ({}, {}, {})", one(sr), one(sg), one(sb))
         };
         format!(
             "no usable pixels; {how}: ρd ({r:.3}, {g:.3}, {b:.3}), {sigma}, influence {:.1}% of \

@@ -89,7 +89,7 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
             .collect();
         let pct = |x: Option<f32>| x.map_or("–".to_string(), |e| format!("{:.2}%", 100.0 * e));
         rows += &format!(
-            "<tr><td>{}</td><td>{} ({})</td><td>{:?}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
+            "<tr><td>{}</td><td>{} ({})</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
             esc(&g.name),
             g.level,
             g.level_number,
@@ -152,10 +152,9 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
     }
     if let Some(s) = &res.stray_light {
         let c = |v: [f32; 3]| format!("{:.4}, {:.4}, {:.4}", v[0], v[1], v[2]);
-        let sigma = if s.sigma.iter().all(|&x| x >= 0.0) {
-            c(s.sigma)
-        } else {
-            "not determined in some channel (kept as given)".into()
+        let sigma = match s.sigma {
+            [Some(r), Some(g), Some(b)] => c([r, g, b]),
+            _ => "not determined in some channel (kept as given)".into(),
         };
         views += &format!(
             "<h2>Stray light</h2>\n<p id=\"stray-light\">A constant environment of radiance ({}) W/(m² sr), 1σ ({sigma}), fitted with the materials: {:.1}% of the seen light. It lights what every ray leaving the scene would see; <code>recovered.toml</code> keeps it as <code>[stray_light]</code>.</p>\n",

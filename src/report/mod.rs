@@ -21,7 +21,8 @@ pub struct GroupResult {
     pub name: String,
     pub level: &'static str,
     pub level_number: u8,
-    pub status: Status,
+    /// [`status_word`]: "estimated" for an unseen group the photo determined.
+    pub status: &'static str,
     /// ε of the final render against the photo (usable pixels, 4×4 tiles); absent without pixels.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<f32>,
@@ -51,7 +52,7 @@ pub struct GroupResult {
     pub note: Option<String>,
     /// For a group with no usable pixels: which rule gave its ρd, its 1σ and the remedy.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub unseen: Option<crate::fit::unseen::UnseenEstimate>,
+    pub unseen: Option<UnseenResult>,
     /// For a textured group (level 7): its texture files and how much of it the photo saw.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub texture: Option<TextureResult>,
@@ -131,7 +132,87 @@ pub struct Results {
     pub views: Vec<crate::fit::recovery::ViewFit>,
     /// The fitted stray light (`recover --stray-light`).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub stray_light: Option<crate::fit::stray::StrayEstimate>,
+    pub stray_light: Option<StrayResult>,
+}
+
+/// An unseen group's estimate (`fit::unseen::UnseenEstimate`) as results.json states it.
+#[derive(Serialize)]
+pub struct UnseenResult {
+    pub group: usize,
+    pub rule: crate::fit::unseen::Rule,
+    pub rho_d: [f32; 3],
+    /// 1σ per channel; null where the photo does not determine it ([`determined_sigma`]).
+    pub sigma: [Option<f32>; 3],
+    /// Whether every channel's 1σ is determined.
+    pub determined: bool,
+    pub influence: f32,
+    pub remedy: String,
+}
+
+/// The stray light's estimate (`fit::stray::StrayEstimate`) as results.json states it.
+#[derive(Serialize)]
+pub struct StrayResult {
+    pub radiance: [f32; 3],
+    /// 1σ per channel; null where the photo gave none.
+    pub sigma: [Option<f32>; 3],
+    pub estimated: bool,
+    pub share: f32,
+    pub open: bool,
+}
+
+/// A 1σ as the outputs state it: None where the fit has none to give. The unseen-group fit
+/// marks a channel without an estimate with a negative σ and caps the others at 1, and a
+/// reflectance σ of 1 spans all of [0, 1]: neither is an error bar.
+pub fn determined_sigma(s: f32, cap: Option<f32>) -> Option<f32> {
+    (s.is_finite() && s >= 0.0 && cap.is_none_or(|c| s < c)).then_some(s)
+}
+
+impl From<&crate::fit::unseen::UnseenEstimate> for UnseenResult {
+    fn from(e: &crate::fit::unseen::UnseenEstimate) -> Self {
+        let sigma = e.sigma.map(|s| determined_sigma(s, Some(1.0)));
+        UnseenResult {
+            group: e.group,
+            rule: e.rule,
+            rho_d: e.rho_d,
+            sigma,
+            determined: sigma.iter().all(Option::is_some),
+            influence: e.influence,
+            remedy: e.remedy.clone(),
+        }
+    }
+}
+
+impl From<&crate::fit::stray::StrayEstimate> for StrayResult {
+    fn from(e: &crate::fit::stray::StrayEstimate) -> Self {
+        StrayResult {
+            radiance: e.radiance,
+            sigma: e.sigma.map(|s| determined_sigma(s, None)),
+            estimated: e.estimated,
+            share: e.share,
+            open: e.open,
+        }
+    }
+}
+
+/// A group's status in words, as results.json, report.html and the terminal's table say it:
+/// an unseen group whose ρd the photo determined (`Rule::Estimated`) is "estimated"; one
+/// given the stated scene default is "default".
+pub fn status_word(
+    status: Status,
+    unseen: Option<&crate::fit::unseen::UnseenEstimate>,
+) -> &'static str {
+    match status {
+        Status::Analysing => "analysing",
+        Status::Confirmed => "confirmed",
+        Status::Default
+            if unseen.is_some_and(|u| u.rule == crate::fit::unseen::Rule::Estimated) =>
+        {
+            "estimated"
+        }
+        Status::Default => "default",
+        Status::Fixed => "fixed",
+        Status::Light => "light",
+    }
 }
 
 /// The material of group `g`'s first object in the recovered scene.
@@ -173,6 +254,7 @@ pub fn results(rec: &Recovery) -> Results {
         .map(|(g, s)| {
             let fe = rec.final_error[g];
             let st = &rec.pixel_stats[g];
+            let unseen = rec.unseen.iter().find(|u| u.group == g);
             // A fixed group keeps the scene's material: report that, not the unused fit state.
             let (level, params) = match (s.status, fixed_material(rec, g)) {
                 (Status::Fixed, Some(m)) => (level_of(m), GroupParams::from_material(m)),
@@ -188,7 +270,7 @@ pub fn results(rec: &Recovery) -> Results {
                 name: s.name.clone(),
                 level: level.name(),
                 level_number: level.number(),
-                status: s.status,
+                status: status_word(s.status, unseen),
                 error: fe.map(|e| e.0),
                 noise_floor: fe.map(|e| e.1),
                 fit_error: s.error,
@@ -210,7 +292,7 @@ pub fn results(rec: &Recovery) -> Results {
                     _ => BTreeMap::new(),
                 },
                 note: s.note.clone(),
-                unseen: rec.unseen.iter().find(|u| u.group == g).cloned(),
+                unseen: unseen.map(UnseenResult::from),
                 texture,
             }
         })
@@ -230,7 +312,7 @@ pub fn results(rec: &Recovery) -> Results {
         objective_evals: rec.objective_evals,
         ward_variant: rec.scene.render.ward_variant.name(),
         views: rec.views.clone(),
-        stray_light: rec.stray_light.clone(),
+        stray_light: rec.stray_light.as_ref().map(StrayResult::from),
     }
 }
 
@@ -384,6 +466,13 @@ pub fn write_outputs(
     let scene_path = dir.join("recovered.toml");
     let scene = with_written_textures(rec, dir)?;
     let text = crate::scene::write::scene_to_toml(&scene, &scene_path);
+    // A refined pose the fit ran with is the camera the materials belong to.
+    let camera = inputs
+        .filter(|i| i.photos.is_empty())
+        .and_then(|i| i.registration.as_ref())
+        .filter(|r| r.applied)
+        .map(|r| &r.camera);
+    let text = crate::scene::write::recovered_toml(&text, &recovered_header(inputs), camera);
     write_atomic(&scene_path, text.as_bytes()).map_err(|e| io(&scene_path, e))?;
     let mut res = results(rec);
     res.inputs = inputs.cloned();
@@ -408,6 +497,60 @@ pub fn write_outputs(
     Ok(())
 }
 
+/// What recovered.toml says of itself: what made it, from what, when, and which camera it has.
+fn recovered_header(inputs: Option<&Inputs>) -> String {
+    let version = inputs.map_or(env!("CARGO_PKG_VERSION"), |i| i.matfit.as_str());
+    let mut h = format!(
+        "Recovered by matfit {version} (`matfit recover`) on {} (UTC): the materials fitted to \n\
+         the photo; results.json and report.html beside this file say how well (ε, 1σ, status).\n",
+        utc_date(std::time::SystemTime::now())
+    );
+    let Some(i) = inputs else {
+        return h;
+    };
+    if i.photos.is_empty() {
+        h += &format!("Photo: {}\n", i.photo);
+    } else {
+        h += &format!("Photos: {}\n", i.photos.join(", "));
+    }
+    h += &format!("Scene: {}\n", i.scene);
+    match &i.registration {
+        Some(r) if r.applied && i.photos.is_empty() => {
+            h += &format!(
+                "Camera: the scene's, refined to the photo and applied ({:.3}° rotation, centre \n\
+                 moved {:.4} scene units, {:.2} px RMS image motion; results.json \n\
+                 inputs.registration), in the calibrated form.\n",
+                r.rotation_deg,
+                r.translation.length(),
+                r.rms_px
+            )
+        }
+        Some(r) if r.applied => {
+            h += "Camera: the scene's; the first photo's refined pose is in results.json \n\
+                  inputs.registration.\n"
+        }
+        _ => h += "Camera: the scene's, as given.\n",
+    }
+    h
+}
+
+/// The UTC calendar date of `t`, YYYY-MM-DD (H. Hinnant's civil-from-days algorithm).
+fn utc_date(t: std::time::SystemTime) -> String {
+    let secs = t
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs()) as i64;
+    let z = secs.div_euclid(86_400) + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!("{y:04}-{m:02}-{d:02}")
+}
+
 /// Adds a section of preformatted `text` under `title` to `dir/report.html`, after the
 /// parameter table (the demo's true vs recovered values, which only it knows).
 pub fn add_to_report(dir: &Path, title: &str, text: &str) -> Result<(), String> {
@@ -416,4 +559,25 @@ pub fn add_to_report(dir: &Path, title: &str, text: &str) -> Result<(), String> 
         std::fs::read_to_string(&hp).map_err(|e| format!("cannot read {}: {e}", hp.display()))?;
     let page = html::with_section(&page, title, text);
     write_atomic(&hp, page.as_bytes()).map_err(|e| format!("cannot write {}: {e}", hp.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn utc_dates() {
+        let at = |s: u64| utc_date(std::time::UNIX_EPOCH + std::time::Duration::from_secs(s));
+        assert_eq!(at(0), "1970-01-01");
+        assert_eq!(at(951_782_400), "2000-02-29");
+        assert_eq!(at(1_796_515_200 + 86_399), "2026-12-06");
+    }
+
+    #[test]
+    fn caps_and_sentinels_are_no_error_bars() {
+        assert_eq!(determined_sigma(0.004, Some(1.0)), Some(0.004));
+        assert_eq!(determined_sigma(1.0, Some(1.0)), None);
+        assert_eq!(determined_sigma(-1.0, None), None);
+        assert_eq!(determined_sigma(2.0, None), Some(2.0));
+    }
 }

@@ -92,13 +92,15 @@ pub fn convergence_svg(group: &str, h: &History) -> Option<String> {
             .margin(8)
             .x_label_area_size(32)
             .y_label_area_size(52)
-            .build_cartesian_2d(0u32..last, (lo..hi).log_scale())?;
+            .build_cartesian_2d(
+                0u32..last,
+                (lo..hi).log_scale().with_key_points(log_ticks(lo, hi)),
+            )?;
         chart
             .configure_mesh()
             .x_desc("global iteration")
             .y_desc("ε")
-            .y_labels(5)
-            .y_label_formatter(&|v| format!("{:.2}%", 100.0 * v))
+            .y_label_formatter(&|v| percent(*v))
             .light_line_style(RGBColor(235, 235, 235))
             .draw()?;
         let grey = RGBColor(140, 140, 140);
@@ -155,8 +157,68 @@ pub fn convergence_svg(group: &str, h: &History) -> Option<String> {
     Some(svg)
 }
 
+/// Tick values for a log axis over [lo, hi]: 1, 2 and 5 times the powers of ten inside it, or
+/// (a range spanning less than that) every digit's, or else five evenly spaced in log rounded
+/// to two digits. plotters' own log ticks are the powers of ten alone, so a range that spans
+/// none had no label at all.
+fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    if !(lo > 0.0 && hi > lo) {
+        return vec![];
+    }
+    let within = |mantissas: &[f64]| -> Vec<f64> {
+        let (a, b) = (lo.log10().floor() as i32, hi.log10().ceil() as i32);
+        (a..=b)
+            .flat_map(|e| mantissas.iter().map(move |m| m * 10f64.powi(e)))
+            .filter(|v| (lo..=hi).contains(v))
+            .collect()
+    };
+    for mantissas in [
+        &[1.0, 2.0, 5.0][..],
+        &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0],
+    ] {
+        let t = within(mantissas);
+        if t.len() >= 3 {
+            return t;
+        }
+    }
+    let mut t: Vec<f64> = (0..=5)
+        .map(|i| {
+            let v = lo * (hi / lo).powf(i as f64 / 5.0);
+            let scale = 10f64.powi(v.log10().floor() as i32 - 1);
+            (v / scale).round() * scale
+        })
+        .filter(|v| (lo..=hi).contains(v))
+        .collect();
+    t.dedup();
+    t
+}
+
+/// A fraction as a percentage with two significant digits at least.
+fn percent(v: f64) -> String {
+    let p = 100.0 * v;
+    let decimals = if p > 0.0 {
+        (1 - p.log10().floor() as i32).max(0)
+    } else {
+        2
+    };
+    format!("{p:.*}%", decimals as usize)
+}
+
 #[cfg(test)]
 mod tests {
+    /// A range that spans no power of ten still gets labelled ticks.
+    #[test]
+    fn log_ticks_label_a_range_without_a_power_of_ten() {
+        for (lo, hi) in [(0.013, 0.019), (0.02, 0.09), (0.0011, 0.35), (0.5, 0.52)] {
+            let t = super::log_ticks(lo, hi);
+            assert!(t.len() >= 2, "{lo}..{hi}: {t:?}");
+            assert!(t.iter().all(|v| (lo..=hi).contains(v)), "{lo}..{hi}: {t:?}");
+        }
+        assert_eq!(super::percent(0.0153), "1.5%");
+        assert_eq!(super::percent(0.00042), "0.042%");
+        assert_eq!(super::percent(0.25), "25%");
+    }
+
     use super::*;
 
     const LOG: &str = r#"{"iteration":0,"group":"floor","event":"fit","level":"diffuse","error":0.2,"noise_floor":0.01}

@@ -16,11 +16,47 @@ use std::sync::Arc;
 
 /// Reads and checks a scene file. Relative paths inside it are relative to its folder.
 pub fn load_scene(path: &Path) -> Result<Scene, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|error| SceneError::Io {
+    let bytes = std::fs::read(path).map_err(|error| SceneError::Io {
         path: path.to_owned(),
         error,
     })?;
+    if let Some(kind) = image_kind(&bytes) {
+        return Err(SceneError::Scene {
+            path: path.to_owned(),
+            message: format!(
+                "this is {kind} image, not a scene file (TOML text); the scene file comes \
+                 first, the photo after it: `matfit recover SCENE.toml PHOTO -o OUT`"
+            ),
+        });
+    }
+    let text = String::from_utf8(bytes).map_err(|e| SceneError::Scene {
+        path: path.to_owned(),
+        message: format!(
+            "not a scene file: a scene file is TOML text (UTF-8), and byte {} is not text",
+            e.utf8_error().valid_up_to()
+        ),
+    })?;
     parse_scene(&text, path)
+}
+
+/// The image format whose signature `bytes` start with ("a PNG", …), if any: a photo given
+/// where the scene belongs.
+fn image_kind(bytes: &[u8]) -> Option<&'static str> {
+    let signatures: [(&[u8], &str); 9] = [
+        (b"\x89PNG", "a PNG"),
+        (b"\xFF\xD8\xFF", "a JPEG"),
+        (b"\x76\x2F\x31\x01", "an OpenEXR"),
+        (b"#?RADIANCE", "a Radiance HDR"),
+        (b"#?RGBE", "a Radiance HDR"),
+        (b"PF\n", "a PFM"),
+        (b"Pf\n", "a PFM"),
+        (b"II*\0", "a TIFF"),
+        (b"MM\0*", "a TIFF"),
+    ];
+    signatures
+        .iter()
+        .find(|(sig, _)| bytes.starts_with(sig))
+        .map(|(_, kind)| *kind)
 }
 
 /// Parses scene text as if it were the file at `path`.

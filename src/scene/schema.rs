@@ -36,7 +36,7 @@
 //! shape = "quad"                # quad | box | sphere | mesh
 //! corner = [-1, 0, 1]
 //! edge_u = [2, 0, 0]
-//! edge_v = [0, 0, -2]
+//! edge_v = [0, 0, -2]           # surfaces reflect on both sides; only an emitter has a front
 //! tangent = [1, 0, 0]           # optional reference axis of the anisotropy angle
 //! material = { type = "ward", rho_d = 0.1, rho_s = 0.9, alpha_x = 0.07, alpha_y = 0.11, theta_deg = 0 }
 //! # or a microfacet lobe with the same keys (Mitsuba's roughconductor, material "none"), GGX

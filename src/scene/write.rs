@@ -147,6 +147,72 @@ pub fn scene_to_toml(scene: &Scene, dest: &Path) -> String {
         .unwrap_or_else(|| fresh_toml(scene, from_dir, to_dir))
 }
 
+/// The recovered scene's file: `toml` (from [`scene_to_toml`]) without the comments that opened
+/// the source file (they described the input, e.g. "with the true materials"), under `header`
+/// (lines to be written as comments), and with `camera`'s pose in `[camera]`'s calibrated form
+/// when given (a refined pose the fit was run with).
+pub fn recovered_toml(toml: &str, header: &str, camera: Option<&super::Camera>) -> String {
+    let body = toml
+        .lines()
+        .skip_while(|l| {
+            let t = l.trim_start();
+            t.is_empty() || t.starts_with('#')
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let body = camera.and_then(|c| with_camera(&body, c)).unwrap_or(body);
+    let mut out: String = header
+        .lines()
+        .map(|l| format!("# {}\n", l.trim_end()))
+        .collect();
+    out.push('\n');
+    out.push_str(body.trim_end());
+    out.push('\n');
+    out
+}
+
+/// `text` with `[camera]`'s pose and intrinsics replaced by `c`'s, in the calibrated form
+/// (cx, cy in OpenCV's convention: pixel centres at integers); the lens and projection stay.
+fn with_camera(text: &str, c: &super::Camera) -> Option<String> {
+    let mut doc: toml_edit::DocumentMut = text.parse().ok()?;
+    let t = doc.get_mut("camera")?.as_table_like_mut()?;
+    for k in [
+        "eye",
+        "target",
+        "up",
+        "fov_y_deg",
+        "width_m",
+        "fx",
+        "fy",
+        "cx",
+        "cy",
+        "rotation",
+        "translation",
+    ] {
+        t.remove(k);
+    }
+    // The f32's shortest decimal form (57.941124, not 57.941123962402344).
+    let num = |x: f32| x.to_string().parse::<f64>().unwrap_or(f64::from(x));
+    let arr = |v: [f32; 3]| {
+        let mut a = toml_edit::Array::new();
+        for x in v {
+            a.push(num(x));
+        }
+        a
+    };
+    t.insert("fx", toml_edit::value(num(c.fx)));
+    t.insert("fy", toml_edit::value(num(c.fy)));
+    t.insert("cx", toml_edit::value(num(c.cx - 0.5)));
+    t.insert("cy", toml_edit::value(num(c.cy - 0.5)));
+    let mut rows = toml_edit::Array::new();
+    for i in 0..3 {
+        rows.push(arr(c.r.row(i).to_array()));
+    }
+    t.insert("rotation", toml_edit::value(rows));
+    t.insert("translation", toml_edit::value(arr(c.t.to_array())));
+    Some(doc.to_string())
+}
+
 /// A material as an inline table: `{ type = "ward", rho_d = [0.1, 0.1, 0.1], ... }`.
 fn inline_material(m: &MaterialSpec) -> Option<toml_edit::Value> {
     #[derive(serde::Serialize)]

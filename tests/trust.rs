@@ -1,0 +1,447 @@
+//! Trust on real inputs: a Mitsuba hand-off that states what it approximates, error bars and
+//! status words that say what is known, a recovered.toml that says what it is, and messages
+//! that keep their meaning.
+
+use crate::common::{root, run, small_scene, write, QUICK};
+use std::path::Path;
+
+/// The comment that opens an exported scene.xml.
+fn xml_header(dir: &Path) -> String {
+    let xml = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
+    let start = xml.find("<!--").expect("a header comment");
+    let end = start + xml[start..].find("-->").unwrap();
+    xml[start..end].to_string()
+}
+
+/// figure6's Ward floor goes to Mitsuba as a microfacet lobe fitted to it, whose remaining
+/// error is printed and listed in the file; a scene without Ward says it approximates nothing.
+#[test]
+fn the_mitsuba_export_fits_ward_and_lists_every_approximation() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    let scene = root().join("scenes/figure6/scene.toml");
+    let (code, _, err) = run(
+        &["export", "mitsuba", scene.to_str().unwrap(), "-o", "mi"],
+        dir,
+    );
+    assert_eq!(code, 0, "{err}");
+    let warnings: Vec<&str> = err
+        .lines()
+        .filter_map(|l| l.strip_prefix("warning: "))
+        .collect();
+    let floor = warnings
+        .iter()
+        .find(|w| w.starts_with("object 'floor': Ward has no Mitsuba equivalent"))
+        .unwrap_or_else(|| panic!("{err}"));
+    assert!(floor.contains("fitted to the lobe"), "{floor}");
+    // The remaining error, stated in numbers, below what Ward's own α leaves.
+    let pct = |after: &str| -> f64 {
+        let s = &floor[floor.find(after).unwrap() + after.len()..];
+        s[..s.find('%').unwrap()].trim().parse().unwrap()
+    };
+    let (lobe, naive) = (pct("differs from Ward by "), pct("would leave "));
+    eprintln!("{floor}");
+    assert!(lobe <= naive, "{floor}");
+    let header = xml_header(&dir.join("mi"));
+    assert!(header.contains("Approximations:\n"), "{header}");
+    for w in &warnings {
+        let w = w.replace("--", "- -");
+        assert!(header.contains(&format!("- {w}")), "{w} not in\n{header}");
+    }
+    let xml = std::fs::read_to_string(dir.join("mi/scene.xml")).unwrap();
+    assert!(xml.contains("roughconductor"), "{xml}");
+
+    write(dir, "small.toml", &small_scene());
+    let (code, _, err) = run(&["export", "mitsuba", "small.toml", "-o", "mi2"], dir);
+    assert_eq!(code, 0, "{err}");
+    assert!(!err.contains("warning"), "{err}");
+    assert!(
+        xml_header(&dir.join("mi2")).contains("Approximations: none."),
+        "{}",
+        xml_header(&dir.join("mi2"))
+    );
+}
+
+/// The small room with a glossy Ward floor under the lamp, whose highlight the camera sees.
+fn glossy_room() -> String {
+    small_scene().replace(
+        "material = { type = \"diffuse\", rho_d = 0.5 }",
+        "material = { type = \"ward\", rho_d = 0.25, rho_s = 0.5, alpha = 0.1 }",
+    )
+}
+
+/// `recover --exportable mitsuba` keeps to the models Mitsuba has: no Ward level, and the
+/// export of its result approximates nothing. Without it, the same photo takes a Ward level.
+#[test]
+fn recover_exportable_mitsuba_uses_no_ward_level() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    write(dir, "scene.toml", &glossy_room());
+    let (code, _, err) = run(
+        &["render", "scene.toml", "-o", "photo.exr", "--spp", "64"],
+        dir,
+    );
+    assert_eq!(code, 0, "{err}");
+    let fit = [
+        "--max-iterations",
+        "8",
+        "--light-samples",
+        "8",
+        "--indirect-samples",
+        "8",
+        "--final-spp",
+        "4",
+    ];
+    let level = |out: &str, extra: &[&str]| -> String {
+        let mut args = vec!["recover", "scene.toml", "photo.exr", "-o", out];
+        args.extend(fit);
+        args.extend(extra);
+        let (code, _, err) = run(&args, dir);
+        assert_eq!(code, 0, "{err}");
+        let res = crate::common::results(&dir.join(out));
+        crate::common::result_group(&res, "floor")["level"]
+            .as_str()
+            .unwrap()
+            .to_string()
+    };
+    let free = level("free", &[]);
+    let kept = level("kept", &["--exportable", "mitsuba"]);
+    eprintln!("floor: {free} without --exportable, {kept} with it");
+    assert!(
+        ["isotropic", "anisotropic"].contains(&free.as_str()),
+        "the photo should take a Ward level without the flag: {free}"
+    );
+    assert!(
+        !["isotropic", "anisotropic"].contains(&kept.as_str()),
+        "{kept}"
+    );
+    let (code, _, err) = run(
+        &["export", "mitsuba", "kept/recovered.toml", "-o", "mi"],
+        dir,
+    );
+    assert_eq!(code, 0, "{err}");
+    let header = xml_header(&dir.join("mi"));
+    assert!(header.contains("Approximations: none."), "{header}\n{err}");
+}
+
+/// A room whose ceiling no pixel sees, lit by a lamp facing the floor and one facing the
+/// ceiling: the ceiling's ρd is estimated from the light it sends to the floor.
+const UNSEEN_ROOM: &str = r#"
+[camera]
+width = 64
+height = 48
+eye = [0.0, 1.2, 2.0]
+target = [0.0, 0.0, 0.0]
+fov_y_deg = 40.0
+
+[[object]]
+name = "floor"
+group = "floor"
+shape = "quad"
+corner = [-2.0, 0.0, 2.0]
+edge_u = [4.0, 0.0, 0.0]
+edge_v = [0.0, 0.0, -4.0]
+material = { type = "diffuse", rho_d = 0.5 }
+
+[[object]]
+name = "ceiling"
+group = "ceiling"
+shape = "quad"
+corner = [-2.0, 2.5, -2.0]
+edge_u = [4.0, 0.0, 0.0]
+edge_v = [0.0, 0.0, 4.0]
+material = { type = "diffuse", rho_d = 0.7 }
+
+[[object]]
+name = "down"
+group = "lamps"
+shape = "quad"
+corner = [-0.2, 1.5, -0.2]
+edge_u = [0.4, 0.0, 0.0]
+edge_v = [0.0, 0.0, 0.4]
+emission = 3.0
+
+[[object]]
+name = "up"
+group = "lamps"
+shape = "quad"
+corner = [-0.2, 1.6, 0.2]
+edge_u = [0.4, 0.0, 0.0]
+edge_v = [0.0, 0.0, -0.4]
+emission = 10.0
+"#;
+
+/// results.json gives no capped or sentinel 1σ: a σ is a number in [0, 1) or null with
+/// `determined: false`; the unseen group's status says how its ρd was found, in results.json,
+/// the terminal's table and the report alike.
+#[test]
+fn unseen_sigmas_and_status_words_say_what_is_known() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    write(dir, "scene.toml", UNSEEN_ROOM);
+    let (code, _, err) = run(
+        &["render", "scene.toml", "-o", "photo.exr", "--spp", "64"],
+        dir,
+    );
+    assert_eq!(code, 0, "{err}");
+    let mut args = vec!["recover", "scene.toml", "photo.exr", "-o", "out"];
+    args.extend(QUICK);
+    let (code, out, err) = run(&args, dir);
+    assert_eq!(code, 0, "{err}");
+    let res = crate::common::results(&dir.join("out"));
+    let ceiling = crate::common::result_group(&res, "ceiling");
+    let unseen = &ceiling["unseen"];
+    let sigma = unseen["sigma"].as_array().unwrap();
+    for s in sigma {
+        assert!(
+            s.is_null() || s.as_f64().is_some_and(|x| (0.0..1.0).contains(&x)),
+            "{ceiling}"
+        );
+    }
+    assert_eq!(
+        unseen["determined"].as_bool().unwrap(),
+        sigma.iter().all(|s| !s.is_null()),
+        "{ceiling}"
+    );
+    let word = match unseen["rule"].as_str().unwrap() {
+        "estimated" => "estimated",
+        _ => "default",
+    };
+    eprintln!("ceiling: {ceiling}");
+    assert_eq!(ceiling["status"], word, "{ceiling}");
+    let row = out
+        .lines()
+        .find(|l| l.starts_with("ceiling "))
+        .unwrap_or_else(|| panic!("{out}"));
+    assert!(row.contains(&format!(" {word} ")), "{row}");
+    let html = std::fs::read_to_string(dir.join("out/report.html")).unwrap();
+    assert!(html.contains(&format!("<td>{word}</td>")), "report status");
+    assert!(!html.contains("<td>Default</td>"));
+    assert!(!res.to_string().contains("-1.0"), "{res}");
+}
+
+/// recovered.toml says what made it, from what and when, without the input's opening comments.
+#[test]
+fn recovered_toml_says_what_it_is() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    let text = format!(
+        "# the small room, with the true materials\n{}",
+        small_scene()
+    );
+    write(dir, "scene.toml", &text);
+    let (code, _, err) = run(
+        &["render", "scene.toml", "-o", "photo.exr", "--spp", "16"],
+        dir,
+    );
+    assert_eq!(code, 0, "{err}");
+    let mut args = vec!["recover", "scene.toml", "photo.exr", "-o", "out"];
+    args.extend(QUICK);
+    let (code, _, err) = run(&args, dir);
+    assert_eq!(code, 0, "{err}");
+    let rec = std::fs::read_to_string(dir.join("out/recovered.toml")).unwrap();
+    let header: Vec<&str> = rec.lines().take_while(|l| l.starts_with('#')).collect();
+    let header = header.join("\n");
+    assert!(!rec.contains("true materials"), "{rec}");
+    assert!(
+        header.starts_with(&format!(
+            "# Recovered by matfit {}",
+            env!("CARGO_PKG_VERSION")
+        )),
+        "{rec}"
+    );
+    assert!(header.contains("Photo: photo.exr"), "{header}");
+    assert!(header.contains("Scene: scene.toml"), "{header}");
+    assert!(
+        header.contains("Camera: the scene's, as given."),
+        "{header}"
+    );
+    // Today's UTC date, as `date -u` would give it.
+    let days = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs()
+        / 86_400;
+    let year = 1970 + days * 400 / 146_097;
+    assert!(header.contains(&format!(" on {year}-")), "{header}");
+    // It is a scene `render` reads.
+    let (code, _, err) = run(
+        &[
+            "render",
+            "out/recovered.toml",
+            "-o",
+            "again.exr",
+            "--spp",
+            "1",
+        ],
+        dir,
+    );
+    assert_eq!(code, 0, "{err}");
+}
+
+/// Messages: a photo where the scene belongs, a resume into nothing, an old report beside a
+/// new run's log, and an inverted ignore mask.
+#[test]
+fn messages_say_what_went_wrong() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    write(dir, "scene.toml", &small_scene());
+    let (code, _, err) = run(
+        &["render", "scene.toml", "-o", "photo.png", "--spp", "4"],
+        dir,
+    );
+    assert_eq!(code, 0, "{err}");
+
+    // The photo first: named as an image, with the right order.
+    let (code, _, err) = run(&["recover", "photo.png", "scene.toml", "-o", "out"], dir);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("photo.png: this is a PNG image, not a scene file"),
+        "{err}"
+    );
+    assert!(!err.contains("UTF-8"), "{err}");
+
+    // --resume into a folder that does not exist: an error, and no folder made.
+    let mut args = vec![
+        "recover",
+        "scene.toml",
+        "photo.png",
+        "-o",
+        "none",
+        "--resume",
+    ];
+    args.extend(QUICK);
+    let (code, _, err) = run(&args, dir);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("cannot resume") && err.contains("does not exist"),
+        "{err}"
+    );
+    assert!(!dir.join("none").exists());
+
+    // A run into an old output starts by removing the old results: here the next run fails
+    // before it writes any (a mask that ignores everything), and no old report is left.
+    let mut args = vec!["recover", "scene.toml", "photo.png", "-o", "out"];
+    args.extend(QUICK);
+    let (code, _, err) = run(&args, dir);
+    assert_eq!(code, 0, "{err}");
+    assert!(dir.join("out/report.html").exists());
+    // An object mask (white on the floor, what to keep) given as the ignore mask.
+    let img = image::RgbImage::from_pixel(64, 48, image::Rgb([255, 255, 255]));
+    img.save(dir.join("keep.png")).unwrap();
+    let mut args = vec![
+        "recover",
+        "scene.toml",
+        "photo.png",
+        "-o",
+        "out",
+        "--ignore-mask",
+        "keep.png",
+    ];
+    args.extend(QUICK);
+    let (code, _, err) = run(&args, dir);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("no usable pixel") && err.contains("Is it inverted?"),
+        "{err}"
+    );
+    for old in [
+        "report.html",
+        "results.json",
+        "recovered.toml",
+        "checkpoint.json",
+    ] {
+        assert!(!dir.join("out").join(old).exists(), "old {old} left");
+    }
+}
+
+/// One warning style: the library's warnings read `warning: …` like the command's, and the
+/// repeat at the end keeps the group's name.
+#[test]
+fn warnings_have_one_style_and_keep_the_group() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    write(dir, "scene.toml", UNSEEN_ROOM);
+    let (code, _, err) = run(
+        &["render", "scene.toml", "-o", "photo.exr", "--spp", "16"],
+        dir,
+    );
+    assert_eq!(code, 0, "{err}");
+    let mut args = vec!["recover", "scene.toml", "photo.exr", "-o", "out"];
+    args.extend(QUICK);
+    let (code, _, err) = run(&args, dir);
+    assert_eq!(code, 0, "{err}");
+    assert!(!err.contains(" WARN "), "{err}");
+    assert!(!err.contains("matfit::"), "{err}");
+    // The ceiling's warning, first and repeated, names it.
+    let named = err
+        .lines()
+        .filter(|l| l.starts_with("warning: group 'ceiling': no usable pixels"))
+        .count();
+    assert!(named >= 2, "{err}");
+    assert!(
+        !err.lines()
+            .any(|l| l.starts_with("warning: no usable pixels")),
+        "{err}"
+    );
+}
+
+/// A composite counts the pixels its edit changed beyond the renders' Monte Carlo noise: those
+/// an added ball covers and its shadow, not the whole noisy floor.
+#[test]
+fn a_composite_counts_changes_beyond_the_noise() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    write(dir, "scene.toml", &small_scene());
+    let (code, _, err) = run(
+        &[
+            "render",
+            "scene.toml",
+            "-o",
+            "photo.exr",
+            "--spp",
+            "16",
+            "--seed",
+            "9",
+        ],
+        dir,
+    );
+    assert_eq!(code, 0, "{err}");
+    let (code, out, err) = run(
+        &[
+            "composite",
+            "scene.toml",
+            "photo.exr",
+            "-o",
+            "c.exr",
+            "--spp",
+            "16",
+            "--add",
+            "{ name = \"ball\", group = \"ball\", shape = \"sphere\", center = [0.4, 0.15, 0.4], \
+             radius = 0.15, material = { type = \"diffuse\", rho_d = 0.5 } }",
+        ],
+        dir,
+    );
+    assert_eq!(code, 0, "{err}");
+    let line = out
+        .lines()
+        .find(|l| l.contains("pixels changed beyond the Monte Carlo noise"))
+        .unwrap_or_else(|| panic!("{out}"));
+    let num = |before: &str| -> f64 {
+        let head = &line[..line.find(before).unwrap()];
+        head.rsplit([' ', ':'])
+            .find(|w| !w.is_empty())
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let (changed, covered) = (
+        num(" pixels changed beyond"),
+        num(" covered by added objects"),
+    );
+    eprintln!("{line}");
+    assert!(
+        changed >= covered && changed < 3.0 * covered + 100.0,
+        "{line}"
+    );
+}
