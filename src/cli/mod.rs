@@ -1014,9 +1014,8 @@ pub fn run(cmd: Command) -> Result<()> {
             };
             report.write_files(&folder).map_err(anyhow::Error::msg)?;
             // The written file must be a scene that loads (its meshes found from its folder).
-            matfit::scene::load::parse_scene(&report.toml, &output).map_err(|e| {
-                anyhow::anyhow!("the imported scene does not load (a bug of the importer): {e}")
-            })?;
+            matfit::scene::load::parse_scene(&report.toml, &output)
+                .map_err(|e| anyhow::anyhow!("the imported scene does not load: {e}"))?;
             matfit::io::atomic::write_atomic(&output, report.toml.as_bytes())
                 .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", output.display()))?;
             for w in &report.warnings {

@@ -180,8 +180,8 @@ impl Mesh {
         for p in &mut self.positions {
             *p = m.transform_point3(*p);
         }
-        let nm = DMat3::from_mat4(*m).inverse().transpose();
         if let Some(ns) = &mut self.normals {
+            let nm = DMat3::from_mat4(*m).inverse().transpose();
             for n in ns.iter_mut() {
                 *n = (nm * *n).normalize_or_zero();
                 if flip {

@@ -1,8 +1,24 @@
 //! Import of a Mitsuba 3 scene (XML) as a matfit scene file: the inverse of
 //! `export/mitsuba.rs`, for the subset of Mitsuba that matfit can render.
 //!
+//! Usage: `matfit import mitsuba SCENE.xml -o scene.toml [-D name=value ...]`. The scene file is
+//! written with its header listing every approximation; meshes and textures the import makes
+//! go to `meshes/` and `textures/` beside it. An import check over public scenes (Mitsuba's own
+//! and Bitterli's) is `bench/import_public.py` (`bench/IMPORT_PUBLIC.md`).
+//!
 //! How each part maps (an approximation is a warning naming the element and its line; an element
-//! matfit cannot render at all is an error `FILE:LINE: what`):
+//! matfit cannot render at all is an error `FILE:LINE: what`, and every such refusal of a scene
+//! is reported in the same run, with the approximations found so far):
+//! - **Files.** A file older than Mitsuba 2 (`version="0.5.0"`, …: Bitterli's scenes) is
+//!   upgraded as Mitsuba 3 upgrades it (`import/source.rs`): camelCase property names become
+//!   snake_case (`toWorld`, `sampleCount`, `maxDepth`, `intIOR`, …), a diffuse BSDF's
+//!   `diffuse_reflectance` its `reflectance`, `<lookAt>` `<lookat>`, and a bitmap's
+//!   `uoffset`/`voffset`/`uscale`/`vscale` its `to_uv`. `<include filename>` splices in another
+//!   file (messages name its lines); `<path value>` adds a folder that files are searched in
+//!   (after the main file's folder). A property of an element the import reads that it does
+//!   not read itself is a warning naming it and its line (once per kind of element, with the
+//!   other lines), never dropped in silence; output-only ones (`pixel_format`, `banner`,
+//!   `high_quality_edges`, clipping planes, sampler seeds) change nothing and are not.
 //! - **Parameters.** `<default name value>` and `$name` in any attribute (the command line's
 //!   `-D name=value` wins over a default, as Mitsuba's `load_file(**params)` does).
 //! - **Camera.** `perspective` (or `thinlens`, as a pinhole: a warning). Its field of view is
@@ -28,7 +44,13 @@
 //!   to_world) → sphere (256 segments: the tessellation's area is 0.01% short of the sphere's),
 //!   with a `transform` if M scales unevenly. `obj`/`ply` → mesh, the file referred to relative
 //!   to the output scene file, `to_world` as matfit's transform (scale, rotate X→Y→Z, translate;
-//!   a shear cannot be written: an error). `flip_normals` on an emitting box, sphere or mesh is
+//!   a shear cannot be written: an error); a mesh whose triangles all have zero area (which
+//!   Mitsuba loads and draws nothing of) is skipped with a warning naming its file;
+//!   `face_normals` on a mesh with vertex normals writes a copy without them (matfit then
+//!   shades with the triangles' normals, as Mitsuba does). `serialized` (Mitsuba's zlib
+//!   format, versions 3 and 4, `shape_index`) and `disk` (a 256-gon, a warning) become OBJ
+//!   meshes in `meshes/`, `to_world` and `flip_normals` applied to the vertices and winding.
+//!   `flip_normals` on an emitting box, sphere or mesh is
 //!   an error (matfit emits along the wound normal, outward), elsewhere it changes nothing
 //!   (matfit's surfaces reflect on both sides).
 //! - **Texture coordinates.** Mitsuba reads a bitmap with v = 0 at the image's top row; matfit
@@ -39,6 +61,11 @@
 //!   file (`ImportReport::textures`; the values matfit decodes from the source), so that every
 //!   point reads what Mitsuba reads. A texture on a `cube` or `sphere`, whose coordinates differ
 //!   from matfit's box and sphere, is a warning.
+//! - **Textures.** `bitmap` (`filter_type` nearest and `wrap_mode` mirror/clamp are warnings:
+//!   matfit's lookup is bilinear and repeats; a `to_uv` is baked into a resampled copy) and
+//!   `checkerboard` (drawn into an image from Mitsuba's rule, `to_uv` included: a warning,
+//!   its edges soft over one texel). A texture where matfit takes a constant (a conductor's
+//!   `specular_reflectance`, a blend) gives the texture's mean, a warning.
 //! - **Groups.** What matfit fits: a shape whose BSDF has an id (a `<ref>` to a shared BSDF, or
 //!   an inline one with an id) is in the group named by that id, so that shapes sharing a BSDF
 //!   share their reflectance; any other shape is its own group, named by its id (or
@@ -49,26 +76,32 @@
 //! - **Lights.** `area` emitters' `radiance` (rgb, a constant or a sampled spectrum) → emission;
 //!   `directional` (irradiance), `point` and `spot` (intensity, cutoff_angle, beam_width) →
 //!   `[[light]]` of the same meaning; `envmap` (filename, scale, a rotation) → `[environment]`;
-//!   `constant` (radiance) → `[stray_light]`. Every other emitter is an error: the
+//!   `constant` (radiance) → `[stray_light]`; an envmap's translation is ignored, as Mitsuba
+//!   ignores it (the map is at infinity). Every other emitter is an error: the
 //!   lights are known inputs of a recovery, and one dropped would bias every group.
 //! - **BSDFs** (matfit's surfaces are two-sided: `twosided` is unwrapped, a one-sided BSDF is a
 //!   warning). Exact: `diffuse` (reflectance rgb / constant or sampled spectrum / bitmap texture →
 //!   textured; `raw` matters to 8/16-bit images only, whose matfit decoding is sRGB: a warning)
-//!   → diffuse; `conductor` with material `none` → mirror ρs = specular_reflectance;
+//!   → diffuse; `bumpmap`/`normalmap` → its nested BSDF (a warning: matfit has no bump
+//!   maps); `conductor` with material `none` → mirror ρs = specular_reflectance;
 //!   `blendbsdf` of those → diffuse_mirror ρd = (1−w)·ρd₁ + w·ρd₂, ρs likewise (the exporter's
 //!   blend inverted); `roughconductor` with material `none` and `distribution` "ggx" or
 //!   "beckmann", alone or blended with a `diffuse` → microfacet, likewise; a textured `diffuse`
 //!   blended with a specular lobe (the exporter's varnished texture) → textured, scale 1 − w,
 //!   with the lobe's ρs and α as its Ward varnish (a warning where the lobe is a microfacet one:
 //!   matfit's varnish is Ward's); `roughplastic` with `distribution` "ggx" or "beckmann"
-//!   (and `nonlinear` false) → plastic (ρd = diffuse_reflectance, ρs = F0·specular_reflectance,
-//!   α, η = int_ior/ext_ior). Initial guesses, not truth (a warning each), with ρs from Fresnel
-//!   reflectance at normal incidence F0: conductors with eta/k (or a named metal, from a small
+//!   → plastic (ρd = diffuse_reflectance, ρs = F0·specular_reflectance, α, η = int_ior/ext_ior,
+//!   a named IOR as Mitsuba's table; `nonlinear`'s ρ/(1 − ρ·F_int) as the linear model's
+//!   ρd = ρ(1 − F_int)/(1 − ρ·F_int), also exact). With a bitmap `diffuse_reflectance`, which
+//!   matfit's plastic cannot hold (its textured level's Ward varnish lacks the coat's Fresnel
+//!   rise, far off at grazing views): the exact plastic with ρd the texels' mean (nonlinear
+//!   folded in per texel), a warning that the texture's variation is lost. Initial guesses, not truth (a warning
+//!   each), with ρs from Fresnel reflectance at normal incidence F0: conductors with eta/k (or a named metal, from a small
 //!   table) → mirror ρs = F0·specular_reflectance; `roughconductor` → Ward ρd 0, ρs as the
 //!   conductor, α = alpha (αx, αy = alpha_u, alpha_v; Beckmann's and Ward's α are the same slope
 //!   width); `plastic` → diffuse_mirror with F0 = ((η−1)/(η+1))², η = int_ior/ext_ior,
-//!   ρs = F0·specular_reflectance, ρd = (1−F0)·diffuse_reflectance; `roughplastic` with
-//!   `nonlinear` → plastic with its α, η and distribution; `principled` →
+//!   ρs = F0·specular_reflectance, ρd = (1−F0)·diffuse_reflectance (a texture: its mean);
+//!   `principled` →
 //!   Ward α = roughness², F0 = 0.08·specular blended to base_color by metallic,
 //!   ρd = (1−metallic)(1−F0)·base_color. Anything else
 //!   (dielectrics, …) → diffuse 0.5 with a warning. A shape with no BSDF gets Mitsuba's default,
@@ -130,6 +163,8 @@ pub fn import_str(
         reoriented: HashMap::new(),
         textures: Vec::new(),
         meshes: Vec::new(),
+        made: HashMap::new(),
+        means: HashMap::new(),
         used: RefCell::new(HashSet::new()),
         read: RefCell::new(HashSet::new()),
         failed: Vec::new(),
@@ -139,15 +174,20 @@ pub fn import_str(
     let file = match (file, cx.errors.is_empty()) {
         (Some(f), true) => f,
         _ => {
-            let mut msg = format!(
-                "{}: the scene cannot be imported ({} problem{}):",
-                xml.display(),
-                cx.errors.len(),
-                if cx.errors.len() == 1 { "" } else { "s" }
-            );
-            for e in &cx.errors {
-                msg.push_str(&format!("\n  {e}"));
-            }
+            let mut msg = match &cx.errors[..] {
+                [one] => one.clone(),
+                all => {
+                    let mut m = format!(
+                        "{}: the scene cannot be imported ({} problems):",
+                        xml.display(),
+                        all.len()
+                    );
+                    for e in all {
+                        m.push_str(&format!("\n  {e}"));
+                    }
+                    m
+                }
+            };
             if !cx.warnings.is_empty() {
                 msg.push_str("\nand, if these were fixed, these approximations:");
                 for w in &cx.warnings {
@@ -200,6 +240,11 @@ struct Ctx<'a> {
     textures: Vec<(String, crate::io::image::Image)>,
     /// Meshes the import made (serialized meshes, disks), to be written next to the scene file.
     meshes: Vec<(String, Vec<u8>)>,
+    /// Textures the import made, by the element (and what) they were made for: a texture or
+    /// BSDF shared by many shapes is made once.
+    made: HashMap<((usize, usize), &'static str), String>,
+    /// Textures' means, by path (and the nonlinear plastic's F_int they were taken with).
+    means: HashMap<String, DVec3>,
     /// Property elements read, and the elements whose properties were read (by [`key`]): a
     /// property of a read element that nothing read is reported, never dropped in silence.
     used: RefCell<HashSet<(usize, usize)>>,
@@ -528,6 +573,15 @@ impl<'a> Ctx<'a> {
     /// `checkerboard` (an image the import draws), as a path relative to the output's folder
     /// in Mitsuba's orientation (v = 0 at the top row; the shape turns it, [`Self::reoriented`]).
     fn texture(&mut self, p: N<'a>) -> Result<String, String> {
+        if let Some(t) = self.made.get(&(key(p), "texture")) {
+            return Ok(t.clone());
+        }
+        let t = self.make_texture(p)?;
+        self.made.insert((key(p), "texture"), t.clone());
+        Ok(t)
+    }
+
+    fn make_texture(&mut self, p: N<'a>) -> Result<String, String> {
         let ty = self.need_attr(p, "type")?;
         let to_uv = self.uv_transform(p)?;
         match ty.as_str() {
@@ -672,10 +726,25 @@ impl<'a> Ctx<'a> {
             .map_err(|e| self.err(n, format!("texture: {e}")))
     }
 
-    fn texture_mean(&self, n: N<'a>, path: &str) -> Result<DVec3, String> {
+    fn texture_mean(&mut self, n: N<'a>, path: &str) -> Result<DVec3, String> {
+        self.texture_mean_of(n, path, None)
+    }
+
+    /// The mean of a texture's texels, each first taken to ρ(1 − f)/(1 − ρ·f) when `f` is given
+    /// (a nonlinear plastic's diffuse part as the linear one's); kept, as shared BSDFs ask again.
+    fn texture_mean_of(&mut self, n: N<'a>, path: &str, f: Option<f64>) -> Result<DVec3, String> {
+        let cache = format!("{path}|{f:?}");
+        if let Some(m) = self.means.get(&cache) {
+            return Ok(*m);
+        }
         let i = self.texture_image(n, path)?;
-        let sum = i.data.iter().fold(DVec3::ZERO, |a, c| a + c.as_dvec3());
-        Ok(sum / (i.data.len().max(1) as f64))
+        let g = |r: f64| f.map_or(r, |f| r * (1.0 - f) / (1.0 - r * f));
+        let sum = i.data.iter().fold(DVec3::ZERO, |a, c| {
+            a + DVec3::new(g(c.x as f64), g(c.y as f64), g(c.z as f64))
+        });
+        let mean = sum / (i.data.len().max(1) as f64);
+        self.means.insert(cache, mean);
+        Ok(mean)
     }
 
     /// A file named in the XML, found as Mitsuba finds it (relative to the main file's folder,
@@ -916,6 +985,10 @@ impl<'a> Ctx<'a> {
                         }
                         stray_light = Some(Spanned::new(0..0, StrayLightSpec { radiance: r }));
                     }
+                    // An area emitter defined for shapes to refer to (`<ref id=.../>`).
+                    "emitter"
+                        if self.attr(c, "type")?.as_deref() == Some("area")
+                            && self.attr(c, "id")?.is_some() => {}
                     "emitter" => {
                         let k = lights.len() + 1;
                         lights.push(self.emitter(c, k)?);
@@ -1581,12 +1654,20 @@ impl<'a> Ctx<'a> {
                 // Mitsuba loads a mesh whose triangles all have zero area (it draws nothing);
                 // matfit refuses one, so it is left out.
                 let mut mesh = crate::scene::meshio::load_mesh(&abs).map_err(|e| self.err(n, e))?;
-                if let Err(crate::geometry::mesh::MeshProblem::AllDegenerate) = mesh.validate() {
+                use crate::geometry::mesh::MeshProblem;
+                match mesh.validate() {
+                    Ok(_) => {}
+                    Err(MeshProblem::AllDegenerate | MeshProblem::NoTriangles) => {}
+                    Err(e) => {
+                        return Err(self.err(n, format!("mesh {}: {e}", abs.display())));
+                    }
+                }
+                if mesh.indices.is_empty() {
                     self.warn(
                         n,
                         format!(
-                            "mesh {} is skipped: every triangle of it is degenerate (zero area; \
-                             Mitsuba draws nothing of it either)",
+                            "mesh {} is skipped: it has no triangle of non-zero area (Mitsuba \
+                             draws nothing of it either)",
                             abs.display()
                         ),
                     );
@@ -1891,47 +1972,34 @@ impl<'a> Ctx<'a> {
                 };
                 match self.color(b, "diffuse_reflectance")? {
                     Some(Err(texture)) => {
-                        // matfit's plastic has no texture; its textured level has a Ward
-                        // varnish over a Lambertian texture: the coat's mean diffuse
-                        // transmission goes into the texels.
-                        let k = coat_diffuse_albedo(coat);
-                        let texture = if nonlinear {
-                            let mut img = self.texture_image(b, &texture)?;
-                            for c in &mut img.data {
-                                *c = crate::math::Rgb::new(
-                                    linear(c.x as f64) as f32,
-                                    linear(c.y as f64) as f32,
-                                    linear(c.z as f64) as f32,
-                                );
-                            }
-                            let stem = Path::new(&texture)
-                                .file_stem()
-                                .map(|s| sanitize(&s.to_string_lossy()))
-                                .unwrap_or_default();
-                            self.generated(&format!("{stem}_linear"), img)
-                        } else {
-                            texture
-                        };
+                        // matfit's plastic holds no texture. Its textured level's Ward varnish
+                        // lacks the coat's Fresnel rise, which dominates at grazing views (a
+                        // floor: 66% darker than Mitsuba in Bitterli's living room); the coat
+                        // kept exact over the texels' mean diffuse is within noise there.
+                        let mean = self.texture_mean_of(b, &texture, nonlinear.then_some(f_int))?;
                         self.warn(
                             b,
                             format!(
-                                "{} with a textured diffuse_reflectance: matfit's plastic has \
-                                 no texture, so a Lambertian texture × {k:.4} (the coat's mean \
-                                 diffuse transmission{}) under a Ward varnish of the coat's α \
-                                 and ρs = F0 × specular_reflectance",
+                                "{} with a textured diffuse_reflectance ({texture}): matfit's \
+                                 plastic holds no texture, so ρd is the texels' mean ({:.4}, \
+                                 {:.4}, {:.4}){} under the exact coat; the texture's variation \
+                                 is lost",
                                 self.describe(b),
+                                mean.x,
+                                mean.y,
+                                mean.z,
                                 if nonlinear {
-                                    "; `nonlinear` folded into the texels"
+                                    ", `nonlinear` folded in per texel"
                                 } else {
                                     ""
                                 }
                             ),
                         );
                         Lobes {
-                            d: DVec3::splat(k),
+                            d: mean,
                             s,
                             alpha: Some((a, a)),
-                            texture: Some(texture),
+                            plastic: Some((eta, known.unwrap_or_default())),
                             ..Default::default()
                         }
                     }
@@ -1973,18 +2041,22 @@ impl<'a> Ctx<'a> {
                 }
                 match self.color(b, "diffuse_reflectance")? {
                     Some(Err(texture)) => {
+                        let mean = self.texture_mean(b, &texture)?;
                         self.warn(
                             b,
                             format!(
-                                "{} with a textured diffuse_reflectance: the texture × (1 − F0) \
-                                 under a Ward varnish of α 0.05 in place of the smooth coat",
-                                self.describe(b)
+                                "{} with a textured diffuse_reflectance ({texture}): ρd from the \
+                                 texels' mean ({:.4}, {:.4}, {:.4}); the texture's variation is \
+                                 lost",
+                                self.describe(b),
+                                mean.x,
+                                mean.y,
+                                mean.z
                             ),
                         );
                         Lobes {
-                            d: DVec3::splat(1.0 - f0),
+                            d: mean * (1.0 - f0),
                             s,
-                            texture: Some(texture),
                             ..Default::default()
                         }
                     }
@@ -2270,22 +2342,6 @@ impl<'a> Ctx<'a> {
             },
         }
     }
-}
-
-/// The albedo of a coat's diffuse part per unit ρd for light from a cosine-weighted
-/// hemisphere seen from one: π t̄² / (π η² (1 − F_int)) with t̄ its cosine-weighted mean
-/// transmission, so that a Lambertian texture × this albedo carries the same light on average.
-fn coat_diffuse_albedo(coat: &crate::render::bsdf::Coat) -> f64 {
-    let n = 256;
-    let t_mean: f64 = (0..n)
-        .map(|i| {
-            let mu = (i as f64 + 0.5) / n as f64;
-            2.0 * mu * coat.transmittance(mu as f32) as f64 / n as f64
-        })
-        .sum();
-    let t1 = coat.transmittance(1.0) as f64;
-    let scale = coat.diffuse(1.0, 1.0) as f64 / (t1 * t1);
-    std::f64::consts::PI * scale * t_mean * t_mean
 }
 
 /// The coat's internal diffuse reflectance F_int, from its diffuse part 1/(π η² (1 − F_int)).
