@@ -984,9 +984,12 @@ fn includes_and_search_paths_are_followed() {
     assert!(e.contains(":6: <include>: file none.xml not found"), "{e}");
 }
 
-/// A Mitsuba serialized file (version 4, zlib-compressed, two shapes, as Mitsuba 0.5 writes
-/// one) and a disk import as meshes written next to the scene, `to_world` applied.
-fn serialized_v4(shapes: &[(Vec<[f32; 3]>, Vec<[u32; 3]>)]) -> Vec<u8> {
+/// A mesh as positions and triangles.
+type Part = (Vec<[f32; 3]>, Vec<[u32; 3]>);
+
+/// A Mitsuba serialized file (version 4, zlib-compressed) of `shapes`, as Mitsuba 0.5 writes
+/// one: the shapes, then their offsets and count at the end.
+fn serialized_v4(shapes: &[Part]) -> Vec<u8> {
     use std::io::Write;
     let mut out = Vec::new();
     let mut offsets = Vec::new();
@@ -1015,6 +1018,8 @@ fn serialized_v4(shapes: &[(Vec<[f32; 3]>, Vec<[u32; 3]>)]) -> Vec<u8> {
     out
 }
 
+/// A serialized file's shapes and a disk import as meshes written next to the scene, their
+/// `to_world` (and a disk's `flip_normals`) applied.
 #[test]
 fn serialized_meshes_and_disks_import_as_meshes() {
     let dir = tempfile::tempdir().unwrap();

@@ -85,14 +85,13 @@ pub fn parse_serialized(b: &[u8], index: usize) -> Result<Mesh, String> {
                 "shape_index {index} is out of range: the file holds {count} shapes"
             ));
         }
-        let offset = if version == 4 {
+        if version == 4 {
             let at = b.len() - 4 - 8 * (count - index);
             u64_at(b, at).ok_or_else(short)? as usize
         } else {
             let at = b.len() - 4 * (count - index + 1);
             u32_at(b, at).ok_or_else(short)? as usize
-        };
-        offset
+        }
     };
     let body = b.get(start + 4..).ok_or_else(short)?;
     let mut z = flate2::read::ZlibDecoder::new(body);
@@ -260,7 +259,7 @@ mod tests {
             out.extend_from_slice(&MAGIC.to_le_bytes());
             out.extend_from_slice(&4u16.to_le_bytes());
             let mut raw = Vec::new();
-            let flags = HAS_TEXCOORDS * m.uvs.is_some() as u32 | 0x1000;
+            let flags = (HAS_TEXCOORDS * m.uvs.is_some() as u32) | 0x1000;
             raw.extend_from_slice(&flags.to_le_bytes());
             raw.extend_from_slice(b"part\0");
             raw.extend_from_slice(&(m.positions.len() as u64).to_le_bytes());
