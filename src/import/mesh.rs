@@ -195,6 +195,30 @@ impl Mesh {
         }
     }
 
+    /// Vertex normals as Mitsuba generates them for a mesh that has none (and no
+    /// `face_normals`): each triangle's unit normal added to its corners' weighted by the
+    /// corner's angle (Thürmer and Wüthrich 1998), normalised.
+    pub fn generate_normals(&mut self) {
+        let mut acc = vec![DVec3::ZERO; self.positions.len()];
+        for t in &self.indices {
+            let p = t.map(|i| self.positions[i as usize]);
+            let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+            if n == DVec3::ZERO {
+                continue;
+            }
+            for k in 0..3 {
+                let a = (p[(k + 1) % 3] - p[k]).normalize_or_zero();
+                let b = (p[(k + 2) % 3] - p[k]).normalize_or_zero();
+                acc[t[k] as usize] += n * a.dot(b).clamp(-1.0, 1.0).acos();
+            }
+        }
+        self.normals = Some(
+            acc.into_iter()
+                .map(|n| n.try_normalize().unwrap_or(DVec3::X))
+                .collect(),
+        );
+    }
+
     /// True when no triangle has an area (matfit's rule in `TriangleMesh::validate`).
     pub fn all_degenerate(&self) -> bool {
         !self.indices.iter().any(|&[a, b, c]| {

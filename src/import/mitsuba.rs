@@ -48,8 +48,9 @@
 //!   Mitsuba loads and draws nothing of) is skipped with a warning naming its file;
 //!   `face_normals` on a mesh with vertex normals writes a copy without them (matfit then
 //!   shades with the triangles' normals, as Mitsuba does). `serialized` (Mitsuba's zlib
-//!   format, versions 3 and 4, `shape_index`) and `disk` (a 256-gon, a warning) become OBJ
-//!   meshes in `meshes/`, `to_world` and `flip_normals` applied to the vertices and winding.
+//!   format, versions 3 and 4, `shape_index`; without normals, the angle-weighted vertex
+//!   normals Mitsuba makes, unless `face_normals`) and `disk` (a 256-gon, a warning) become
+//!   OBJ meshes in `meshes/`, `to_world` and `flip_normals` applied to vertices and winding.
 //!   `flip_normals` on an emitting box, sphere or mesh is
 //!   an error (matfit emits along the wound normal, outward), elsewhere it changes nothing
 //!   (matfit's surfaces reflect on both sides).
@@ -1675,6 +1676,8 @@ impl<'a> Ctx<'a> {
                 }
                 // Mitsuba's face_normals shades with the triangles' own normals: a copy of the
                 // mesh without its vertex normals, which matfit then shades the same way.
+                // Mitsuba's face_normals shades with the triangles' own normals: a copy of the
+                // mesh without its vertex normals, which matfit then shades the same way.
                 if self.boolean(n, "face_normals")? && mesh.normals.is_some() {
                     let copy = super::mesh::Mesh {
                         positions: mesh.positions.iter().map(|p| p.as_dvec3()).collect(),
@@ -1718,12 +1721,17 @@ impl<'a> Ctx<'a> {
                     super::mesh::read_serialized(&abs, index as usize)
                         .map_err(|e| self.err(n, e))?
                 };
-                if ty == "serialized" && self.boolean(n, "face_normals")? {
+                let face_normals = ty == "serialized" && self.boolean(n, "face_normals")?;
+                if face_normals {
                     mesh.normals = None;
                 }
                 // Mitsuba's flip_normals turns the wound normal, which is matfit's emitting side.
                 let flip_winding = flip != (lin.determinant() < 0.0);
                 mesh.apply(&m, flip_winding);
+                // Mitsuba shades a mesh without normals smoothly, with normals it makes.
+                if ty == "serialized" && !face_normals && mesh.normals.is_none() {
+                    mesh.generate_normals();
+                }
                 if mesh.all_degenerate() {
                     self.warn(
                         n,
