@@ -337,6 +337,32 @@ mod tests {
             .contains("holds 2 shapes"));
     }
 
+    /// A tent of two faces meeting at a ridge: the ridge's normals point up between the
+    /// faces' (each face's angle at a ridge vertex weighs the same), the eaves' are the faces'.
+    #[test]
+    fn generated_normals_weigh_faces_by_their_corner_angles() {
+        let mut m = Mesh {
+            positions: vec![
+                DVec3::new(-1.0, 0.0, 0.0),
+                DVec3::new(0.0, 1.0, 0.0),
+                DVec3::new(0.0, 1.0, 1.0),
+                DVec3::new(-1.0, 0.0, 1.0),
+                DVec3::new(1.0, 0.0, 0.0),
+                DVec3::new(1.0, 0.0, 1.0),
+            ],
+            indices: vec![[0, 2, 1], [0, 3, 2], [1, 2, 5], [1, 5, 4]],
+            ..Default::default()
+        };
+        m.generate_normals();
+        let n = m.normals.unwrap();
+        assert!((n[1] - DVec3::Y).length() < 1e-9, "{}", n[1]);
+        assert!(
+            (n[0] - DVec3::new(-1.0, 1.0, 0.0).normalize()).length() < 1e-9,
+            "{}",
+            n[0]
+        );
+    }
+
     #[test]
     fn a_flipped_disk_faces_down() {
         let mut d = disk(16);
