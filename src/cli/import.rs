@@ -43,18 +43,10 @@ pub fn command(args: ImportCli) -> Result<()> {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => std::path::PathBuf::from("."),
     };
-    for (name, image) in &report.textures {
-        let path = folder.join(name);
-        if let Some(dir) = path.parent() {
-            std::fs::create_dir_all(dir)
-                .with_context(|| format!("cannot create {}", dir.display()))?;
-        }
-        image.write(&path).map_err(anyhow::Error::msg)?;
-    }
+    report.write_files(&folder).map_err(anyhow::Error::msg)?;
     // The written file must be a scene that loads (its meshes found from its folder).
-    matfit::scene::load::parse_scene(&report.toml, &output).map_err(|e| {
-        anyhow::anyhow!("the imported scene does not load (a bug of the importer): {e}")
-    })?;
+    matfit::scene::load::parse_scene(&report.toml, &output)
+        .map_err(|e| anyhow::anyhow!("the imported scene does not load: {e}"))?;
     matfit::io::atomic::write_atomic(&output, report.toml.as_bytes())
         .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", output.display()))?;
     for w in &report.warnings {

@@ -1,8 +1,24 @@
 //! Import of a Mitsuba 3 scene (XML) as a matfit scene file: the inverse of
 //! `export/mitsuba.rs`, for the subset of Mitsuba that matfit can render.
 //!
+//! Usage: `matfit import mitsuba SCENE.xml -o scene.toml [-D name=value ...]`. The scene file is
+//! written with its header listing every approximation; meshes and textures the import makes
+//! go to `meshes/` and `textures/` beside it. An import check over public scenes (Mitsuba's own
+//! and Bitterli's) is `bench/import_public.py` (`bench/IMPORT_PUBLIC.md`).
+//!
 //! How each part maps (an approximation is a warning naming the element and its line; an element
-//! matfit cannot render at all is an error `FILE:LINE: what`):
+//! matfit cannot render at all is an error `FILE:LINE: what`, and every such refusal of a scene
+//! is reported in the same run, with the approximations found so far):
+//! - **Files.** A file older than Mitsuba 2 (`version="0.5.0"`, …: Bitterli's scenes) is
+//!   upgraded as Mitsuba 3 upgrades it (`import/source.rs`): camelCase property names become
+//!   snake_case (`toWorld`, `sampleCount`, `maxDepth`, `intIOR`, …), a diffuse BSDF's
+//!   `diffuse_reflectance` its `reflectance`, `<lookAt>` `<lookat>`, and a bitmap's
+//!   `uoffset`/`voffset`/`uscale`/`vscale` its `to_uv`. `<include filename>` splices in another
+//!   file (messages name its lines); `<path value>` adds a folder that files are searched in
+//!   (after the main file's folder). A property of an element the import reads that it does
+//!   not read itself is a warning naming it and its line (once per kind of element, with the
+//!   other lines), never dropped in silence; output-only ones (`pixel_format`, `banner`,
+//!   `high_quality_edges`, clipping planes, sampler seeds) change nothing and are not.
 //! - **Parameters.** `<default name value>` and `$name` in any attribute (the command line's
 //!   `-D name=value` wins over a default, as Mitsuba's `load_file(**params)` does).
 //! - **Camera.** `perspective` (or `thinlens`, as a pinhole: a warning). Its field of view is
@@ -28,7 +44,14 @@
 //!   to_world) → sphere (256 segments: the tessellation's area is 0.01% short of the sphere's),
 //!   with a `transform` if M scales unevenly. `obj`/`ply` → mesh, the file referred to relative
 //!   to the output scene file, `to_world` as matfit's transform (scale, rotate X→Y→Z, translate;
-//!   a shear cannot be written: an error). `flip_normals` on an emitting box, sphere or mesh is
+//!   a shear cannot be written: an error); a mesh whose triangles all have zero area (which
+//!   Mitsuba loads and draws nothing of) is skipped with a warning naming its file;
+//!   `face_normals` on a mesh with vertex normals writes a copy without them (matfit then
+//!   shades with the triangles' normals, as Mitsuba does). `serialized` (Mitsuba's zlib
+//!   format, versions 3 and 4, `shape_index`; without normals, the angle-weighted vertex
+//!   normals Mitsuba makes, unless `face_normals`) and `disk` (a 256-gon, a warning) become
+//!   OBJ meshes in `meshes/`, `to_world` and `flip_normals` applied to vertices and winding.
+//!   `flip_normals` on an emitting box, sphere or mesh is
 //!   an error (matfit emits along the wound normal, outward), elsewhere it changes nothing
 //!   (matfit's surfaces reflect on both sides).
 //! - **Texture coordinates.** Mitsuba reads a bitmap with v = 0 at the image's top row; matfit
@@ -39,6 +62,11 @@
 //!   file (`ImportReport::textures`; the values matfit decodes from the source), so that every
 //!   point reads what Mitsuba reads. A texture on a `cube` or `sphere`, whose coordinates differ
 //!   from matfit's box and sphere, is a warning.
+//! - **Textures.** `bitmap` (`filter_type` nearest and `wrap_mode` mirror/clamp are warnings:
+//!   matfit's lookup is bilinear and repeats; a `to_uv` is baked into a resampled copy) and
+//!   `checkerboard` (drawn into an image from Mitsuba's rule, `to_uv` included: a warning,
+//!   its edges soft over one texel). A texture where matfit takes a constant (a conductor's
+//!   `specular_reflectance`, a blend) gives the texture's mean, a warning.
 //! - **Groups.** What matfit fits: a shape whose BSDF has an id (a `<ref>` to a shared BSDF, or
 //!   an inline one with an id) is in the group named by that id, so that shapes sharing a BSDF
 //!   share their reflectance; any other shape is its own group, named by its id (or
@@ -49,26 +77,32 @@
 //! - **Lights.** `area` emitters' `radiance` (rgb, a constant or a sampled spectrum) → emission;
 //!   `directional` (irradiance), `point` and `spot` (intensity, cutoff_angle, beam_width) →
 //!   `[[light]]` of the same meaning; `envmap` (filename, scale, a rotation) → `[environment]`;
-//!   `constant` (radiance) → `[stray_light]`. Every other emitter is an error: the
+//!   `constant` (radiance) → `[stray_light]`; an envmap's translation is ignored, as Mitsuba
+//!   ignores it (the map is at infinity). Every other emitter is an error: the
 //!   lights are known inputs of a recovery, and one dropped would bias every group.
 //! - **BSDFs** (matfit's surfaces are two-sided: `twosided` is unwrapped, a one-sided BSDF is a
 //!   warning). Exact: `diffuse` (reflectance rgb / constant or sampled spectrum / bitmap texture →
 //!   textured; `raw` matters to 8/16-bit images only, whose matfit decoding is sRGB: a warning)
-//!   → diffuse; `conductor` with material `none` → mirror ρs = specular_reflectance;
+//!   → diffuse; `bumpmap`/`normalmap` → its nested BSDF (a warning: matfit has no bump
+//!   maps); `conductor` with material `none` → mirror ρs = specular_reflectance;
 //!   `blendbsdf` of those → diffuse_mirror ρd = (1−w)·ρd₁ + w·ρd₂, ρs likewise (the exporter's
 //!   blend inverted); `roughconductor` with material `none` and `distribution` "ggx" or
 //!   "beckmann", alone or blended with a `diffuse` → microfacet, likewise; a textured `diffuse`
 //!   blended with a specular lobe (the exporter's varnished texture) → textured, scale 1 − w,
 //!   with the lobe's ρs and α as its Ward varnish (a warning where the lobe is a microfacet one:
 //!   matfit's varnish is Ward's); `roughplastic` with `distribution` "ggx" or "beckmann"
-//!   (and `nonlinear` false) → plastic (ρd = diffuse_reflectance, ρs = F0·specular_reflectance,
-//!   α, η = int_ior/ext_ior). Initial guesses, not truth (a warning each), with ρs from Fresnel
-//!   reflectance at normal incidence F0: conductors with eta/k (or a named metal, from a small
+//!   → plastic (ρd = diffuse_reflectance, ρs = F0·specular_reflectance, α, η = int_ior/ext_ior,
+//!   a named IOR as Mitsuba's table; `nonlinear`'s ρ/(1 − ρ·F_int) as the linear model's
+//!   ρd = ρ(1 − F_int)/(1 − ρ·F_int), also exact). With a bitmap `diffuse_reflectance`, which
+//!   matfit's plastic cannot hold (its textured level's Ward varnish lacks the coat's Fresnel
+//!   rise, far off at grazing views): the exact plastic with ρd the texels' mean (nonlinear
+//!   folded in per texel), a warning that the texture's variation is lost. Initial guesses, not truth (a warning
+//!   each), with ρs from Fresnel reflectance at normal incidence F0: conductors with eta/k (or a named metal, from a small
 //!   table) → mirror ρs = F0·specular_reflectance; `roughconductor` → Ward ρd 0, ρs as the
 //!   conductor, α = alpha (αx, αy = alpha_u, alpha_v; Beckmann's and Ward's α are the same slope
 //!   width); `plastic` → diffuse_mirror with F0 = ((η−1)/(η+1))², η = int_ior/ext_ior,
-//!   ρs = F0·specular_reflectance, ρd = (1−F0)·diffuse_reflectance; `roughplastic` with
-//!   `nonlinear` → plastic with its α, η and distribution; `principled` →
+//!   ρs = F0·specular_reflectance, ρd = (1−F0)·diffuse_reflectance (a texture: its mean);
+//!   `principled` →
 //!   Ward α = roughness², F0 = 0.08·specular blended to base_color by metallic,
 //!   ρd = (1−metallic)(1−F0)·base_color. Anything else
 //!   (dielectrics, …) → diffuse 0.5 with a warning. A shape with no BSDF gets Mitsuba's default,
@@ -86,6 +120,7 @@ use crate::scene::write::relative;
 use crate::scene::Distribution;
 use glam::{DMat3, DMat4, DQuat, DVec3, DVec4, EulerRot};
 use roxmltree::{Document, Node};
+use std::cell::RefCell;
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use toml::Spanned;
@@ -105,29 +140,64 @@ pub fn import_str(
     out: &Path,
     params: &[(String, String)],
 ) -> Result<ImportReport, String> {
-    let opts = roxmltree::ParsingOptions {
-        allow_dtd: true,
-        ..Default::default()
-    };
-    let doc = Document::parse_with_options(text, opts)
-        .map_err(|e| format!("{}:{}: malformed XML: {e}", xml.display(), e.pos().row))?;
+    let sources = super::source::load(text, xml)?;
+    let docs = sources
+        .files
+        .iter()
+        .map(|s| Document::parse_with_options(&s.text, super::source::options()))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| format!("{}: malformed XML after the upgrade: {e}", xml.display()))?;
     let out_dir = match out.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
     };
     let mut cx = Ctx {
-        path: xml,
+        sources: &sources,
+        docs: &docs,
         dir: xml.parent().map(Path::to_path_buf).unwrap_or_default(),
         out_dir,
-        doc: &doc,
         params: params.iter().cloned().collect(),
         ids: HashMap::new(),
         warnings: Vec::new(),
+        errors: sources.errors.clone(),
         warned: HashSet::new(),
         reoriented: HashMap::new(),
         textures: Vec::new(),
+        meshes: Vec::new(),
+        made: HashMap::new(),
+        means: HashMap::new(),
+        used: RefCell::new(HashSet::new()),
+        read: RefCell::new(HashSet::new()),
+        failed: Vec::new(),
     };
-    let file = cx.scene()?;
+    let file = cx.scene();
+    cx.unread_properties();
+    let file = match (file, cx.errors.is_empty()) {
+        (Some(f), true) => f,
+        _ => {
+            let mut msg = match &cx.errors[..] {
+                [one] => one.clone(),
+                all => {
+                    let mut m = format!(
+                        "{}: the scene cannot be imported ({} problems):",
+                        xml.display(),
+                        all.len()
+                    );
+                    for e in all {
+                        m.push_str(&format!("\n  {e}"));
+                    }
+                    m
+                }
+            };
+            if !cx.warnings.is_empty() {
+                msg.push_str("\nand, if these were fixed, these approximations:");
+                for w in &cx.warnings {
+                    msg.push_str(&format!("\n  {w}"));
+                }
+            }
+            return Err(msg);
+        }
+    };
     let mut header = format!(
         "# Imported by `matfit import mitsuba` (matfit {}) from {}.\n\
          # Mapping rules: src/import/mitsuba.rs. Groups: a shape whose BSDF has an id is in the\n\
@@ -148,23 +218,45 @@ pub fn import_str(
         toml: format!("{header}\n{}", compact(&body)),
         warnings: cx.warnings,
         textures: cx.textures,
+        meshes: cx.meshes,
     })
 }
 
 struct Ctx<'a> {
-    path: &'a Path,
+    sources: &'a super::source::Sources,
+    docs: &'a [Document<'a>],
+    /// The main file's folder.
     dir: PathBuf,
     out_dir: PathBuf,
-    doc: &'a Document<'a>,
     params: HashMap<String, String>,
     ids: HashMap<String, Node<'a, 'a>>,
     warnings: Vec<String>,
+    /// Every refusal, `FILE:LINE: why`: the import goes on past one to report them all.
+    errors: Vec<String>,
     /// Elements (by text offset) already warned about, so that a shared BSDF warns once.
     warned: HashSet<(usize, &'static str)>,
     /// Re-oriented copies of textures: (source path, orientation) → the copy's path.
     reoriented: HashMap<(String, Orient), String>,
     /// The copies' images, to be written next to the scene file.
     textures: Vec<(String, crate::io::image::Image)>,
+    /// Meshes the import made (serialized meshes, disks), to be written next to the scene file.
+    meshes: Vec<(String, Vec<u8>)>,
+    /// Textures the import made, by the element (and what) they were made for: a texture or
+    /// BSDF shared by many shapes is made once.
+    made: HashMap<((usize, usize), &'static str), String>,
+    /// Textures' means, by path (and the nonlinear plastic's F_int they were taken with).
+    means: HashMap<String, DVec3>,
+    /// Property elements read, and the elements whose properties were read (by [`key`]): a
+    /// property of a read element that nothing read is reported, never dropped in silence.
+    used: RefCell<HashSet<(usize, usize)>>,
+    read: RefCell<HashSet<(usize, usize)>>,
+    /// Top-level elements that were refused (their unread properties say nothing more).
+    failed: Vec<(usize, usize)>,
+}
+
+/// An element's identity across the scene's files: its document's address and its offset.
+fn key(n: Node) -> (usize, usize) {
+    (n.document() as *const _ as usize, n.range().start)
 }
 
 /// How a texture must be turned so that matfit's lookup over a shape's UVs reads what Mitsuba's
@@ -206,15 +298,27 @@ impl Lobes {
 
 impl<'a> Ctx<'a> {
     fn line(&self, n: N<'a>) -> u32 {
-        self.doc.text_pos_at(n.range().start).row
+        n.document().text_pos_at(n.range().start).row
+    }
+
+    /// The index of the file `n` is in.
+    fn file_of(&self, n: N<'a>) -> usize {
+        self.docs
+            .iter()
+            .position(|d| std::ptr::eq(d, n.document()))
+            .unwrap_or(0)
+    }
+
+    fn path_of(&self, n: N<'a>) -> &Path {
+        &self.sources.files[self.file_of(n)].path
     }
 
     fn err(&self, n: N<'a>, msg: impl std::fmt::Display) -> String {
-        format!("{}:{}: {msg}", self.path.display(), self.line(n))
+        format!("{}:{}: {msg}", self.path_of(n).display(), self.line(n))
     }
 
     fn warn(&mut self, n: N<'a>, msg: impl std::fmt::Display) {
-        let w = format!("{}:{}: {msg}", self.path.display(), self.line(n));
+        let w = format!("{}:{}: {msg}", self.path_of(n).display(), self.line(n));
         if !self.warnings.contains(&w) {
             self.warnings.push(w);
         }
@@ -299,8 +403,10 @@ impl<'a> Ctx<'a> {
 
     /// The child of `n` that is property `name`, a `<ref name=...>` resolved to its element.
     fn prop(&self, n: N<'a>, name: &str) -> Result<Option<N<'a>>, String> {
+        self.read.borrow_mut().insert(key(n));
         for c in Self::children(n) {
             if self.attr(c, "name")?.as_deref() == Some(name) {
+                self.used.borrow_mut().insert(key(c));
                 if c.tag_name().name() == "ref" {
                     return self.resolve(c).map(Some);
                 }
@@ -435,14 +541,52 @@ impl<'a> Ctx<'a> {
                 );
                 Ok(Some(Ok(rgb)))
             }
-            "texture" => {
-                let ty = self.need_attr(p, "type")?;
-                if ty != "bitmap" {
-                    return Err(self.err(
-                        p,
-                        format!("texture type '{ty}' is not supported (only bitmap)"),
-                    ));
-                }
+            "texture" => self.texture(p).map(|t| Some(Err(t))),
+            _ => Err(self.err(p, format!("`{name}` cannot be a {}", self.describe(p)))),
+        }
+    }
+
+    /// A colour property that must be a constant: a texture gives its mean (a warning).
+    fn rgb(&mut self, n: N<'a>, name: &str, default: f64) -> Result<DVec3, String> {
+        match self.color(n, name)? {
+            None => Ok(DVec3::splat(default)),
+            Some(Ok(c)) => Ok(c),
+            Some(Err(t)) => {
+                let p = self.prop(n, name)?.unwrap_or(n);
+                let mean = self.texture_mean(p, &t)?;
+                self.warn(
+                    p,
+                    format!(
+                        "a texture for `{name}` of {}: matfit has no texture there, its mean \
+                         ({:.4}, {:.4}, {:.4}) instead",
+                        self.describe(n),
+                        mean.x,
+                        mean.y,
+                        mean.z
+                    ),
+                );
+                Ok(mean)
+            }
+        }
+    }
+
+    /// A `<texture>`: `bitmap` (its file, or a copy the import made when `to_uv` moves it) or
+    /// `checkerboard` (an image the import draws), as a path relative to the output's folder
+    /// in Mitsuba's orientation (v = 0 at the top row; the shape turns it, [`Self::reoriented`]).
+    fn texture(&mut self, p: N<'a>) -> Result<String, String> {
+        if let Some(t) = self.made.get(&(key(p), "texture")) {
+            return Ok(t.clone());
+        }
+        let t = self.make_texture(p)?;
+        self.made.insert((key(p), "texture"), t.clone());
+        Ok(t)
+    }
+
+    fn make_texture(&mut self, p: N<'a>) -> Result<String, String> {
+        let ty = self.need_attr(p, "type")?;
+        let to_uv = self.uv_transform(p)?;
+        match ty.as_str() {
+            "bitmap" => {
                 let f = self.string(p, "filename")?.ok_or_else(|| {
                     self.err(p, "a bitmap texture needs <string name=\"filename\">")
                 })?;
@@ -455,37 +599,191 @@ impl<'a> Ctx<'a> {
                          reads this one as linear",
                     );
                 }
-                Ok(Some(Err(self.file_ref(p, &f)?)))
+                match self.string(p, "filter_type")?.as_deref() {
+                    None | Some("bilinear") => {}
+                    Some("nearest") => self.warn(
+                        p,
+                        "filter_type \"nearest\": matfit's texture lookup is bilinear (the same \
+                         at texel centres, smoother between them)",
+                    ),
+                    Some(o) => {
+                        return Err(self.err(
+                            p,
+                            format!("filter_type '{o}' is not one of bilinear, nearest"),
+                        ))
+                    }
+                }
+                match self.string(p, "wrap_mode")?.as_deref() {
+                    None | Some("repeat") => {}
+                    Some(w @ ("mirror" | "clamp")) => self.warn(
+                        p,
+                        format!(
+                            "wrap_mode \"{w}\": matfit's textures repeat (the same wherever \
+                             texture coordinates stay in [0, 1])"
+                        ),
+                    ),
+                    Some(o) => {
+                        return Err(self.err(
+                            p,
+                            format!("wrap_mode '{o}' is not one of repeat, mirror, clamp"),
+                        ))
+                    }
+                }
+                let file = self.file_ref(p, &f)?;
+                if to_uv == DMat4::IDENTITY {
+                    return Ok(file);
+                }
+                let src = self.texture_image(p, &file)?;
+                let stretch = [to_uv.x_axis, to_uv.y_axis]
+                    .map(|c| c.truncate().truncate().length().ceil().max(1.0) as usize);
+                let (w, h) = (src.width * stretch[0], src.height * stretch[1]);
+                if w.max(h) > 8192 {
+                    self.warn(
+                        p,
+                        format!(
+                            "to_uv repeats the texture {}×{} times: more texels than matfit \
+                             draws ({w}×{h}); to_uv ignored",
+                            stretch[0], stretch[1]
+                        ),
+                    );
+                    return Ok(file);
+                }
+                let image = resample(w, h, |uv| bilinear_mitsuba(&src, uv), to_uv);
+                let stem = Path::new(&f)
+                    .file_stem()
+                    .map(|s| sanitize(&s.to_string_lossy()))
+                    .unwrap_or_default();
+                Ok(self.generated(&format!("{stem}_uv"), image))
             }
-            _ => Err(self.err(p, format!("`{name}` cannot be a {}", self.describe(p)))),
-        }
-    }
-
-    /// A colour property that must be a constant (no texture).
-    fn rgb(&mut self, n: N<'a>, name: &str, default: f64) -> Result<DVec3, String> {
-        match self.color(n, name)? {
-            None => Ok(DVec3::splat(default)),
-            Some(Ok(c)) => Ok(c),
-            Some(Err(_)) => {
-                let p = self.prop(n, name)?.unwrap_or(n);
+            "checkerboard" => {
+                let c0 = self.rgb(p, "color0", 0.4)?;
+                let c1 = self.rgb(p, "color1", 0.2)?;
+                // Enough texels per check that the bilinear lookup softens only its edges.
+                let checks = [to_uv.x_axis, to_uv.y_axis]
+                    .map(|c| c.truncate().truncate().length().max(1.0))
+                    .iter()
+                    .fold(1.0f64, |a, &b| a.max(b));
+                let res = ((64.0 * checks) as usize).clamp(128, 4096);
                 self.warn(
                     p,
                     format!(
-                        "a texture for `{name}` of {} is not imported: {default} instead",
-                        self.describe(n)
+                        "checkerboard drawn as a {res}×{res} texture (its edges soft over one \
+                         texel)"
                     ),
                 );
-                Ok(DVec3::splat(default))
+                let image = resample(
+                    res,
+                    res,
+                    |uv| {
+                        let fx = uv[0] - uv[0].floor() > 0.5;
+                        let fy = uv[1] - uv[1].floor() > 0.5;
+                        let c = if fx == fy { c0 } else { c1 };
+                        crate::math::Rgb::new(c.x as f32, c.y as f32, c.z as f32)
+                    },
+                    to_uv,
+                );
+                Ok(self.generated("checkerboard", image))
             }
+            _ => Err(self.err(
+                p,
+                format!("texture type '{ty}' is not supported (bitmap and checkerboard are)"),
+            )),
         }
     }
 
-    /// A file named in the XML (relative to its folder), as a path relative to the output file.
-    fn file_ref(&self, n: N<'a>, f: &str) -> Result<String, String> {
-        let abs = std::path::absolute(self.dir.join(f)).unwrap_or_else(|_| self.dir.join(f));
-        if !abs.is_file() {
-            return Err(self.err(n, format!("file {} not found", abs.display())));
+    /// A texture's `to_uv` (Mitsuba 3) or, in an old file, its uoffset/voffset/uscale/vscale
+    /// (scale after offset, as Mitsuba's upgrade builds it), as a matrix on (u, v, 0, 1).
+    fn uv_transform(&self, p: N<'a>) -> Result<DMat4, String> {
+        let mut m = self.transform(p, "to_uv")?;
+        if self.sources.files[self.file_of(p)].old {
+            let offset = DVec3::new(
+                self.float(p, "uoffset", 0.0)?,
+                self.float(p, "voffset", 0.0)?,
+                0.0,
+            );
+            let scale = DVec3::new(
+                self.float(p, "uscale", 1.0)?,
+                self.float(p, "vscale", 1.0)?,
+                1.0,
+            );
+            m = DMat4::from_scale(scale) * DMat4::from_translation(offset) * m;
         }
+        Ok(m)
+    }
+
+    /// An image the import made, to be written as `textures/{stem}_N.exr`: its path.
+    fn generated(&mut self, stem: &str, image: crate::io::image::Image) -> String {
+        let name = format!("textures/{stem}_{}.exr", self.textures.len());
+        self.textures.push((name.clone(), image));
+        name
+    }
+
+    /// The image of a texture path (one the import made, or a file relative to the output).
+    fn texture_image(&self, n: N<'a>, path: &str) -> Result<crate::io::image::Image, String> {
+        if let Some((_, i)) = self.textures.iter().find(|(p, _)| p == path) {
+            return Ok(i.clone());
+        }
+        crate::io::image::read_linear(&self.out_dir.join(path))
+            .map_err(|e| self.err(n, format!("texture: {e}")))
+    }
+
+    fn texture_mean(&mut self, n: N<'a>, path: &str) -> Result<DVec3, String> {
+        self.texture_mean_of(n, path, None)
+    }
+
+    /// The mean of a texture's texels, each first taken to ρ(1 − f)/(1 − ρ·f) when `f` is given
+    /// (a nonlinear plastic's diffuse part as the linear one's); kept, as shared BSDFs ask again.
+    fn texture_mean_of(&mut self, n: N<'a>, path: &str, f: Option<f64>) -> Result<DVec3, String> {
+        let cache = format!("{path}|{f:?}");
+        if let Some(m) = self.means.get(&cache) {
+            return Ok(*m);
+        }
+        let i = self.texture_image(n, path)?;
+        let g = |r: f64| f.map_or(r, |f| r * (1.0 - f) / (1.0 - r * f));
+        let sum = i.data.iter().fold(DVec3::ZERO, |a, c| {
+            a + DVec3::new(g(c.x as f64), g(c.y as f64), g(c.z as f64))
+        });
+        let mean = sum / (i.data.len().max(1) as f64);
+        self.means.insert(cache, mean);
+        Ok(mean)
+    }
+
+    /// A file named in the XML, found as Mitsuba finds it (relative to the main file's folder,
+    /// the `<path>` folders, or the folder of the file that names it), as an absolute path.
+    fn find_file(&self, n: N<'a>, f: &str) -> Result<PathBuf, String> {
+        let own = self
+            .path_of(n)
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_default();
+        let dirs: Vec<&PathBuf> = std::iter::once(&self.dir)
+            .chain(self.sources.search.iter())
+            .chain(std::iter::once(&own))
+            .collect();
+        for d in &dirs {
+            let p = d.join(f);
+            if p.is_file() {
+                return Ok(std::path::absolute(&p).unwrap_or(p));
+            }
+        }
+        let abs = std::path::absolute(self.dir.join(f)).unwrap_or_else(|_| self.dir.join(f));
+        Err(self.err(
+            n,
+            format!(
+                "file {} not found{}",
+                abs.display(),
+                if self.sources.search.is_empty() {
+                    String::new()
+                } else {
+                    format!(" (nor in the {} <path> folders)", self.sources.search.len())
+                }
+            ),
+        ))
+    }
+
+    /// A file named in the XML, as a path relative to the output file.
+    fn file_ref(&self, n: N<'a>, f: &str) -> Result<String, String> {
+        let abs = self.find_file(n, f)?;
         let base = std::path::absolute(&self.out_dir).unwrap_or_else(|_| self.out_dir.clone());
         Ok(relative(&abs, &base)
             .unwrap_or(abs)
@@ -563,98 +861,167 @@ impl<'a> Ctx<'a> {
         Ok(m)
     }
 
-    fn scene(&mut self) -> Result<SceneFile, String> {
-        let root = self.doc.root_element();
+    /// The scene's top-level elements, each `<include>` replaced by the included file's.
+    fn top_level(&self, root: N<'a>, out: &mut Vec<N<'a>>) {
+        for c in Self::children(root) {
+            if c.tag_name().name() != "include" {
+                out.push(c);
+                continue;
+            }
+            let at = (self.file_of(c), c.range().start);
+            if let Some(&i) = self.sources.includes.get(&at) {
+                let r = self.docs[i].root_element();
+                if r.tag_name().name() == "scene" {
+                    self.top_level(r, out);
+                } else {
+                    out.push(r);
+                }
+            }
+        }
+    }
+
+    /// The scene, or None when something was refused (each refusal is in `errors`).
+    fn scene(&mut self) -> Option<SceneFile> {
+        let root = self.docs[0].root_element();
         if root.tag_name().name() != "scene" {
-            return Err(self.err(
+            let e = self.err(
                 root,
                 format!(
                     "expected a <scene> root element, got <{}>",
                     root.tag_name().name()
                 ),
-            ));
+            );
+            self.errors.push(e);
+            return None;
         }
+        let mut top = Vec::new();
+        self.top_level(root, &mut top);
         // Defaults first (the command line's values win), then ids of every element.
-        for c in Self::children(root) {
+        for &c in &top {
             if c.tag_name().name() == "default" {
-                let k = self.need_attr(c, "name")?;
-                let v = self.need_attr(c, "value")?;
-                self.params.entry(k).or_insert(v);
+                let kv = self
+                    .need_attr(c, "name")
+                    .and_then(|k| Ok((k, self.need_attr(c, "value")?)));
+                match kv {
+                    Ok((k, v)) => {
+                        self.params.entry(k).or_insert(v);
+                    }
+                    Err(e) => self.errors.push(e),
+                }
             }
         }
-        for d in root.descendants().filter(|d| d.is_element()) {
-            if let Some(id) = self.attr(d, "id")? {
-                if d.tag_name().name() != "ref" && self.ids.insert(id.clone(), d).is_some() {
-                    return Err(self.err(d, format!("id '{id}' is defined twice")));
+        for d in self.docs.iter().flat_map(|d| d.descendants()) {
+            if !d.is_element() {
+                continue;
+            }
+            match self.attr(d, "id") {
+                Ok(Some(id)) => {
+                    if d.tag_name().name() != "ref" && self.ids.insert(id.clone(), d).is_some() {
+                        let e = self.err(d, format!("id '{id}' is defined twice"));
+                        self.errors.push(e);
+                    }
                 }
+                Ok(None) => {}
+                Err(e) => self.errors.push(e),
             }
         }
 
         let mut camera = None;
+        let mut sensors = 0;
         let mut render = RenderSpec::default();
         let mut objects = Vec::new();
+        let mut shapes = 0;
         let mut lights = Vec::new();
         let mut environment = None;
         let mut stray_light = None;
         let mut names = HashSet::new();
         let mut shape_counts: HashMap<String, usize> = HashMap::new();
-        for c in Self::children(root) {
-            match c.tag_name().name() {
-                "default" | "bsdf" | "texture" => {}
-                "integrator" => self.integrator(c, &mut render)?,
-                "sensor" => {
-                    if camera.is_some() {
-                        self.warn(c, "a second <sensor> is ignored (matfit uses the first)");
-                        continue;
+        for c in top {
+            let done: Result<(), String> = (|| {
+                match c.tag_name().name() {
+                    "default" | "bsdf" | "texture" | "path" | "include" => {}
+                    "integrator" => self.integrator(c, &mut render)?,
+                    "sensor" => {
+                        sensors += 1;
+                        if sensors > 1 {
+                            self.warn(c, "a second <sensor> is ignored (matfit uses the first)");
+                            return Ok(());
+                        }
+                        let (cam, spp) = self.sensor(c)?;
+                        camera = Some(cam);
+                        render.spp = spp;
                     }
-                    let (cam, spp) = self.sensor(c)?;
-                    camera = Some(cam);
-                    render.spp = spp;
-                }
-                "shape" => {
-                    let ty = self.need_attr(c, "type")?;
-                    let k = shape_counts.entry(ty.clone()).or_default();
-                    *k += 1;
-                    let mut name = match self.attr(c, "id")? {
-                        Some(id) => id,
-                        None => match self.bsdf_id(c)? {
-                            Some(b) if !names.contains(&b) => b,
-                            _ => format!("{ty}_{k}"),
-                        },
-                    };
-                    while !names.insert(name.clone()) {
-                        name.push('_');
+                    "shape" => {
+                        shapes += 1;
+                        let ty = self.need_attr(c, "type")?;
+                        let k = shape_counts.entry(ty.clone()).or_default();
+                        *k += 1;
+                        let mut name = match self.attr(c, "id")? {
+                            Some(id) => id,
+                            None => match self.bsdf_id(c)? {
+                                Some(b) if !names.contains(&b) => b,
+                                _ => format!("{ty}_{k}"),
+                            },
+                        };
+                        while !names.insert(name.clone()) {
+                            name.push('_');
+                        }
+                        if let Some(o) = self.shape(c, &ty, name)? {
+                            objects.push(o);
+                        }
                     }
-                    objects.push(self.shape(c, &ty, name)?);
-                }
-                "emitter" if self.attr(c, "type")?.as_deref() == Some("envmap") => {
-                    if environment.is_some() {
-                        return Err(self.err(c, "a second envmap: matfit takes one environment"));
+                    "emitter" if self.attr(c, "type")?.as_deref() == Some("envmap") => {
+                        let env = self.envmap(c)?;
+                        if environment.is_some() {
+                            return Err(
+                                self.err(c, "a second envmap: matfit takes one environment")
+                            );
+                        }
+                        environment = Some(Spanned::new(0..0, env));
                     }
-                    environment = Some(Spanned::new(0..0, self.envmap(c)?));
-                }
-                "emitter" if self.attr(c, "type")?.as_deref() == Some("constant") => {
-                    if stray_light.is_some() {
-                        return Err(self.err(c, "a second constant emitter: matfit takes one"));
+                    "emitter" if self.attr(c, "type")?.as_deref() == Some("constant") => {
+                        let r = f32s(self.rgb(c, "radiance", 1.0)?);
+                        if stray_light.is_some() {
+                            return Err(self.err(c, "a second constant emitter: matfit takes one"));
+                        }
+                        stray_light = Some(Spanned::new(0..0, StrayLightSpec { radiance: r }));
                     }
-                    let r = f32s(self.rgb(c, "radiance", 1.0)?);
-                    stray_light = Some(Spanned::new(0..0, StrayLightSpec { radiance: r }));
+                    // An area emitter defined for shapes to refer to (`<ref id=.../>`).
+                    "emitter"
+                        if self.attr(c, "type")?.as_deref() == Some("area")
+                            && self.attr(c, "id")?.is_some() => {}
+                    "emitter" => {
+                        let k = lights.len() + 1;
+                        lights.push(self.emitter(c, k)?);
+                    }
+                    other => self.warn(c, format!("<{other}> is ignored")),
                 }
-                "emitter" => {
-                    let k = lights.len() + 1;
-                    lights.push(self.emitter(c, k)?);
+                Ok(())
+            })();
+            if let Err(e) = done {
+                self.failed.push(key(c));
+                if !self.errors.contains(&e) {
+                    self.errors.push(e);
                 }
-                "include" => return Err(self.err(c, "<include> is not supported: inline the file")),
-                other => self.warn(c, format!("<{other}> is ignored")),
             }
         }
-        let camera = camera.ok_or_else(|| self.err(root, "the scene has no <sensor>"))?;
-        if objects.is_empty() {
-            return Err(self.err(root, "the scene has no <shape>"));
+        if sensors == 0 {
+            let e = self.err(root, "the scene has no <sensor>");
+            self.errors.push(e);
         }
-        Ok(SceneFile {
+        if shapes == 0 {
+            let e = self.err(root, "the scene has no <shape>");
+            self.errors.push(e);
+        } else if objects.is_empty() && self.errors.is_empty() {
+            let e = self.err(
+                root,
+                "every <shape> of the scene was skipped (warnings above)",
+            );
+            self.errors.push(e);
+        }
+        Some(SceneFile {
             render: Some(render),
-            camera,
+            camera: camera?,
             groups: Vec::new(),
             objects,
             lights,
@@ -662,6 +1029,96 @@ impl<'a> Ctx<'a> {
             stray_light,
             views: Vec::new(),
         })
+    }
+
+    /// Warns of every property of an element the import read that it did not read itself:
+    /// Mitsuba would use it, so matfit's scene may differ where it matters.
+    fn unread_properties(&mut self) {
+        const PROPERTY_TAGS: [&str; 11] = [
+            "float",
+            "integer",
+            "boolean",
+            "string",
+            "rgb",
+            "spectrum",
+            "point",
+            "vector",
+            "transform",
+            "texture",
+            "ref",
+        ];
+        // What changes nothing in a matfit scene: output formats, clipping planes and
+        // samplers' seeds (matfit's film, camera and sampler have none).
+        const HARMLESS: [&str; 10] = [
+            "pixel_format",
+            "component_format",
+            "file_format",
+            "banner",
+            "high_quality_edges",
+            "near_clip",
+            "far_clip",
+            "seed",
+            "jitter",
+            "sample_border",
+        ];
+        let read = self.read.borrow().clone();
+        let used = self.used.borrow().clone();
+        type Unread = ((usize, String, String, String), Vec<u32>);
+        let mut unread: Vec<Unread> = Vec::new();
+        let docs = self.docs;
+        for e in docs.iter().flat_map(|d| d.descendants()) {
+            if !e.is_element() || !PROPERTY_TAGS.contains(&e.tag_name().name()) {
+                continue;
+            }
+            let (Some(parent), Some(name)) = (e.parent_element(), e.attribute("name")) else {
+                continue;
+            };
+            if !read.contains(&key(parent))
+                || used.contains(&key(e))
+                || HARMLESS.contains(&name)
+                || (e.tag_name().name() == "ref" && name == "bsdf")
+                || e.ancestors().any(|a| self.failed.contains(&key(a)))
+            {
+                continue;
+            }
+            let what = (
+                self.file_of(e),
+                name.to_string(),
+                self.describe(e),
+                format!(
+                    "<{} type=\"{}\">",
+                    parent.tag_name().name(),
+                    parent.attribute("type").unwrap_or("")
+                ),
+            );
+            let line = self.line(e);
+            match unread.iter_mut().find(|(w, _)| *w == what) {
+                Some((_, lines)) => lines.push(line),
+                None => unread.push((what, vec![line])),
+            }
+        }
+        // One warning per property of a kind of element, at its first line.
+        for ((file, name, prop, parent), lines) in unread {
+            let more = match lines.len() {
+                1 => String::new(),
+                k => format!(
+                    " (on {k} elements, lines {}{})",
+                    lines
+                        .iter()
+                        .take(8)
+                        .map(u32::to_string)
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    if k > 8 { ", …" } else { "" }
+                ),
+            };
+            self.warnings.push(format!(
+                "{}:{}: property `{name}` ({prop}) of {parent} is not read by matfit's \
+                 import: ignored{more}",
+                self.sources.files[file].path.display(),
+                lines[0]
+            ));
+        }
     }
 
     /// A light outside any shape: `directional`, `point` or `spot` (Mitsuba 3's meanings, which
@@ -731,7 +1188,8 @@ impl<'a> Ctx<'a> {
         Ok(spec)
     }
 
-    /// An `envmap` emitter: its file, scale and rotation (`to_world` must be a rotation).
+    /// An `envmap` emitter: its file, scale and rotation (`to_world`'s 3×3 part must be a
+    /// rotation; its translation is ignored, as Mitsuba ignores it: the map is at infinity).
     fn envmap(&mut self, n: N<'a>) -> Result<EnvironmentSpec, String> {
         let f = self
             .string(n, "filename")?
@@ -739,12 +1197,20 @@ impl<'a> Ctx<'a> {
         let file = self.file_ref(n, &f)?;
         let scale = self.float(n, "scale", 1.0)? as f32;
         let m = self.transform(n, "to_world")?;
+        let mut m = m;
+        m.w_axis = DVec4::W;
         let t = decompose(m)
             .filter(|t| {
                 let unit = |c: &Color| c.0.iter().all(|x| (x - 1.0).abs() < 1e-4);
-                t.translate.is_none() && t.scale.as_ref().is_none_or(unit)
+                t.scale.as_ref().is_none_or(unit)
             })
-            .ok_or_else(|| self.err(n, "an envmap's to_world must be a rotation"))?;
+            .ok_or_else(|| {
+                self.err(
+                    n,
+                    "an envmap's to_world must be a rotation (and a translation, which is \
+                     ignored): it scales, mirrors or shears",
+                )
+            })?;
         Ok(EnvironmentSpec {
             file,
             scale: (scale != 1.0).then_some(scale),
@@ -1018,7 +1484,8 @@ impl<'a> Ctx<'a> {
         }
     }
 
-    fn shape(&mut self, n: N<'a>, ty: &str, name: String) -> Result<ObjectSpec, String> {
+    /// A shape as a matfit object; None when it is skipped (a warning says why).
+    fn shape(&mut self, n: N<'a>, ty: &str, name: String) -> Result<Option<ObjectSpec>, String> {
         let mut bsdf = None;
         let mut emitter = None;
         for el in self.shape_children(n)? {
@@ -1184,7 +1651,51 @@ impl<'a> Ctx<'a> {
                 let fname = self.string(n, "filename")?.ok_or_else(|| {
                     self.err(n, format!("a {ty} shape needs <string name=\"filename\">"))
                 })?;
-                o.file = Some(Spanned::new(0..0, self.file_ref(n, &fname)?));
+                let abs = self.find_file(n, &fname)?;
+                // Mitsuba loads a mesh whose triangles all have zero area (it draws nothing);
+                // matfit refuses one, so it is left out.
+                let mut mesh = crate::scene::meshio::load_mesh(&abs).map_err(|e| self.err(n, e))?;
+                use crate::geometry::mesh::MeshProblem;
+                match mesh.validate() {
+                    Ok(_) => {}
+                    Err(MeshProblem::AllDegenerate | MeshProblem::NoTriangles) => {}
+                    Err(e) => {
+                        return Err(self.err(n, format!("mesh {}: {e}", abs.display())));
+                    }
+                }
+                if mesh.indices.is_empty() {
+                    self.warn(
+                        n,
+                        format!(
+                            "mesh {} is skipped: it has no triangle of non-zero area (Mitsuba \
+                             draws nothing of it either)",
+                            abs.display()
+                        ),
+                    );
+                    return Ok(None);
+                }
+                // Mitsuba's face_normals shades with the triangles' own normals: a copy of the
+                // mesh without its vertex normals, which matfit then shades the same way.
+                // Mitsuba's face_normals shades with the triangles' own normals: a copy of the
+                // mesh without its vertex normals, which matfit then shades the same way.
+                if self.boolean(n, "face_normals")? && mesh.normals.is_some() {
+                    let copy = super::mesh::Mesh {
+                        positions: mesh.positions.iter().map(|p| p.as_dvec3()).collect(),
+                        normals: None,
+                        // matfit reads an OBJ's and a PLY's (u, v) as they are written; the
+                        // copy keeps them (to_obj writes Mitsuba's v back as 1 − v).
+                        uvs: mesh
+                            .uvs
+                            .as_ref()
+                            .map(|uv| uv.iter().map(|t| [t.x as f64, 1.0 - t.y as f64]).collect()),
+                        indices: mesh.indices.clone(),
+                    };
+                    let file = format!("meshes/{}.obj", sanitize(&name));
+                    self.meshes.push((file.clone(), copy.to_obj()));
+                    o.file = Some(Spanned::new(0..0, file));
+                } else {
+                    o.file = Some(Spanned::new(0..0, self.file_ref(n, &fname)?));
+                }
                 if m != DMat4::IDENTITY {
                     o.transform = Some(self.decompose(n, m)?);
                 }
@@ -1194,12 +1705,65 @@ impl<'a> Ctx<'a> {
                     Orient::FlipV
                 });
             }
+            "serialized" | "disk" => {
+                o.shape = Spanned::new(0..0, ShapeKind::Mesh);
+                let mut mesh = if ty == "disk" {
+                    super::mesh::disk(DISK_SEGMENTS)
+                } else {
+                    let fname = self.string(n, "filename")?.ok_or_else(|| {
+                        self.err(n, "a serialized shape needs <string name=\"filename\">")
+                    })?;
+                    let abs = self.find_file(n, &fname)?;
+                    let index = self.float(n, "shape_index", 0.0)?;
+                    if !(index >= 0.0 && index.fract() == 0.0) {
+                        return Err(self.err(n, "shape_index must be a whole number ≥ 0"));
+                    }
+                    super::mesh::read_serialized(&abs, index as usize)
+                        .map_err(|e| self.err(n, e))?
+                };
+                let face_normals = ty == "serialized" && self.boolean(n, "face_normals")?;
+                if face_normals {
+                    mesh.normals = None;
+                }
+                // Mitsuba's flip_normals turns the wound normal, which is matfit's emitting side.
+                let flip_winding = flip != (lin.determinant() < 0.0);
+                mesh.apply(&m, flip_winding);
+                // Mitsuba shades a mesh without normals smoothly, with normals it makes.
+                if ty == "serialized" && !face_normals && mesh.normals.is_none() {
+                    mesh.generate_normals();
+                }
+                if mesh.all_degenerate() {
+                    self.warn(
+                        n,
+                        format!(
+                            "{} is skipped: every triangle of it is degenerate (zero area; \
+                             Mitsuba draws nothing of it either)",
+                            self.describe(n)
+                        ),
+                    );
+                    return Ok(None);
+                }
+                let file = format!("meshes/{}.obj", sanitize(&name));
+                self.meshes.push((file.clone(), mesh.to_obj()));
+                o.file = Some(Spanned::new(0..0, file));
+                // Written with Mitsuba's (u, v) as an OBJ's (u, 1 − v): read as Mitsuba reads.
+                // (A disk's coordinates are polar in Mitsuba: not written.)
+                orient = (ty == "serialized").then_some(Orient::Same);
+                if ty == "disk" {
+                    self.warn(
+                        n,
+                        format!(
+                            "disk tessellated as a {DISK_SEGMENTS}-gon mesh (area 0.01% short)"
+                        ),
+                    );
+                }
+            }
             other => {
                 return Err(self.err(
                     n,
                     format!(
-                        "shape type '{other}' is not supported (rectangle, cube, sphere, obj, \
-                         ply are)"
+                        "shape type '{other}' is not supported (rectangle, cube, sphere, disk, \
+                         obj, ply, serialized are)"
                     ),
                 ))
             }
@@ -1218,7 +1782,7 @@ impl<'a> Ctx<'a> {
                 ),
             }
         }
-        Ok(o)
+        Ok(Some(o))
     }
 
     /// The texture at `path` (relative to the output's folder) turned by `orient`: a copy, as a
@@ -1232,8 +1796,7 @@ impl<'a> Ctx<'a> {
         if let Some(p) = self.reoriented.get(&key) {
             return Ok(p.clone());
         }
-        let src = crate::io::image::read_linear(&self.out_dir.join(path))
-            .map_err(|e| self.err(n, format!("texture: {e}")))?;
+        let src = self.texture_image(n, path)?;
         let (w, h) = (src.width, src.height);
         let image = match orient {
             Orient::Same => src,
@@ -1319,11 +1882,20 @@ impl<'a> Ctx<'a> {
                 let Some(first) = inner.first().copied() else {
                     return Err(self.err(b, format!("{} has no nested <bsdf>", self.describe(b))));
                 };
-                if ty != "twosided" {
-                    self.warn(
+                match ty.as_str() {
+                    "twosided" => {}
+                    "bumpmap" | "normalmap" => self.warn(
+                        b,
+                        format!(
+                            "{}: matfit has no bump or normal maps; imported as its nested BSDF \
+                             (the shading differs where the bumps show)",
+                            self.describe(b)
+                        ),
+                    ),
+                    _ => self.warn(
                         b,
                         format!("{} is ignored; its nested BSDF is used", self.describe(b)),
-                    );
+                    ),
                 }
                 if inner.len() > 1 {
                     self.warn(
@@ -1384,27 +1956,81 @@ impl<'a> Ctx<'a> {
                 }
             }
             "roughplastic" => {
-                // matfit's plastic is this plugin with `nonlinear = false`.
+                // matfit's plastic is this plugin with `nonlinear = false`; a nonlinear one's
+                // diffuse part ρ/(1 − ρ·F_int) is the linear one's ρ'/(1 − F_int) with
+                // ρ' = ρ (1 − F_int)/(1 − ρ·F_int): exact too.
                 let eta = self.ior_ratio(b)?;
                 let f0 = crate::render::bsdf::plastic::fresnel_dielectric(1.0, eta as f32) as f64;
                 let distribution = self
                     .string(b, "distribution")?
                     .unwrap_or_else(|| "beckmann".into());
                 let known = Distribution::from_name(&distribution);
-                if known.is_none() || self.boolean(b, "nonlinear")? {
-                    guess(
-                        self,
-                        "plastic (`nonlinear` false; a GGX coat unless Beckmann) with the same \
-                         alpha and η, ρs = F0 × specular_reflectance",
-                    );
-                }
+                let nonlinear = self.boolean(b, "nonlinear")?;
                 let (a, _) = self.alpha(b, 0.1)?;
-                Lobes {
-                    d: self.rgb(b, "diffuse_reflectance", 0.5)?,
-                    s: self.rgb(b, "specular_reflectance", 1.0)? * f0,
-                    alpha: Some((a, a)),
-                    plastic: Some((eta, known.unwrap_or_default())),
-                    ..Default::default()
+                let s = self.rgb(b, "specular_reflectance", 1.0)? * f0;
+                let coat =
+                    crate::render::bsdf::Coat::get(a as f32, eta as f32, known.unwrap_or_default());
+                let f_int = coat_internal_reflectance(coat);
+                let linear = |rho: f64| {
+                    if nonlinear {
+                        rho * (1.0 - f_int) / (1.0 - rho * f_int)
+                    } else {
+                        rho
+                    }
+                };
+                match self.color(b, "diffuse_reflectance")? {
+                    Some(Err(texture)) => {
+                        // matfit's plastic holds no texture. Its textured level's Ward varnish
+                        // lacks the coat's Fresnel rise, which dominates at grazing views (a
+                        // floor: 66% darker than Mitsuba in Bitterli's living room); the coat
+                        // kept exact over the texels' mean diffuse is within noise there.
+                        let mean = self.texture_mean_of(b, &texture, nonlinear.then_some(f_int))?;
+                        self.warn(
+                            b,
+                            format!(
+                                "{} with a textured diffuse_reflectance ({texture}): matfit's \
+                                 plastic holds no texture, so ρd is the texels' mean ({:.4}, \
+                                 {:.4}, {:.4}){} under the exact coat; the texture's variation \
+                                 is lost",
+                                self.describe(b),
+                                mean.x,
+                                mean.y,
+                                mean.z,
+                                if nonlinear {
+                                    ", `nonlinear` folded in per texel"
+                                } else {
+                                    ""
+                                }
+                            ),
+                        );
+                        Lobes {
+                            d: mean,
+                            s,
+                            alpha: Some((a, a)),
+                            plastic: Some((eta, known.unwrap_or_default())),
+                            ..Default::default()
+                        }
+                    }
+                    d => {
+                        if known.is_none() {
+                            guess(
+                                self,
+                                "plastic with a GGX coat of the same alpha and η, ρs = F0 × \
+                                 specular_reflectance",
+                            );
+                        }
+                        let d = match d {
+                            Some(Ok(c)) => c,
+                            _ => DVec3::splat(0.5),
+                        };
+                        Lobes {
+                            d: DVec3::new(linear(d.x), linear(d.y), linear(d.z)),
+                            s,
+                            alpha: Some((a, a)),
+                            plastic: Some((eta, known.unwrap_or_default())),
+                            ..Default::default()
+                        }
+                    }
                 }
             }
             "plastic" => {
@@ -1417,10 +2043,39 @@ impl<'a> Ctx<'a> {
                          specular_reflectance, ρd = (1 − F0) × diffuse_reflectance"
                     ),
                 );
-                Lobes {
-                    d: self.rgb(b, "diffuse_reflectance", 0.5)? * (1.0 - f0),
-                    s: self.rgb(b, "specular_reflectance", 1.0)? * f0,
-                    ..Default::default()
+                let s = self.rgb(b, "specular_reflectance", 1.0)? * f0;
+                if self.boolean(b, "nonlinear")? {
+                    self.warn(b, "`nonlinear` plastic: matfit's guess above is linear");
+                }
+                match self.color(b, "diffuse_reflectance")? {
+                    Some(Err(texture)) => {
+                        let mean = self.texture_mean(b, &texture)?;
+                        self.warn(
+                            b,
+                            format!(
+                                "{} with a textured diffuse_reflectance ({texture}): ρd from the \
+                                 texels' mean ({:.4}, {:.4}, {:.4}); the texture's variation is \
+                                 lost",
+                                self.describe(b),
+                                mean.x,
+                                mean.y,
+                                mean.z
+                            ),
+                        );
+                        Lobes {
+                            d: mean * (1.0 - f0),
+                            s,
+                            ..Default::default()
+                        }
+                    }
+                    d => Lobes {
+                        d: match d {
+                            Some(Ok(c)) => c,
+                            _ => DVec3::splat(0.5),
+                        } * (1.0 - f0),
+                        s,
+                        ..Default::default()
+                    },
                 }
             }
             "principled" => {
@@ -1524,11 +2179,49 @@ impl<'a> Ctx<'a> {
 
     /// A dielectric's η = int_ior / ext_ior (Mitsuba's defaults: polypropylene in air).
     fn ior_ratio(&self, b: N<'a>) -> Result<f64, String> {
-        let eta = self.float(b, "int_ior", 1.49)? / self.float(b, "ext_ior", 1.000277)?;
+        let eta = self.ior(b, "int_ior", 1.49)? / self.ior(b, "ext_ior", 1.000277)?;
         if !(eta > 1.0 && eta.is_finite()) {
             return Err(self.err(b, "int_ior must exceed ext_ior"));
         }
         Ok(eta)
+    }
+
+    /// An index of refraction: a number, or one of the names Mitsuba knows.
+    fn ior(&self, b: N<'a>, name: &str, default: f64) -> Result<f64, String> {
+        match self.prop(b, name)? {
+            Some(p) if p.tag_name().name() == "string" => {
+                let v = self.need_attr(p, "value")?;
+                // Mitsuba's table of named indices (its `ior.h`).
+                let eta = match v.to_ascii_lowercase().as_str() {
+                    "vacuum" => 1.0,
+                    "helium" => 1.000036,
+                    "hydrogen" => 1.000132,
+                    "air" => 1.000277,
+                    "carbon dioxide" => 1.00045,
+                    "water" => 1.3330,
+                    "acetone" => 1.36,
+                    "ethanol" => 1.361,
+                    "carbon tetrachloride" => 1.461,
+                    "glycerol" => 1.4729,
+                    "benzene" => 1.501,
+                    "silicone oil" => 1.52045,
+                    "bromine" => 1.661,
+                    "water ice" => 1.31,
+                    "fused quartz" => 1.458,
+                    "pyrex" => 1.470,
+                    "acrylic glass" => 1.49,
+                    "polypropylene" => 1.49,
+                    "bk7" => 1.5046,
+                    "sodium chloride" => 1.544,
+                    "amber" => 1.55,
+                    "pet" => 1.5750,
+                    "diamond" => 2.419,
+                    _ => return Err(self.err(p, format!("unknown index of refraction '{v}'"))),
+                };
+                Ok(eta)
+            }
+            _ => self.float(b, name, default),
+        }
     }
 
     fn alpha(&self, b: N<'a>, default: f64) -> Result<(f64, f64), String> {
@@ -1657,6 +2350,67 @@ impl<'a> Ctx<'a> {
             },
         }
     }
+}
+
+/// The coat's internal diffuse reflectance F_int, from its diffuse part 1/(π η² (1 − F_int)).
+fn coat_internal_reflectance(coat: &crate::render::bsdf::Coat) -> f64 {
+    let t1 = coat.transmittance(1.0) as f64;
+    let scale = coat.diffuse(1.0, 1.0) as f64 / (t1 * t1);
+    let eta = coat.eta as f64;
+    1.0 - 1.0 / (std::f64::consts::PI * eta * eta * scale)
+}
+
+/// A `w`×`h` image in Mitsuba's orientation (row 0 at v = 0) whose texel at (u, v) is
+/// `f(to_uv · (u, v))`, sampled at texel centres.
+fn resample(
+    w: usize,
+    h: usize,
+    f: impl Fn([f64; 2]) -> crate::math::Rgb,
+    to_uv: DMat4,
+) -> crate::io::image::Image {
+    let mut out = crate::io::image::Image::new(w, h);
+    for y in 0..h {
+        for x in 0..w {
+            let uv = DVec3::new(
+                (x as f64 + 0.5) / w as f64,
+                (y as f64 + 0.5) / h as f64,
+                0.0,
+            );
+            let t = to_uv.transform_point3(uv);
+            out.set(x, y, f([t.x, t.y]));
+        }
+    }
+    out
+}
+
+/// Mitsuba's bilinear, repeating lookup of `img` at (u, v), v = 0 at the top row.
+fn bilinear_mitsuba(img: &crate::io::image::Image, uv: [f64; 2]) -> crate::math::Rgb {
+    let (w, h) = (img.width as i64, img.height as i64);
+    let x = (uv[0] - uv[0].floor()) * w as f64 - 0.5;
+    let y = (uv[1] - uv[1].floor()) * h as f64 - 0.5;
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
+    let at = |i: i64, j: i64| img.get(i.rem_euclid(w) as usize, j.rem_euclid(h) as usize);
+    let (x0, y0) = (x0 as i64, y0 as i64);
+    let top = at(x0, y0) * (1.0 - fx) + at(x0 + 1, y0) * fx;
+    let bottom = at(x0, y0 + 1) * (1.0 - fx) + at(x0 + 1, y0 + 1) * fx;
+    top * (1.0 - fy) + bottom * fy
+}
+
+/// Segments of a disk's tessellation.
+const DISK_SEGMENTS: usize = 256;
+
+/// `name` as a file name: letters, digits, `-` and `_` kept, anything else `_`.
+fn sanitize(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
 }
 
 /// The scene's TOML with each object's material and transform as one inline table, as people
