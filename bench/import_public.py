@@ -370,8 +370,9 @@ def compare(exe, mi, dr, xml, work, spp, threads, tol):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--cache", default=os.path.expanduser("~/.cache/matfit-import-public"))
-    ap.add_argument("--mirrors", default="/work/.mirror",
-                    help="folder of local bare mirrors OWNER+NAME/repo (used when present)")
+    ap.add_argument("--mirrors", default=os.environ.get("MATFIT_MIRRORS"),
+                    help="folder of local bare mirrors OWNER+NAME/repo, used when present "
+                    "[default: $MATFIT_MIRRORS; else git clone]")
     ap.add_argument("--matfit", help="matfit binary (default: $MATFIT, $CARGO_TARGET_DIR)")
     ap.add_argument("--only", help="comma-separated scene names")
     ap.add_argument("--width", type=int, default=96, help="render width (aspect kept)")
