@@ -61,36 +61,49 @@ const PHOTO_HELP: &str = "Photograph of the scene taken through the scene's came
 pub enum Command {
     /// Render a scene: a path-traced image, or an index buffer / AOV.
     Render(render::RenderCli),
-    /// Render an edited scene into the photo by differential rendering (Debevec 1998): a new
-    /// object's shadows and reflections fall on the photographed surfaces.
+    /// Render an edited scene into the photo (augmented reality).
+    ///
+    /// By differential rendering (Debevec 1998): a new object's shadows and reflections fall on
+    /// the photographed surfaces.
     Composite(composite::CompositeCli),
     /// Recover the materials of a scene's groups from a photograph.
     Recover(recover::RecoverCli),
-    /// Render a scene's photo with its true materials, recover them blind, print true vs
-    /// recovered values (the course notes' Figure 6 with the default scene).
+    /// Render a scene's photo, recover its materials blind, print true vs recovered values.
+    ///
+    /// The photo is rendered with the scene's true materials; with the default scene the table
+    /// is the course notes' Figure 6.
     Demo(demo::DemoCli),
-    /// Merge LDR exposure brackets (8/16-bit PNG or JPEG of one scene from one viewpoint) into
-    /// one linear image for `recover`: the weighted average of response⁻¹(code) / time with
-    /// Debevec & Malik's hat weight (1997, eq. 6), which drops clipped and black codes.
+    /// Merge LDR exposure brackets into one linear photo for `recover`.
+    ///
+    /// The brackets are 8/16-bit PNG or JPEG of one scene from one viewpoint; the merge is the
+    /// weighted average of response⁻¹(code) / time with Debevec & Malik's hat weight (1997,
+    /// eq. 6), which drops clipped and black codes.
     #[command(after_help = "Example:\n  \
         matfit hdr a.png b.png c.png --times 1/60,1/15,1/4 -o photo.exr --response-out curve.txt\n  \
         matfit recover scene.toml photo.exr -o out --grey-card card=0.18\n\n\
         A recovered response is known up to one factor (so is the merged radiance): calibrate \
         the exposure in recover with --grey-card or --exposure-from-lights.")]
     Hdr(hdr::HdrCli),
-    /// Print a summary of a scene file: camera, render settings, groups with their materials,
-    /// lights.
+    /// Print a summary of a scene file.
+    ///
+    /// The camera, render settings, groups with their materials, and lights.
     Info(info::InfoCli),
-    /// Check a photo against the model before fitting: group outlines over the photo, the
-    /// usable-pixel masks, per-group visible / usable / rejected pixel counts, the exposure.
+    /// Check a photo against the model before fitting.
+    ///
+    /// Writes the group outlines over the photo and the usable-pixel masks, and prints per group
+    /// the visible / usable / rejected pixel counts and the exposure.
     Inspect(inspect::InspectCli),
-    /// Export a scene to another renderer: `matfit export mitsuba SCENE -o DIR` writes
-    /// DIR/scene.xml (Mitsuba 3) and DIR/meshes/*.ply; `matfit export gltf SCENE -o OUT.glb`
-    /// one binary glTF 2.0 file. Approximations are printed as warnings.
+    /// Export a scene to Mitsuba 3 or glTF 2.0.
+    ///
+    /// `matfit export mitsuba SCENE -o DIR` writes DIR/scene.xml (Mitsuba 3) and
+    /// DIR/meshes/*.ply; `matfit export gltf SCENE -o OUT.glb` one binary glTF 2.0 file.
+    /// Approximations are printed as warnings and listed in the written file.
     Export(export::ExportCli),
-    /// Import another renderer's scene: `matfit import mitsuba SCENE.xml -o scene.toml` writes a
-    /// matfit scene file (mesh and texture paths relative to it); approximations are printed as
-    /// warnings and listed in the file's header.
+    /// Import a Mitsuba scene (3, or 0.5/0.6 upgraded) as a matfit scene file.
+    ///
+    /// `matfit import mitsuba SCENE.xml -o scene.toml` writes a matfit scene file (mesh and
+    /// texture paths relative to it); approximations are printed as warnings and listed in the
+    /// file's header; every refusal is reported at its file and line.
     Import(import::ImportCli),
     /// Measure how fast this machine traces rays (to compare machines or builds; not needed
     /// to use matfit).
