@@ -249,16 +249,8 @@ fn views(scene: &Scene, objects: &[usize], lobe: WardLobe, theta: f32) -> Vec<Vi
             let (mut ray, mut h, mut weight) = (*ray, *h, Rgb::ONE);
             for depth in 2..(2 + BOUNCES).min(scene.render.max_depth) {
                 let o = &scene.objects[h.object as usize];
-                let rho = match &o.material {
-                    Material::Diffuse { rho_d }
-                    | Material::DiffuseMirror { rho_d, .. }
-                    | Material::Ward { rho_d, .. }
-                    | Material::Microfacet { rho_d, .. }
-                    | Material::Plastic { rho_d, .. } => *rho_d,
-                    Material::Textured { texture, scale, .. } => *scale * texture.at(&h),
-                    _ => return None,
-                };
-                weight *= rho;
+                // A mirror or black surface has no diffuse albedo: the walk ends below.
+                weight *= o.material.rho_d_at(&h);
                 if o.is_emitter() || weight.max_element() <= 0.0 {
                     return None;
                 }

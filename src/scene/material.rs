@@ -134,6 +134,14 @@ impl Material {
         }
     }
 
+    /// The diffuse albedo at `hit`: a texture's value there, else [`Material::rho_d`].
+    pub fn rho_d_at(&self, hit: &super::SurfaceHit) -> Rgb {
+        match self {
+            Material::Textured { texture, scale, .. } => *scale * texture.at(hit),
+            m => m.rho_d(),
+        }
+    }
+
     pub fn rho_s(&self) -> Rgb {
         match self {
             Material::Mirror { rho_s }
