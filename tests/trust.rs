@@ -13,6 +13,17 @@ fn xml_header(dir: &Path) -> String {
     xml[start..end].to_string()
 }
 
+/// Writes `scene` as `dir/scene.toml` and renders its photo, `dir/photo.exr`, at `spp`.
+fn scene_and_photo(dir: &Path, scene: &str, spp: u32) {
+    write(dir, "scene.toml", scene);
+    let spp = spp.to_string();
+    let (code, _, err) = run(
+        &["render", "scene.toml", "-o", "photo.exr", "--spp", &spp],
+        dir,
+    );
+    assert_eq!(code, 0, "{err}");
+}
+
 /// figure6's Ward floor goes to Mitsuba as a microfacet lobe fitted to it, whose remaining
 /// error is printed and listed in the file; a scene without Ward says it approximates nothing.
 #[test]
@@ -76,12 +87,7 @@ fn glossy_room() -> String {
 fn recover_exportable_mitsuba_uses_no_ward_level() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    write(dir, "scene.toml", &glossy_room());
-    let (code, _, err) = run(
-        &["render", "scene.toml", "-o", "photo.exr", "--spp", "64"],
-        dir,
-    );
-    assert_eq!(code, 0, "{err}");
+    scene_and_photo(dir, &glossy_room(), 64);
     let fit = [
         "--max-iterations",
         "8",
@@ -178,12 +184,7 @@ emission = 10.0
 fn unseen_sigmas_and_status_words_say_what_is_known() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    write(dir, "scene.toml", UNSEEN_ROOM);
-    let (code, _, err) = run(
-        &["render", "scene.toml", "-o", "photo.exr", "--spp", "64"],
-        dir,
-    );
-    assert_eq!(code, 0, "{err}");
+    scene_and_photo(dir, UNSEEN_ROOM, 64);
     let mut args = vec!["recover", "scene.toml", "photo.exr", "-o", "out"];
     args.extend(QUICK);
     let (code, out, err) = run(&args, dir);
@@ -229,12 +230,7 @@ fn recovered_toml_says_what_it_is() {
         "# the small room, with the true materials\n{}",
         small_scene()
     );
-    write(dir, "scene.toml", &text);
-    let (code, _, err) = run(
-        &["render", "scene.toml", "-o", "photo.exr", "--spp", "16"],
-        dir,
-    );
-    assert_eq!(code, 0, "{err}");
+    scene_and_photo(dir, &text, 16);
     let mut args = vec!["recover", "scene.toml", "photo.exr", "-o", "out"];
     args.extend(QUICK);
     let (code, _, err) = run(&args, dir);
@@ -361,12 +357,7 @@ fn messages_say_what_went_wrong() {
 fn warnings_have_one_style_and_keep_the_group() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    write(dir, "scene.toml", UNSEEN_ROOM);
-    let (code, _, err) = run(
-        &["render", "scene.toml", "-o", "photo.exr", "--spp", "16"],
-        dir,
-    );
-    assert_eq!(code, 0, "{err}");
+    scene_and_photo(dir, UNSEEN_ROOM, 16);
     let mut args = vec!["recover", "scene.toml", "photo.exr", "-o", "out"];
     args.extend(QUICK);
     let (code, _, err) = run(&args, dir);
