@@ -1981,9 +1981,9 @@ impl<'a> Ctx<'a> {
                 match self.color(b, "diffuse_reflectance")? {
                     Some(Err(texture)) => {
                         // matfit's plastic holds no texture. Its textured level's Ward varnish
-                        // lacks the coat's Fresnel rise, which dominates at grazing views (a
-                        // floor: 66% darker than Mitsuba in Bitterli's living room); the coat
-                        // kept exact over the texels' mean diffuse is within noise there.
+                        // lacks the coat's Fresnel rise, which dominates at grazing views, so the
+                        // coat kept exact over the texels' mean diffuse is the closer stand-in
+                        // (bench/README.md, "Design measurements").
                         let mean = self.texture_mean_of(b, &texture, nonlinear.then_some(f_int))?;
                         self.warn(
                             b,
