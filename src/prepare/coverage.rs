@@ -1,6 +1,6 @@
-//! Sub-pixel coverage of the index buffer: whether every part of a pixel sees the object its
-//! centre sees ("pure"). A pixel on an id boundary mixes two surfaces' radiance and must not
-//! speak for either; a pixel inside a thin frame that the band around boundaries would drop is
+//! Sub-pixel coverage of the index buffer: whether every part of a pixel sees the group its
+//! centre sees ("pure"). A pixel on a group boundary mixes two materials' radiance and must not
+//! speak for either (a seam between two objects of one group mixes nothing); a pixel inside a thin frame that the band around boundaries would drop is
 //! pure and usable. The test is geometric (the model's own outlines), so it costs a few rays
 //! per pixel and no photo.
 
@@ -16,24 +16,25 @@ use rayon::prelude::*;
 /// four corners (the strata alone can miss a boundary that only clips a corner).
 pub const SUB: usize = 4;
 
-/// For every pixel, true when its centre sees an object and all of its jittered sub-samples
-/// and corners see that same object. The jitter is a hash of the pixel index, so the result is
+/// For every pixel, true when its centre sees a group and all of its jittered sub-samples
+/// and corners see that same group. The jitter is a hash of the pixel index, so the result is
 /// the same on any thread count. The sub-samples of a pixel are nearly one ray, so they are
 /// traced as packets of eight (`Scene::intersect8_into`, the same hits as one ray at a time):
 /// the strata in two, the corners in a third.
 pub fn pure_pixels(scene: &Scene, camera: &Camera, ib: &IndexBuffers) -> Vec<bool> {
     let w = ib.width;
     let g = &*scene.geometry;
+    let group_of = |prim: u32| scene.objects[g.tris[prim as usize].object as usize].group as i32;
     (0..ib.width * ib.height)
         .into_par_iter()
         .map(|i| {
-            let id = ib.object[i];
+            let id = ib.group[i];
             if id < 0 {
                 return false;
             }
             let (x, y) = ((i % w) as f32, (i / w) as f32);
             let films = sub_samples(i, x, y);
-            // Whether every film position of `films` (at most eight) sees object `id`.
+            // Whether every film position of `films` (at most eight) sees group `id`.
             let all_see = |films: &[Vec2]| {
                 let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); LANES];
                 for (r, &f) in rays.iter_mut().zip(films) {
@@ -43,7 +44,7 @@ pub fn pure_pixels(scene: &Scene, camera: &Camera, ib: &IndexBuffers) -> Vec<boo
                 scene.intersect8_into(rays, (1u32 << films.len()) - 1, &mut hits);
                 hits[..films.len()]
                     .iter()
-                    .all(|h| h.is_some_and(|h| g.tris[h.prim as usize].object as i32 == id))
+                    .all(|h| h.is_some_and(|h| group_of(h.prim) == id))
             };
             films.chunks(LANES).all(all_see)
         })
@@ -175,7 +176,7 @@ edge_v = [0.0, 0.0, 1.0]
 emission = 20.0
 "#;
 
-    /// The packets give what one ray at a time gives (the full hit record's object), on a
+    /// The packets give what one ray at a time gives (the full hit record's group), on a
     /// scene with both answers in quantity: thin frames, a ball, a floor meeting a wall.
     #[test]
     fn packets_answer_as_one_ray_at_a_time() {
@@ -187,20 +188,22 @@ emission = 20.0
         let w = ib.width;
         let one_by_one: Vec<bool> = (0..w * ib.height)
             .map(|i| {
-                let id = ib.object[i];
+                let id = ib.group[i];
                 id >= 0
                     && sub_samples(i, (i % w) as f32, (i / w) as f32)
                         .iter()
                         .all(|&f| {
                             scene
                                 .intersect(&cam.ray(f), f32::INFINITY)
-                                .is_some_and(|h| h.object as i32 == id)
+                                .is_some_and(|h| {
+                                    scene.objects[h.object as usize].group as i32 == id
+                                })
                         })
             })
             .collect();
         let pure = pure_pixels(&scene, cam, &ib);
         let impure = ib
-            .object
+            .group
             .iter()
             .zip(&one_by_one)
             .filter(|(&o, &p)| o >= 0 && !p);

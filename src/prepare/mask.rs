@@ -2,8 +2,9 @@
 //!
 //! 0. pixels the user asked to ignore (`--ignore-mask`, [`ignore`](crate::photo::ignore));
 //! 1. photo pixels that are not valid (NaN/Inf, negative, saturated: see [`Photo`]);
-//! 2. a band of `band` pixels around every boundary between object ids, so a model a few pixels
-//!    off does not poison a group with its neighbour's pixels;
+//! 2. a band of `band` pixels around every boundary between groups, so a model a few pixels
+//!    off does not poison a group with its neighbour's pixels (pixels are judged per group, not
+//!    per object: a floor split into many objects of one material loses no pixel at its seams);
 //! 3. strong photo edges (`edges`) within `edge_reach` pixels of an id boundary, grown by one
 //!    pixel: where the model is off by more than the band, the photo's real boundary is an edge
 //!    just beyond the band, and the pixels on it belong to the wrong surface;
@@ -176,8 +177,8 @@ impl UsableMask {
     }
 }
 
-/// Whether a step between object ids `a` and `b` is a boundary: any change of id, or with
-/// `objects_only` a change between two objects (not to or from the background).
+/// Whether a step between group ids `a` and `b` is a boundary: any change of id, or with
+/// `objects_only` a change between two groups (not to or from the background).
 fn boundary(a: i32, b: i32, objects_only: bool) -> bool {
     a != b && !(objects_only && (a < 0 || b < 0))
 }
@@ -190,8 +191,8 @@ fn boundary_distance(ib: &IndexBuffers, cap: u32, objects_only: bool) -> Vec<u32
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
-            let id = ib.object[i];
-            let across = |j: usize| boundary(id, ib.object[j], objects_only);
+            let id = ib.group[i];
+            let across = |j: usize| boundary(id, ib.group[j], objects_only);
             let diff = (x > 0 && across(i - 1))
                 || (x + 1 < w && across(i + 1))
                 || (y > 0 && across(i - w))
@@ -291,13 +292,13 @@ pub fn usable_pixels(
 }
 
 /// Radius of the largest window (up to `cap`) around each pixel with no [`boundary`] to the
-/// pixel's own object; pixels off the image do not count.
+/// pixel's own group; pixels off the image do not count.
 fn clean_radius(ib: &IndexBuffers, cap: usize, objects_only: bool) -> Vec<u8> {
     let (w, h) = (ib.width, ib.height);
     let mut out = vec![0u8; w * h];
     for y in 0..h {
         for x in 0..w {
-            let id = ib.object[y * w + x];
+            let id = ib.group[y * w + x];
             let mut r = 0;
             'grow: while r < cap {
                 let n = r as i64 + 1;
@@ -311,7 +312,7 @@ fn clean_radius(ib: &IndexBuffers, cap: usize, objects_only: bool) -> Vec<u8> {
                         if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
                             continue;
                         }
-                        if boundary(id, ib.object[yy as usize * w + xx as usize], objects_only) {
+                        if boundary(id, ib.group[yy as usize * w + xx as usize], objects_only) {
                             break 'grow;
                         }
                     }
