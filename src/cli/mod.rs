@@ -344,9 +344,10 @@ pub struct FitArgs {
     /// misses by at least this much tries level 7, a texture.
     #[arg(long, value_name = "E", default_value_t = 0.15, value_parser = positive_f32)]
     texture_error: f32,
-    /// Texture threshold on fine detail: a group whose best uniform model leaves coherent
-    /// detail of at least this fraction of its radiance (averaged away in ε's tiles) tries
-    /// level 7 even with a small ε.
+    /// Texture threshold on fine detail: a group whose best uniform model leaves texel-scale
+    /// structure of at least this RMS fraction of its radiance (z ≥ 4, after registration and
+    /// highlight misfit are regressed out; averaged away in ε's tiles) tries level 7 even with
+    /// a small ε.
     #[arg(long, value_name = "D", default_value_t = 0.02, value_parser = positive_f32)]
     texture_detail: f32,
     /// Never climb to level 7 (textures): uniform materials only.

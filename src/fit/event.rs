@@ -105,6 +105,27 @@ pub enum Event {
         noise_floor: f32,
         detail: f32,
     },
+    /// Algorithm 1's gate let the group try level 7 from its best uniform level: its ε missed
+    /// by the texture threshold beyond the noise (`gross`), or its residual holds texel-scale
+    /// structure (`detail.rs`: RMS fraction `detail`, z-score `z`, and the share of the
+    /// high-passed residual that registration and highlight misfit explained).
+    TextureGate {
+        level: Level,
+        gross: bool,
+        detail: f32,
+        z: f32,
+        explained: f32,
+    },
+    /// A confirmed group's uniform level leaves texel-scale structure that only a texture
+    /// explains (`detail.rs`): RMS fraction `detail`, z-score `z`, and the share of the
+    /// high-passed residual that registration and highlight misfit explained. It analyses
+    /// again, so its next climb tries level 7.
+    Reopened {
+        level: Level,
+        detail: f32,
+        z: f32,
+        explained: f32,
+    },
     /// §5.1 (`pseudo.rs`): the group's mirror level fitted with the groups it reflects that are
     /// still being analysed rendered, and read from the photo (pseudo-textures); the one with
     /// the smaller cost (`chose`: "rendered" or "pseudo_texture") is used in this iteration.

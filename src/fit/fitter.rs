@@ -567,6 +567,18 @@ fn fit_level_among(
     fit_level_from(cache, level, start, variant, distributions, false)
 }
 
+/// [`fit_level`] (`warm`: [`refit_level`]) with levels 8–10 fitting only `distribution`.
+pub fn fit_level_as(
+    cache: &GroupCache,
+    level: Level,
+    start: &GroupParams,
+    variant: WardVariant,
+    distribution: Distribution,
+    warm: bool,
+) -> LevelFit {
+    fit_level_from(cache, level, start, variant, &[distribution], warm)
+}
+
 /// [`fit_level_among`]; `warm`: the anisotropic levels race their starts ([`refit_level`]).
 ///
 /// Levels 8 and 10 are fitted twice: with their diffuse term, and as a bare metal (ρd = 0), and

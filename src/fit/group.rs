@@ -61,6 +61,10 @@ pub struct GroupState {
     /// runner-up, which takes over from `average` once its total weight is the greater.
     #[serde(default)]
     pub runner_up: Option<(GroupParams, u32, f32)>,
+    /// The weighted sums of squares of the fits in `average` and in `runner_up` (same scales):
+    /// the scatter of single fits across caches, which the parameters' 1σ includes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub squares: Option<(GroupParams, GroupParams)>,
     /// Global iterations since this group last found a higher level that earned its place
     /// but had to wait for another group's turn (0: not waiting). The longest waiting group
     /// climbs first, so no group holds the turn (see `schedule::climbers`).
@@ -105,6 +109,23 @@ pub struct GroupState {
     /// ([`Event::Doubted`]); None once the level held again.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub doubted: Option<Level>,
+    /// The uniform level from which a texture was last tried and not kept: its residual's
+    /// structure is not re-asked until the group is at another level.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub texture_refused: Option<Level>,
+    /// A texture that earned its place in a climb the group could not move on (another group's
+    /// turn): its next trial starts from it rather than from nothing.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pending_texture: Option<TextureState>,
+    /// Levels 8–10: the evidence between the two microfacet distributions pooled over the
+    /// caches at the current level, as the sum of ε(GGX) − ε(Beckmann), its sum of squares and
+    /// the count (`hierarchy.rs`, `fit_current`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub distribution_evidence: Option<(f64, f64, u32)>,
+    /// The texel-scale structure its uniform level left on its latest cache (`detail.rs`;
+    /// None when textured, without an atlas, or not yet measured).
+    #[serde(skip)]
+    pub detail: Option<super::detail::Detail>,
 }
 
 impl GroupState {
@@ -121,6 +142,7 @@ impl GroupState {
             last_step: None,
             average: None,
             runner_up: None,
+            squares: None,
             waiting: 0,
             pending: None,
             moves: Vec::new(),
@@ -132,6 +154,10 @@ impl GroupState {
             texture_sources: Vec::new(),
             texture_waiting: false,
             doubted: None,
+            texture_refused: None,
+            pending_texture: None,
+            distribution_evidence: None,
+            detail: None,
         }
     }
 
@@ -142,11 +168,15 @@ impl GroupState {
     /// the choice the other way, which must neither restart the mean nor end the run on it.
     pub(crate) fn accumulate(&mut self, weight: f32) {
         let p = self.params;
+        let squares = self
+            .squares
+            .get_or_insert((GroupParams::zero_sums(), GroupParams::zero_sums()));
         if self
             .average
             .is_some_and(|(sums, _, _)| sums.distribution != p.distribution)
         {
             std::mem::swap(&mut self.average, &mut self.runner_up);
+            std::mem::swap(&mut squares.0, &mut squares.1);
         }
         let (sums, n, total) = self
             .average
@@ -154,18 +184,27 @@ impl GroupState {
         *n += 1;
         *total += weight;
         self.params = p.add_to_mean(sums, weight, *total);
+        p.add_squares(&mut squares.0, weight);
         if let (Some(a), Some(r)) = (&self.average, &self.runner_up) {
             if r.2 > a.2 {
                 self.params = r.0.mean_of_sums(r.2);
                 std::mem::swap(&mut self.average, &mut self.runner_up);
+                std::mem::swap(&mut squares.0, &mut squares.1);
             }
         }
+    }
+
+    /// The scatter of the single fits in the group's mean, and their number; None before three.
+    pub fn fit_scatter(&self) -> Option<(GroupParams, u32)> {
+        let ((sums, n, total), (squares, _)) = (self.average?, self.squares?);
+        (n >= 3 && total > 0.0).then(|| (self.params.scatter(&sums, &squares, total), n))
     }
 
     /// Starts its mean of confirmed fits afresh.
     pub fn restart_average(&mut self) {
         self.average = None;
         self.runner_up = None;
+        self.squares = None;
     }
 
     /// What is not finite about the group's last fit (its error, noise floor or a parameter),
@@ -225,7 +264,10 @@ impl GroupState {
             mirror: may_climb || level.is_mirror(),
             mirror_fitted: level.is_mirror(),
             texels: may_climb || textured,
-            smoothed_irradiance: textured,
+            // A climb's texture trial is solved as level 7's texture is, on its neighbourhood's
+            // irradiance: on the rows as sampled each texel takes its pixel's noise, and a
+            // faint print's trial loses to the uniform model it should beat.
+            smoothed_irradiance: may_climb || textured,
         }
     }
 

@@ -26,17 +26,19 @@
 //! Every fit and every level tried becomes an [`Event`] for the log.
 
 use super::cache::GroupCache;
+use super::detail::{uniform_detail, Detail};
 use super::event::Event;
 use super::fitter::{
-    assess, embed, fit_level, fit_level_above, fit_on_tiles, lowers_error, refit_level, LevelFit,
+    assess, embed, fit_level, fit_level_above, fit_level_as, fit_on_tiles, lowers_error,
+    refit_level, LevelFit,
 };
 use super::group::{GroupState, Status};
 use super::level::{HierarchyOptions, Level};
 use super::params::GroupParams;
 use super::schedule::Turn;
-use super::texture::{coherent_detail, fit_textured, uniform_model, TextureState};
+use super::texture::{fit_textured, TextureState};
 use crate::scene::atlas::Atlas;
-use crate::scene::WardVariant;
+use crate::scene::{Distribution, WardVariant};
 
 /// A level contains the simpler levels it embeds ([`embed`]: anisotropic Ward with αx = αy and
 /// θ = 0 is isotropic Ward), so its best fit on a cache is no worse than theirs in ε. A fit
@@ -88,34 +90,23 @@ fn restart_from_nested(
     Some(event)
 }
 
-/// Fine detail a uniform model leaves that the error's tiles average away (the texture
-/// threshold of Algorithm 1): 0 at level 7 or without the cache's texel rows.
-fn uniform_detail(
-    cache: &GroupCache,
-    level: Level,
-    params: &GroupParams,
-    variant: WardVariant,
-) -> f32 {
-    if level == Level::Textured || cache.texels.is_none() {
-        return 0.0;
-    }
-    let model = uniform_model(cache, level, params, variant);
-    coherent_detail(cache, &model, cache.width)
-}
-
 /// Algorithm 1's gate on a group's best uniform model: it tries a texture if it misses by the
 /// texture threshold beyond its noise floor (gross: a small group's ε can reach the threshold
-/// on its cache's noise alone), or leaves coherent detail of the detail threshold. Returns
-/// whether, and the detail.
+/// on its cache's noise alone), or leaves texel-scale structure that only a texture explains
+/// (`detail.rs`). Returns whether, and the detail.
 fn texture_gate(
     cache: &GroupCache,
     best: &LevelFit,
     variant: WardVariant,
     opts: &HierarchyOptions,
-) -> (bool, f32) {
+) -> (bool, Detail, bool) {
     let gross = best.error - best.noise_floor >= opts.thresholds.texture_error;
     let detail = uniform_detail(cache, best.level, &best.params, variant);
-    (gross || detail >= opts.thresholds.texture_detail, detail)
+    (
+        gross || detail.is_texture(opts.thresholds.texture_detail),
+        detail,
+        gross,
+    )
 }
 
 /// The [`Event::Smoothing`] of a texture whose fit chose its smoothness weight.
@@ -138,6 +129,8 @@ struct Climb {
     near_miss: bool,
     /// Level 7 was not tried because a group that lights this one is still analysing.
     texture_waits: bool,
+    /// Level 7 was tried and did not earn its place.
+    texture_refused: bool,
 }
 
 impl GroupState {
@@ -168,21 +161,42 @@ impl GroupState {
 
     /// The fit of the current level on the cache (level 7: the lobe, then the texture warm-
     /// started from the last one), and the new texture.
+    ///
+    /// Levels 8–10 fit each microfacet distribution on its own and add ε(GGX) − ε(Beckmann) to
+    /// the group's [`GroupState::distribution_evidence`]; the fit returned is that of the
+    /// distribution with the lower ε summed over every cache at the level, this one included.
+    /// A distribution is chosen by the evidence of all the caches, never by the last alone: on
+    /// a material that is neither, the two fit about as well, and a choice per cache flips
+    /// between them (and between their very different α) from one iteration to the next.
     fn fit_current(
-        &self,
+        &mut self,
         cache: &GroupCache,
         atlas: Option<&Atlas>,
         variant: WardVariant,
     ) -> (LevelFit, Option<TextureState>) {
         if self.level == Level::Textured {
             if let (Some(a), Some(t)) = (atlas, &self.texture) {
-                if let Some(r) = fit_textured(cache, a, t.base, &self.params, Some(t), variant) {
+                if let Some(r) =
+                    fit_textured(cache, a, t.base, &self.params, Some(t), variant, false)
+                {
                     return (r.0, Some(r.1));
                 }
             }
         }
         // After two fits at its level that descended every start, a race of the starts.
-        let fit = if self.iterations_at_level >= 2 {
+        let warm = self.iterations_at_level >= 2;
+        if self.level.has_distribution() {
+            let one = |d| fit_level_as(cache, self.level, &self.params, variant, d, warm);
+            let (ggx, beckmann) = (one(Distribution::Ggx), one(Distribution::Beckmann));
+            let d = (ggx.error - beckmann.error) as f64;
+            let (sum, squares, n) = self.distribution_evidence.get_or_insert((0.0, 0.0, 0));
+            (*sum, *squares, *n) = (*sum + d, *squares + d * d, *n + 1);
+            let evals = ggx.evals + beckmann.evals;
+            let mut fit = if *sum > 0.0 { beckmann } else { ggx };
+            fit.evals = evals;
+            return (fit, None);
+        }
+        let fit = if warm {
             refit_level(cache, self.level, &self.params, variant)
         } else {
             fit_level(cache, self.level, &self.params, variant)
@@ -290,13 +304,22 @@ impl GroupState {
         opts: &HierarchyOptions,
         turn: &Turn,
     ) -> Vec<Event> {
-        let events = self.fit_and_climb(cache, atlas, variant, opts, turn);
+        let mut events = self.fit_and_climb(cache, atlas, variant, opts, turn);
+        self.detail = (atlas.is_some() && self.level != Level::Textured)
+            .then(|| uniform_detail(cache, self.level, &self.params, variant));
+        events.extend(self.reopen(opts));
         // At the level it ends at (a climb fits the new level on this cache too).
         let fits = match (&self.average, self.status) {
             (Some(a), Status::Confirmed) => a.1,
             _ => 1,
         };
         self.sigma = super::uncertainty::sigma(cache, self.level, &self.params, variant, fits);
+        let scatter = self.fit_scatter();
+        if let (Some(sd), Some((scatter, n)), Status::Confirmed) =
+            (&mut self.sigma, scatter, self.status)
+        {
+            *sd = super::uncertainty::with_scatter(sd, &scatter, n);
+        }
         events
     }
 
@@ -325,16 +348,39 @@ impl GroupState {
                 best = f;
             }
         }
-        let (texture, detail) = texture_gate(cache, &best, variant, opts);
+        let (texture, detail, _) = texture_gate(cache, &best, variant, opts);
         if texture {
             return Some(Event::TextureKept {
                 level: best.level,
                 error: best.error,
                 noise_floor: best.noise_floor,
-                detail,
+                detail: detail.rms,
             });
         }
         Some(self.demote(&best))
+    }
+
+    /// A confirmed group at a uniform level whose model leaves texel-scale structure that only
+    /// a texture explains analyses again, so that its next climb tries level 7: a group
+    /// confirmed early (its ε under the threshold before its cache could show the structure)
+    /// is not kept from its texture. Not from a level whose texture was already refused.
+    fn reopen(&mut self, opts: &HierarchyOptions) -> Option<Event> {
+        let d = self.detail?;
+        if self.status != Status::Confirmed
+            || self.level == Level::Textured
+            || self.texture_refused == Some(self.level)
+            || !d.is_texture(opts.thresholds.texture_detail)
+        {
+            return None;
+        }
+        self.status = Status::Analysing;
+        self.note = None;
+        Some(Event::Reopened {
+            level: self.level,
+            detail: d.rms,
+            z: d.z,
+            explained: d.explained,
+        })
     }
 
     /// Goes back to the simpler level `f` fitted, to be analysed again from there.
@@ -349,6 +395,9 @@ impl GroupState {
         self.take(f);
         self.texture = None;
         self.doubted = None;
+        self.texture_refused = None;
+        self.pending_texture = None;
+        self.distribution_evidence = None;
         self.iterations_at_level = 0;
         self.moves.clear();
         self.last_step = None;
@@ -377,10 +426,12 @@ impl GroupState {
             return events;
         }
         let thr = opts.thresholds.of(self.level);
-        // Fine detail the error's tiles average away (the texture threshold of Algorithm 1).
+        // Texel-scale structure the error's tiles average away (the texture threshold of
+        // Algorithm 1).
         let textured_detail = atlas.is_some()
+            && self.texture_refused != Some(self.level)
             && uniform_detail(cache, self.level, &fit.params, variant)
-                >= opts.thresholds.texture_detail;
+                .is_texture(opts.thresholds.texture_detail);
         if fit.error < thr && !textured_detail {
             self.status = Status::Confirmed;
             events.push(Event::Confirmed {
@@ -519,6 +570,8 @@ impl GroupState {
         let mut rejected = f32::INFINITY;
         // Level 7 was not tried because a group that lights this one is still analysing.
         let mut texture_waits = false;
+        // Level 7 was tried and did not earn its place.
+        let mut texture_refused = false;
         while let Some(next) = level.next() {
             let started = std::time::Instant::now();
             // Levels 8 and 10 reshape a lobe: a group on which no specular level earned its
@@ -536,9 +589,17 @@ impl GroupState {
                 continue;
             }
             if next == Level::Textured {
-                if !texture_gate(cache, &best, variant, opts).0 {
+                let (open, d, gross) = texture_gate(cache, &best, variant, opts);
+                if !open {
                     break;
                 }
+                events.push(Event::TextureGate {
+                    level: best.level,
+                    gross,
+                    detail: d.rms,
+                    z: d.z,
+                    explained: d.explained,
+                });
                 if let Some(behind) = &turn.texture_waits_for {
                     texture_waits = true;
                     exhausted = false;
@@ -560,8 +621,18 @@ impl GroupState {
                 // the bare texture fits significantly better (the lobe was the uniform model's
                 // way to imitate the texture: a poster's "anisotropic" lobe).
                 let Some(a) = atlas else { break };
+                // A trial set aside for its turn starts from its texture.
                 let fit = |base| {
-                    super::texture::fit_textured(cache, a, base, &best.params, None, variant)
+                    let pending = self.pending_texture.as_ref().filter(|t| t.base == base);
+                    super::texture::fit_textured(
+                        cache,
+                        a,
+                        base,
+                        &best.params,
+                        pending,
+                        variant,
+                        true,
+                    )
                 };
                 let Some(bare) = fit(Level::Diffuse) else {
                     break;
@@ -584,6 +655,8 @@ impl GroupState {
                 if kept {
                     best = f;
                     texture = Some(t);
+                } else {
+                    texture_refused = true;
                 }
                 break;
             }
@@ -623,7 +696,13 @@ impl GroupState {
             level = next;
             if kept {
                 best = f.clone();
-                if f.error < opts.thresholds.of(next) {
+                // Below its threshold, unless it leaves the structure only a texture explains.
+                let detail = || {
+                    atlas.is_some()
+                        && uniform_detail(cache, next, &f.params, variant)
+                            .is_texture(opts.thresholds.texture_detail)
+                };
+                if f.error < opts.thresholds.of(next) && !detail() {
                     exhausted = level.next().is_none();
                     break;
                 }
@@ -642,6 +721,7 @@ impl GroupState {
             exhausted,
             near_miss,
             texture_waits,
+            texture_refused,
         }
     }
 
@@ -661,11 +741,19 @@ impl GroupState {
             exhausted,
             near_miss,
             texture_waits,
+            texture_refused,
         } = climb;
         self.texture_waiting = texture_waits;
+        if texture_refused {
+            self.texture_refused = Some(self.level);
+            self.pending_texture = None;
+        }
         if best.level != self.level && !turn.may_move {
             self.waiting += 1;
             self.pending = Some(best.level);
+            if texture.is_some() {
+                self.pending_texture = texture;
+            }
             events.push(Event::Deferred { to: best.level });
         } else if best.level != self.level {
             self.waiting = 0;
@@ -680,6 +768,9 @@ impl GroupState {
                 events.extend(smoothing_event(t));
             }
             self.texture = texture;
+            self.pending_texture = None;
+            self.texture_refused = None;
+            self.distribution_evidence = None;
             self.iterations_at_level = 0;
             self.moves.clear();
             self.last_step = None;

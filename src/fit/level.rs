@@ -153,11 +153,11 @@ pub struct Thresholds {
     #[serde(default = "microfacet_threshold")]
     pub microfacet: f32,
     /// The texture threshold of Algorithm 1, on what the error metric cannot see: a group whose
-    /// best uniform model leaves fine, coherent detail of at least this RMS fraction of its
-    /// radiance (`texture::coherent_detail`) tries level 7 even when its ε is below its
-    /// threshold (fine grain averages out in the error's tiles), and level 7 is tried only for
-    /// such a group or one above `texture_error` (a mirror whose ε misses its threshold by
-    /// noise is not a texture).
+    /// best uniform model leaves texel-scale structure of at least this RMS fraction of its
+    /// radiance (`detail.rs`) tries level 7 even when its ε is below its threshold (fine grain
+    /// averages out in the error's tiles), and level 7 is tried only for such a group or one
+    /// above `texture_error` (a mirror whose ε misses its threshold by noise is not a
+    /// texture).
     #[serde(default = "texture_detail")]
     pub texture_detail: f32,
     /// The texture threshold of Algorithm 1 on ε itself: a group whose best uniform model

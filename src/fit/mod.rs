@@ -2,6 +2,7 @@
 //! machine, and the global iterations that tie them together (§4 of the notes).
 
 pub mod cache;
+pub mod detail;
 pub mod error;
 pub mod event;
 pub mod fitter;

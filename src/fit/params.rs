@@ -275,6 +275,40 @@ impl GroupParams {
         sums.mean_of_sums(total)
     }
 
+    /// Adds the squares of these parameters (on the scales of [`GroupParams::add_to_mean`]),
+    /// with weight `weight`, to the running `squares`.
+    pub fn add_squares(&self, squares: &mut GroupParams, weight: f32) {
+        for row in &REGISTRY {
+            let sum = (row.get_mut)(squares);
+            for (s, &v) in sum.iter_mut().zip((row.get)(self)) {
+                let x = match row.scale {
+                    Scale::Linear => v,
+                    Scale::Log => v.ln(),
+                };
+                *s += x * x * weight;
+            }
+        }
+    }
+
+    /// The scatter (standard deviation) of single fits about their weighted mean, from the
+    /// running `sums` and `squares` of total weight `total`, in the parameters' own units
+    /// (roughness: its mean times the scatter of ln α). `self` is the mean.
+    pub fn scatter(&self, sums: &GroupParams, squares: &GroupParams, total: f32) -> GroupParams {
+        let mut out = GroupParams::zero_sums();
+        for row in &REGISTRY {
+            let (s, q, m) = ((row.get)(sums), (row.get)(squares), (row.get)(self));
+            for (k, o) in (row.get_mut)(&mut out).iter_mut().enumerate() {
+                let mean = s[k] / total;
+                let sd = (q[k] / total - mean * mean).max(0.0).sqrt();
+                *o = match row.scale {
+                    Scale::Linear => sd,
+                    Scale::Log => m[k] * sd,
+                };
+            }
+        }
+        out
+    }
+
     /// The mean of these running sums ([`GroupParams::add_to_mean`]) of total weight `total`,
     /// clamped.
     pub fn mean_of_sums(&self, total: f32) -> GroupParams {

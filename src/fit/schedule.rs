@@ -121,7 +121,8 @@ pub struct Turn {
 /// texels, and its lobe is lost). So `g` waits for any group that gives it more than
 /// [`INDEPENDENT`] of its light and is analysing with ε at or above its threshold, unless that
 /// group is itself waiting for a texture (two textured neighbours would otherwise wait for each
-/// other). The first such group, by index.
+/// other); and for any such group without a lobe or mirror whose uniform level leaves a print
+/// (`detail.rs`), which it would otherwise take for its own. The first such group, by index.
 ///
 /// The recovery loop asks this only of a group whose texture would be fitted from more pixels
 /// than a uniform level's cache holds (`CacheOptions::max_pixels`): waiting costs iterations
@@ -136,11 +137,20 @@ pub fn texture_waits_for(
     let lit_by = &states[g].lit_by;
     (0..states.len()).find(|&h| {
         let s = &states[h];
-        h != g
-            && lit_by.get(h).is_some_and(|&x| x > INDEPENDENT)
-            && s.status == Status::Analysing
+        // A neighbour whose print is not yet modelled sends its pattern into this group's
+        // residual (a glossy floor reflecting a papered wall): this group's texture would
+        // take the reflection for its own. Only a neighbour without a lobe or mirror: its
+        // print is its own (a diffuse surface's light blurs any pattern it receives), so two
+        // groups never wait for each other's print, even while that neighbour itself waits.
+        let unmodelled_print = !s.level.has_lobe()
+            && !s.level.is_mirror()
+            && s.level != Level::Textured
+            && s.detail
+                .is_some_and(|d| d.is_texture(opts.thresholds.texture_detail));
+        let analysing = s.status == Status::Analysing
             && s.error >= opts.thresholds.of(s.level)
-            && !s.texture_waiting
+            && !s.texture_waiting;
+        h != g && lit_by.get(h).is_some_and(|&x| x > INDEPENDENT) && (analysing || unmodelled_print)
     })
 }
 

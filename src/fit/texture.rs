@@ -27,7 +27,7 @@
 //! mean of its object's seen texels away from them; a chart seen nowhere gets that mean (or the
 //! group's).
 
-use super::cache::{GroupCache, PixelGrid, TexelRows};
+use super::cache::{GroupCache, TexelRows};
 use super::error::{tiled_error, ErrorStats, PixelTerms};
 use super::fitter::{fit_level, spec_of, LevelFit};
 use super::level::Level;
@@ -49,6 +49,9 @@ pub const SEEN_FRACTION: f32 = 0.1;
 /// photo's pixels, so no one weight suits every texture (the poster scene's full-size poster
 /// asks for 0.003, the facing-mirrors room's painting for 0.1).
 pub const SMOOTHING_CHOICES: [f32; 6] = [0.001, 0.003, 0.01, 0.03, 0.1, 0.3];
+
+/// The weights a climb's texture trial chooses among (every other of [`SMOOTHING_CHOICES`]).
+pub const TRIAL_SMOOTHING_CHOICES: [f32; 3] = [0.003, 0.03, 0.3];
 
 /// The folds of [`choose_smoothing`]'s cross-validation: each fit leaves out one pixel in this
 /// many, which keeps the fits close to the whole cache's (every texel still seen by most of its
@@ -148,56 +151,6 @@ pub fn footprint(scene: &Scene, pixels: &[usize]) -> Option<f32> {
     Some(sizes[sizes.len() / 2])
 }
 
-/// The texture threshold's statistic (Algorithm 1): the fine, spatially coherent part of the
-/// residual a uniform model leaves, as an RMS fraction of the group's mean radiance. The
-/// residual (photo − model, mean of the channels) is high-passed by subtracting its mean over
-/// the 5×5 neighbourhood of cached pixels, and the covariance of neighbouring high-passed
-/// residuals is taken: independent per-pixel noise contributes nothing to it (slightly less),
-/// a smooth shading error is removed by the high-pass, and a texture's strokes and edges, which
-/// span neighbouring pixels, remain. The error metric cannot see this: its tiles average fine
-/// detail away. Neighbours are those of the cache's pixel grid (every `stride`-th pixel).
-pub fn coherent_detail(cache: &GroupCache, model: &[Rgb], width: usize) -> f32 {
-    // Neighbours are those of one image: a cache of several photos is judged on its first.
-    let n = cache.first_view().len();
-    if n < 16 {
-        return 0.0;
-    }
-    let grid = PixelGrid::new(cache.first_view(), width);
-    let lum = |c: Rgb| (c.x + c.y + c.z) / 3.0;
-    let e: Vec<f32> = (0..n)
-        .map(|k| lum(cache.pixels[k].photo - model[k]))
-        .collect();
-    let neighbour = |k: usize, dx: i64, dy: i64| grid.neighbour(k, dx, dy);
-    let h: Vec<f32> = (0..n)
-        .map(|k| {
-            let (mut sum, mut m) = (0.0f32, 0usize);
-            for dy in -2..=2 {
-                for dx in -2..=2 {
-                    if let Some(j) = neighbour(k, dx, dy) {
-                        sum += e[j];
-                        m += 1;
-                    }
-                }
-            }
-            e[k] - sum / m.max(1) as f32
-        })
-        .collect();
-    let (mut cov, mut pairs) = (0.0f64, 0usize);
-    for k in 0..n {
-        for (dx, dy) in [(1, 0), (0, 1)] {
-            if let Some(j) = neighbour(k, dx, dy) {
-                cov += (h[k] * h[j]) as f64;
-                pairs += 1;
-            }
-        }
-    }
-    let mean = cache.first_view().iter().map(|p| lum(p.photo)).sum::<f32>() / n as f32;
-    if pairs == 0 || !(mean > 0.0) {
-        return 0.0;
-    }
-    ((cov / pairs as f64).max(0.0).sqrt() as f32) / mean
-}
-
 /// The model's radiance per cached pixel for a uniform level's parameters.
 pub fn uniform_model(
     cache: &GroupCache,
@@ -261,6 +214,7 @@ pub fn fit_textured(
     params: &GroupParams,
     previous: Option<&TextureState>,
     variant: WardVariant,
+    trial: bool,
 ) -> Option<(LevelFit, TextureState)> {
     // Solved on the smoothed rows, judged on the rows as sampled (`TexelRows::scale`).
     let sampled = cache.texels.as_ref()?;
@@ -293,7 +247,22 @@ pub fn fit_textured(
     };
     let charts = atlas.chart_rects();
     let (smoothing, held_out) = match previous {
-        Some(t) if t.smoothing_settled => (t.smoothing, Vec::new()),
+        Some(t) if t.smoothing_settled || trial => (t.smoothing, Vec::new()),
+        // A trial's weight from three choices on one fold: a sixth of the full choice's cost.
+        // It decides only whether a texture earns its place; level 7's first fit chooses again.
+        None if trial => {
+            let (w, _) = choose_smoothing_among(
+                cache,
+                rows,
+                &spec,
+                &uniform,
+                &charts,
+                atlas.width,
+                &TRIAL_SMOOTHING_CHOICES,
+                1,
+            );
+            (w, Vec::new())
+        }
         _ => choose_smoothing(cache, rows, &spec, &uniform, &charts, atlas.width),
     };
     let mut texels = solve(
@@ -367,7 +336,7 @@ pub fn fit_textured(
         seen,
         charted: charts.iter().map(|r| r[2] * r[3]).sum(),
         smoothing,
-        smoothing_settled: previous.is_some(),
+        smoothing_settled: previous.is_some() && !trial,
         held_out,
     };
     state.texels = texels;
@@ -647,10 +616,35 @@ pub fn choose_smoothing(
     charts: &[[usize; 4]],
     width: usize,
 ) -> (f32, Vec<f32>) {
+    choose_smoothing_among(
+        cache,
+        rows,
+        spec,
+        start,
+        charts,
+        width,
+        &SMOOTHING_CHOICES,
+        FOLDS,
+    )
+}
+
+/// [`choose_smoothing`] among `choices`, holding out the first `folds` of the [`FOLDS`] folds
+/// in turn.
+#[allow(clippy::too_many_arguments)]
+fn choose_smoothing_among(
+    cache: &GroupCache,
+    rows: &TexelRows,
+    spec: &[Rgb],
+    start: &[Rgb],
+    charts: &[[usize; 4]],
+    width: usize,
+    choices: &[f32],
+    folds: usize,
+) -> (f32, Vec<f32>) {
     use rayon::prelude::*;
     let fold = |p: usize| (crate::math::sampler::hash_seed(&[p as u64]) % FOLDS as u64) as usize;
-    let runs: Vec<(usize, usize)> = (0..SMOOTHING_CHOICES.len())
-        .flat_map(|c| (0..FOLDS).map(move |k| (c, k)))
+    let runs: Vec<(usize, usize)> = (0..choices.len())
+        .flat_map(|c| (0..folds).map(move |k| (c, k)))
         .collect();
     // Each (weight, fold) alone, in parallel; summed in their order (deterministic).
     let errors: Vec<f64> = runs
@@ -670,7 +664,7 @@ pub fn choose_smoothing(
                 FIRST_ITERATIONS,
                 charts,
                 width,
-                SMOOTHING_CHOICES[c],
+                choices[c],
             );
             (0..cache.pixels.len())
                 .filter(|&p| fold(p) == k)
@@ -682,8 +676,8 @@ pub fn choose_smoothing(
                 .sum()
         })
         .collect();
-    let per_weight: Vec<f64> = (0..SMOOTHING_CHOICES.len())
-        .map(|c| errors[c * FOLDS..(c + 1) * FOLDS].iter().sum())
+    let per_weight: Vec<f64> = (0..choices.len())
+        .map(|c| errors[c * folds..(c + 1) * folds].iter().sum())
         .collect();
     let best = (0..per_weight.len())
         .min_by(|&a, &b| per_weight[a].total_cmp(&per_weight[b]))
@@ -692,7 +686,7 @@ pub fn choose_smoothing(
         .iter()
         .map(|&e| (e / per_weight[best].max(1e-30)) as f32)
         .collect();
-    (SMOOTHING_CHOICES[best], relative)
+    (choices[best], relative)
 }
 
 /// ε, the noise floor and the halves' ε of a texture (plus specular terms) on the cache.

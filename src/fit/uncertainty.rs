@@ -11,6 +11,12 @@
 //! parameters reported are a mean of `fits` global iterations' fits, each on its own cache: the
 //! cache's share of s² (from its two independent halves, Σ w ((L₀ − L₁)/2)²) shrinks by that
 //! count, the photo's and the model's do not.
+//!
+//! Misfit. s² treats residuals as independent, but a model that misses leaves residuals that
+//! are alike over neighbouring tiles, and then s² (JᵀWJ)⁻¹ is too tight. The cluster-robust
+//! sandwich (White; Liang & Zeger 1986) over clusters of neighbouring tiles is not; where it
+//! exceeds the independent estimate, the excess is added. Across iterations, the group's 1σ
+//! also holds the scatter of its single fits ([`with_scatter`]).
 
 use super::cache::GroupCache;
 use super::level::Level;
@@ -18,6 +24,10 @@ use super::objective::{pixel_specs, Spec};
 use super::params::GroupParams;
 use crate::math::Rgb;
 use crate::scene::WardVariant;
+
+/// Clusters of neighbouring tiles for the sandwich's misfit term (fewer for a group of few
+/// tiles: four tiles a cluster at least).
+const CLUSTERS: usize = 8;
 
 /// Above this relative 1σ, a Ward lobe's ρs or α is reported as weakly determined.
 pub const WEAK_LOBE: f32 = 0.5;
@@ -153,7 +163,11 @@ pub fn sigma(
     let mut a = vec![vec![0.0f64; n]; n];
     let (mut chi2, mut cache_noise, mut rows) = (0.0f64, 0.0f64, 0usize);
     let mut jac: Vec<(usize, f64)> = Vec::with_capacity(n);
-    for t in &tiles {
+    // The score Σ w r J of each cluster of neighbouring tiles, for the sandwich below.
+    let clusters = CLUSTERS.min(tiles.len() / 4).max(1);
+    let mut scores = vec![vec![0.0f64; n]; clusters];
+    for (ti, t) in tiles.iter().enumerate() {
+        let score = &mut scores[ti * clusters / tiles.len()];
         for c in 0..3 {
             if !(mean[c] > 0.0) {
                 continue;
@@ -178,6 +192,9 @@ pub fn sigma(
             cache_noise += w * (t.4[c] as f64).powi(2);
             rows += 1;
             for &(u, ju) in &jac {
+                score[u] += w * r * ju;
+            }
+            for &(u, ju) in &jac {
                 for &(v, jv) in &jac {
                     a[u][v] += w * ju * jv;
                 }
@@ -199,11 +216,26 @@ pub fn sigma(
     let s2_all = chi2 / (rows - n) as f64;
     let s2_cache = (cache_noise / rows as f64).min(s2_all);
     let s2 = s2_all - s2_cache + s2_cache / (fits.max(1) as f64).sqrt();
+    // The misfit's share: the cluster-robust sandwich (A⁻¹ M A⁻¹, M = Σ over clusters of
+    // their score's outer product, scaled by K/(K−1)) holds residuals that are correlated
+    // across neighbouring tiles, as a model's systematic misfit is and independent noise is
+    // not; what it finds beyond the Gauss–Newton variance of independent residuals is added.
+    let sandwich = |u: usize| -> f64 {
+        if clusters < 2 {
+            return 0.0;
+        }
+        let k = clusters as f64 / (clusters - 1) as f64;
+        k * scores
+            .iter()
+            .map(|g| (0..n).map(|v| inv[u][v] * g[v]).sum::<f64>().powi(2))
+            .sum::<f64>()
+    };
     let sd = |u: usize| -> f32 {
         if pinned[u] {
             0.0
         } else {
-            (s2 * inv[u][u]).max(0.0).sqrt() as f32
+            let excess = (sandwich(u) - s2_all * inv[u][u]).max(0.0);
+            (s2 * inv[u][u] + excess).max(0.0).sqrt() as f32
         }
     };
     let mut out = GroupParams::zero_sums();
@@ -228,6 +260,32 @@ pub fn sigma(
         _ => {}
     }
     Some(out)
+}
+
+/// The 1σ of a mean of `n` fits on fresh caches: `sigma` from the last cache, plus the scatter
+/// of the single fits across caches (`scatter`, their standard deviation), as the variance of
+/// a mean, twice over: consecutive caches are traced through nearly the same neighbours'
+/// models, so their fits are not independent, and half as many independent ones is the
+/// honest count. The neighbours' changes, the exposure's and the cache's noise all move the
+/// fits, and none of them is in one cache's Gauss–Newton estimate.
+pub fn with_scatter(sigma: &GroupParams, scatter: &GroupParams, n: u32) -> GroupParams {
+    let mut out = *sigma;
+    let k = 2.0 / n.max(1) as f32;
+    let add = |s: f32, d: f32| {
+        if s > 0.0 {
+            (s * s + k * d * d).sqrt()
+        } else {
+            s
+        }
+    };
+    for c in 0..3 {
+        out.rho_d[c] = add(sigma.rho_d[c], scatter.rho_d[c]);
+        out.rho_s[c] = add(sigma.rho_s[c], scatter.rho_s[c]);
+    }
+    out.alpha_x = add(sigma.alpha_x, scatter.alpha_x);
+    out.alpha_y = add(sigma.alpha_y, scatter.alpha_y);
+    out.theta = add(sigma.theta, scatter.theta);
+    out
 }
 
 #[cfg(test)]

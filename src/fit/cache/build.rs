@@ -72,9 +72,16 @@ impl UnseenProbe<'_> {
     }
 }
 
+/// Side, in image pixels, of the blocks a subsampled cache keeps whole.
+pub const BLOCK: usize = 8;
+
 /// The subsample of `pixels` (row-major image indices of one group) that the cache uses, and
-/// each chosen pixel's tile. Keeps every `stride`-th row and column, stride chosen so that at
-/// most `max_pixels` remain.
+/// each chosen pixel's tile. Keeps one in `stride`² pixels, stride chosen so that at most
+/// `max_pixels` remain, as whole blocks of up to [`BLOCK`] pixels a side on a lattice `stride`
+/// blocks apart rather than as every `stride`-th pixel: within a block, neighbours are the
+/// image's own, so detail at the scale of a few pixels (a printed pattern's texels) stays
+/// visible to the texture test (`detail.rs`) however large the group; a lattice of single
+/// pixels aliases a pattern whose period is near the stride into nothing.
 pub fn choose_pixels(
     pixels: &[usize],
     width: usize,
@@ -87,12 +94,17 @@ pub fn choose_pixels(
         .ceil() as usize)
         .max(stride)
         .max(2);
+    // At least four blocks across a compact group's extent, so a small group is not missed
+    // by a lattice whose first block falls outside it (a block of 1: every `stride`-th pixel).
+    let extent = (pixels.len() as f64).sqrt() as usize;
+    let block = BLOCK.min(extent / (4 * stride)).max(1);
+    let period = block * stride;
     let mut tile_ids = std::collections::BTreeMap::new();
     let mut chosen = Vec::new();
     let mut tiles = Vec::new();
     for &p in pixels {
         let (x, y) = (p % width, p / width);
-        if x % stride == 0 && y % stride == 0 {
+        if x % period < block && y % period < block {
             let key = (y / cell, x / cell);
             let n = tile_ids.len() as u32;
             let t = *tile_ids.entry(key).or_insert(n);

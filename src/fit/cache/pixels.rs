@@ -184,8 +184,9 @@ impl TexelRows {
     }
 }
 
-/// The cached pixels of one image as a grid: a cache's pixels are every `stride`-th usable
-/// pixel of the image, and a pixel's neighbours are those `stride` pixels away.
+/// The cached pixels of one image as a grid: a pixel's neighbours are those `stride` image
+/// pixels away, `stride` the smallest step between cached pixels of a row (1 for a cache of
+/// whole blocks, `build::choose_pixels`).
 pub struct PixelGrid {
     at: std::collections::HashMap<u32, usize>,
     pixel: Vec<u32>,
