@@ -181,11 +181,30 @@ pub fn shares(
                 state.params.theta
             },
         },
-        _ => return None,
+        Level::Microfacet | Level::AnisotropicMicrofacet | Level::Plastic => {
+            super::fitter::spec_of(level, &state.params)
+        }
+        Level::Textured => return None,
     };
     if k == 0 || cache.tiles == 0 {
         return None;
     }
+    // Levels 8–10: the model's terms, and their derivatives along each tracked group, from
+    // the objective's own evaluation (`pixel_specs`) of the cache and of its derivative: the
+    // model is linear in the samples' radiance, so the derivative of a term is the term
+    // evaluated on the samples' derivatives. The coat of level 9 scales the diffuse term too.
+    let generic = matches!(
+        spec,
+        Spec::Microfacet { .. } | Spec::AnisoMicrofacet { .. } | Spec::Plastic { .. }
+    );
+    let generic_terms = if generic {
+        if tracked.dc.len() != k * cache.samples.len() {
+            return None;
+        }
+        Some(derivative_terms(cache, tracked, spec, variant))
+    } else {
+        None
+    };
     let lobe = match spec {
         Spec::Lobe {
             alpha_x,
@@ -211,6 +230,18 @@ pub fn shares(
         let probed = tracked.probed.get(i).copied().unwrap_or(true);
         counts[p.tile as usize].0 += 1;
         counts[p.tile as usize].1 += probed as u32;
+        if let Some(terms) = &generic_terms {
+            let (d, s, du, su) = &terms[i];
+            for h in 0..2 {
+                t.d[h] += d[h];
+                t.s[h] += s[h];
+                for j in (0..k).filter(|_| probed) {
+                    t.du[j][h] += du[j][h];
+                    t.su[j][h] += su[j][h];
+                }
+            }
+            continue;
+        }
         for h in 0..2 {
             t.d[h] += p.d_half[h];
             for j in 0..k {
@@ -268,6 +299,49 @@ pub fn shares(
         rho_s: state.params.rho_s,
         tiles,
     })
+}
+
+/// Per cached pixel of a level 8–10 group: its diffuse and specular terms per half, and their
+/// derivatives along each tracked group (per group, per half), from `pixel_specs` of the cache
+/// and of a copy whose samples and diffuse sums are their derivatives.
+#[allow(clippy::type_complexity)]
+fn derivative_terms(
+    cache: &GroupCache,
+    tracked: &crate::fit::cache::UnseenShares,
+    spec: Spec,
+    variant: WardVariant,
+) -> Vec<([Rgb; 2], [Rgb; 2], Vec<[Rgb; 2]>, Vec<[Rgb; 2]>)> {
+    let k = tracked.groups.len();
+    let terms = |c: &GroupCache| -> Vec<([Rgb; 2], [Rgb; 2])> {
+        let specs = super::objective::pixel_specs(c, spec, variant, false);
+        c.pixels
+            .iter()
+            .zip(&specs)
+            .map(|(p, s)| (s.diffuse(p).1, s.s_half))
+            .collect()
+    };
+    let mut out: Vec<_> = terms(cache)
+        .into_iter()
+        .map(|(d, s)| (d, s, Vec::with_capacity(k), Vec::with_capacity(k)))
+        .collect();
+    for j in 0..k {
+        let mut moved = cache.clone();
+        moved.samples = (0..cache.samples.len())
+            .map(|s| Sample {
+                c: tracked.dc[s * k + j],
+                ..cache.samples[s]
+            })
+            .collect();
+        for (i, p) in moved.pixels.iter_mut().enumerate() {
+            p.d_half = tracked.d_half[i * k + j];
+            p.d = p.d_half[0] * 0.5 + p.d_half[1] * 0.5;
+        }
+        for (o, (d, s)) in out.iter_mut().zip(terms(&moved)) {
+            o.2.push(d);
+            o.3.push(s);
+        }
+    }
+    out
 }
 
 /// What [`solve_channel`] does with each tile: (its group, its weight, the unknowns its model
@@ -1243,5 +1317,54 @@ mod tests {
         assert_eq!(h.step(0, 0, 0.8), 0.8);
         // The σ still reads the proposals made before.
         assert_eq!(h.sigma(0, 0), Some(0.01));
+    }
+
+    /// The model is linear in the samples' radiance, so a tracked group whose derivative is
+    /// the cache's own light (dc = c, ∂D = D) has ∂S = S and ∂D = D in every tile, at the
+    /// Ward levels (their own lobe sums) and at levels 8–10 (the objective's evaluation), the
+    /// coat's diffuse term included: the stray light is estimated at every level.
+    #[test]
+    fn derivatives_at_every_lobe_level_are_the_model_on_the_derivative_light() {
+        use crate::fit::cache::{synthetic_cache, UnseenShares};
+        use crate::fit::params::GroupParams;
+        use crate::scene::Distribution;
+        let mut cache = synthetic_cache(24, 8, 4, 5, |_, _| Rgb::splat(0.3));
+        for (i, p) in cache.pixels.iter_mut().enumerate() {
+            p.photo = Rgb::splat(0.3 + 0.01 * i as f32);
+        }
+        cache.unseen = Some(UnseenShares {
+            groups: vec![7],
+            d_half: cache.pixels.iter().map(|p| p.d_half).collect(),
+            dc: cache.samples.iter().map(|s| s.c).collect(),
+            mirror_half: cache.pixels.iter().map(|p| p.mirror_half).collect(),
+            probed: vec![true; cache.pixels.len()],
+        });
+        for level in [
+            Level::Isotropic,
+            Level::Anisotropic,
+            Level::Microfacet,
+            Level::AnisotropicMicrofacet,
+            Level::Plastic,
+        ] {
+            let mut st = GroupState::new("g", Status::Confirmed, GroupParams::default());
+            st.level = level;
+            st.params.rho_d = Rgb::splat(0.4);
+            st.params.rho_s = Rgb::splat(0.1);
+            st.params.alpha_x = 0.15;
+            st.params.alpha_y = 0.25;
+            st.params.distribution = Distribution::Beckmann;
+            let sh = shares(&cache, 0, &st, WardVariant::Ward1992)
+                .unwrap_or_else(|| panic!("{level:?}: no shares"));
+            assert!(!sh.tiles.is_empty());
+            for t in &sh.tiles {
+                for h in 0..2 {
+                    let (ds, dd) = (t.su[0][h] - t.s[h], t.du[0][h] - t.d[h]);
+                    let tol = 1e-4 * (1.0 + t.s[h].max_element() + t.d[h].max_element());
+                    assert!(ds.abs().max_element() < tol, "{level:?}: {ds:?}");
+                    assert!(dd.abs().max_element() < tol, "{level:?}: {dd:?}");
+                    assert!(t.s[h].max_element() > 0.0, "{level:?}: no specular term");
+                }
+            }
+        }
     }
 }
