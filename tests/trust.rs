@@ -436,3 +436,50 @@ fn a_composite_counts_changes_beyond_the_noise() {
         "{line}"
     );
 }
+
+/// A photo 2.5× brighter than its exposure says (the error of a JPEG shot without one) is not
+/// "confirmed" into confident nonsense: the groups it cannot explain say "not explained", and
+/// the run's verdict, in the terminal, results.json and the report, names the exposure. The
+/// same photo with its true exposure is explained.
+#[test]
+fn a_wrongly_exposed_photo_is_not_explained_and_the_verdict_says_why() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    scene_and_photo(dir, &small_scene(), 64);
+    let recover = |exposure: &str, out: &str| {
+        let mut args = vec!["recover", "scene.toml", "photo.exr", "-o", out];
+        // QUICK, but a final render whose noise floor leaves the verdict something to judge.
+        let k = QUICK.iter().position(|&a| a == "--final-spp").unwrap();
+        args.extend(
+            QUICK
+                .iter()
+                .enumerate()
+                .map(|(i, &a)| if i == k + 1 { "16" } else { a }),
+        );
+        args.extend(["--exposure", exposure]);
+        let (code, stdout, err) = run(&args, dir);
+        assert_eq!(code, 0, "{err}");
+        (crate::common::results(&dir.join(out)), stdout)
+    };
+    let (res, stdout) = recover("0.4", "over");
+    let verdict = &res["verdict"];
+    eprintln!("{verdict}");
+    assert_eq!(verdict["explained"], false, "{verdict}");
+    assert_eq!(verdict["causes"][0]["cause"], "exposure", "{verdict}");
+    let named = verdict["not_explained"].as_array().unwrap();
+    assert!(!named.is_empty());
+    for g in named {
+        let g = crate::common::result_group(&res, g.as_str().unwrap());
+        assert_eq!(g["status"], "not explained", "{g}");
+    }
+    assert!(stdout.contains("verdict: NOT EXPLAINED"), "{stdout}");
+    assert!(stdout.contains("not explained"), "{stdout}");
+    let html = std::fs::read_to_string(dir.join("over/report.html")).unwrap();
+    assert!(html.contains("id=\"verdict\"") && html.contains("NOT EXPLAINED"));
+    let (res, stdout) = recover("1", "right");
+    assert_eq!(res["verdict"]["explained"], true, "{}", res["verdict"]);
+    assert!(
+        stdout.contains("verdict: every fitted group is explained"),
+        "{stdout}"
+    );
+}

@@ -276,6 +276,10 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
     )?;
     crate::outln!();
     crate::cli::out::print(format_args!("{}", String::from_utf8_lossy(&table)));
+    crate::outln!(
+        "{}",
+        matfit::report::verdict::verdict(&rec, &prepared.photo).text()
+    );
     crate::outln!();
     crate::outln!(
         "recovery {:.1} s: fitting {:.1} s ({} global iterations, {} cache builds, {} objective evaluations), then the final render {:.1} s; \

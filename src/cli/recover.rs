@@ -480,6 +480,10 @@ pub fn command(args: RecoverCli) -> Result<()> {
     .map_err(anyhow::Error::msg)?;
     outln!();
     out::print(format_args!("{}", table::recovered(&rec)));
+    outln!(
+        "{}",
+        matfit::report::verdict::verdict(&rec, &prepared[0].photo).text()
+    );
     if !rec.views.is_empty() {
         outln!("photos fitted together (exposure factor k: photo = k × the recovered scene's radiance; geometric mean 1):");
         for (v, p) in rec.views.iter().zip(&photos) {

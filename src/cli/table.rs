@@ -207,8 +207,19 @@ pub fn recovered(rec: &Recovery) -> String {
             [
                 st.name.clone(),
                 level,
-                matfit::report::status_word(st.status, rec.unseen.iter().find(|u| u.group == g))
-                    .to_string(),
+                match rec.final_error.get(g).copied().flatten() {
+                    Some((e, n))
+                        if matches!(st.status, Status::Confirmed | Status::Analysing)
+                            && !matfit::report::verdict::explained(e, n) =>
+                    {
+                        matfit::report::NOT_EXPLAINED
+                    }
+                    _ => matfit::report::status_word(
+                        st.status,
+                        rec.unseen.iter().find(|u| u.group == g),
+                    ),
+                }
+                .to_string(),
                 rd,
                 rs,
                 lobe,

@@ -74,6 +74,16 @@ fn value(v: &Value) -> String {
     }
 }
 
+/// A 1σ as the page shows it: "not determined" where results.json has null.
+fn sigma(s: &super::Sigma) -> String {
+    let one = |x: &Option<f32>| x.map_or("not determined".to_string(), |x| format!("{x:.4}"));
+    match s {
+        super::Sigma::Rgb(c) if c.iter().all(Option::is_none) => "not determined".into(),
+        super::Sigma::Rgb([r, g, b]) => format!("({}, {}, {})", one(r), one(g), one(b)),
+        super::Sigma::Scalar(x) => one(x),
+    }
+}
+
 /// The page for the recovery whose outputs are in `dir`, with each group's convergence plot
 /// (`plots`: group, SVG) and the error picture's full scale.
 pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32) -> String {
@@ -83,7 +93,7 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
             .params
             .iter()
             .map(|(k, v)| match g.sigma.get(k) {
-                Some(sd) => format!("{k} = {} ± {}", value(v), value(sd)),
+                Some(sd) => format!("{k} = {} ± {}", value(v), sigma(sd)),
                 None => format!("{k} = {}", value(v)),
             })
             .collect();
@@ -217,6 +227,18 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
         }
         None => String::new(),
     };
+    let verdict = match &res.verdict {
+        Some(v) => format!(
+            "<p id=\"verdict\" style=\"{}\">{}</p>",
+            if v.explained {
+                ""
+            } else {
+                "background:#fdd;padding:0.5em;border:1px solid #c00"
+            },
+            esc(&v.text())
+        ),
+        None => String::new(),
+    };
     format!(
         r#"<!doctype html>
 <html><head><meta charset="utf-8"><title>matfit recovery</title>
@@ -224,6 +246,7 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
 #compare{{position:relative;display:inline-block;max-width:66%}} #compare img{{max-width:100%;width:100%;margin:0;display:block}} #over{{position:absolute;top:0;left:0;height:100%;width:50%;overflow:hidden}} #over img{{width:auto;max-width:none;height:100%}} #slider{{display:block;width:40%}}
 table{{border-collapse:collapse}} td,th{{border:1px solid #ccc;padding:4px 8px;font-size:90%}}</style></head>
 <body><h1>matfit recovery</h1>
+{verdict}
 <p>photo | synthetic | model error: per 8×8-pixel tile of each group, |Σ (synthetic − photo)| beyond three times what the pixels' scatter explains (the noise of both images), over the tile's radiance, so noise shows black (dark grey: pixels not used; error.exr has |synthetic − photo| per pixel)</p>
 <p><img src="{photo}" alt="photo"><img src="{synthetic}" alt="synthetic"><img src="{error}" alt="error"></p>
 {bar}

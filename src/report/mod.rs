@@ -3,6 +3,7 @@
 
 pub mod html;
 pub mod plots;
+pub mod verdict;
 
 use crate::fit::params::Value;
 use crate::fit::Status;
@@ -21,7 +22,8 @@ pub struct GroupResult {
     pub name: String,
     pub level: &'static str,
     pub level_number: u8,
-    /// [`status_word`]: "estimated" for an unseen group the photo determined.
+    /// [`status_word`]: "estimated" for an unseen group the photo determined; "not explained"
+    /// for a fitted group whose final ε is far above its noise floor (`verdict::explained`).
     pub status: &'static str,
     /// ε of the final render against the photo (usable pixels, 4×4 tiles); absent without pixels.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -44,10 +46,11 @@ pub struct GroupResult {
     /// the fit.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub distribution: Option<&'static str>,
-    /// The 1σ of each parameter in `params` (same units), from the group's last cache
-    /// (`fit/uncertainty.rs`); absent where not fitted or not computable.
+    /// The 1σ of each parameter in `params` (same units: `fit/uncertainty.rs`); absent where
+    /// not fitted or not computable, null ("not determined") where the photo does not
+    /// constrain a parameter or its 1σ spans its whole range ([`Sigma::of`]).
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
-    pub sigma: BTreeMap<&'static str, Value>,
+    pub sigma: BTreeMap<&'static str, Sigma>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub note: Option<String>,
     /// For a group with no usable pixels: which rule gave its ρd, its 1σ and the remedy.
@@ -133,6 +136,10 @@ pub struct Results {
     /// The fitted stray light (`recover --stray-light`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stray_light: Option<StrayResult>,
+    /// Whether the recovered scene explains the photo, and if not the likely causes
+    /// (`verdict.rs`; None where the photo was not at hand).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub verdict: Option<verdict::Verdict>,
 }
 
 /// An unseen group's estimate (`fit::unseen::UnseenEstimate`) as results.json states it.
@@ -158,6 +165,33 @@ pub struct StrayResult {
     pub estimated: bool,
     pub share: f32,
     pub open: bool,
+}
+
+/// A parameter's 1σ as results.json states it: per channel or one value, null where not
+/// determined.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq)]
+#[serde(untagged)]
+pub enum Sigma {
+    Rgb([Option<f32>; 3]),
+    Scalar(Option<f32>),
+}
+
+impl Sigma {
+    /// The 1σ `v` of parameter `name` as stated: a zero σ is a parameter the photo did not
+    /// constrain (`uncertainty::sigma` pins it), not an exact value, and a reflectance σ of 1
+    /// or an angle's of 180° spans the parameter's whole range; both are "not determined".
+    pub fn of(name: &str, v: &Value) -> Sigma {
+        let cap = match name {
+            "rho_d" | "rho_s" => Some(1.0),
+            "theta_deg" => Some(180.0),
+            _ => None,
+        };
+        let stated = |s: f32| determined_sigma(s, cap).filter(|&s| s > 0.0);
+        match v {
+            Value::Rgb(c) => Sigma::Rgb(c.map(stated)),
+            Value::Scalar(x) => Sigma::Scalar(stated(*x)),
+        }
+    }
 }
 
 /// A 1σ as the outputs state it: None where the fit has none to give. The unseen-group fit
@@ -197,6 +231,9 @@ impl From<&crate::fit::stray::StrayEstimate> for StrayResult {
 /// A group's status in words, as results.json, report.html and the terminal's table say it:
 /// an unseen group whose ρd the photo determined (`Rule::Estimated`) is "estimated"; one
 /// given the stated scene default is "default".
+/// The status of a fitted group whose final ε is far above its noise floor.
+pub const NOT_EXPLAINED: &str = "not explained";
+
 pub fn status_word(
     status: Status,
     unseen: Option<&crate::fit::unseen::UnseenEstimate>,
@@ -270,7 +307,15 @@ pub fn results(rec: &Recovery) -> Results {
                 name: s.name.clone(),
                 level: level.name(),
                 level_number: level.number(),
-                status: status_word(s.status, unseen),
+                status: match fe {
+                    Some((e, n))
+                        if matches!(s.status, Status::Confirmed | Status::Analysing)
+                            && !verdict::explained(e, n) =>
+                    {
+                        NOT_EXPLAINED
+                    }
+                    _ => status_word(s.status, unseen),
+                },
                 error: fe.map(|e| e.0),
                 noise_floor: fe.map(|e| e.1),
                 fit_error: s.error,
@@ -286,9 +331,11 @@ pub fn results(rec: &Recovery) -> Results {
                     .has_distribution()
                     .then(|| params.distribution.name()),
                 sigma: match (s.status, &s.sigma) {
-                    (Status::Analysing | Status::Confirmed, Some(sd)) => {
-                        sd.named(named_at).into_iter().collect()
-                    }
+                    (Status::Analysing | Status::Confirmed, Some(sd)) => sd
+                        .named(named_at)
+                        .into_iter()
+                        .map(|(k, v)| (k, Sigma::of(k, &v)))
+                        .collect(),
                     _ => BTreeMap::new(),
                 },
                 note: s.note.clone(),
@@ -313,6 +360,7 @@ pub fn results(rec: &Recovery) -> Results {
         ward_variant: rec.scene.render.ward_variant.name(),
         views: rec.views.clone(),
         stray_light: rec.stray_light.as_ref().map(StrayResult::from),
+        verdict: None,
     }
 }
 
@@ -476,6 +524,7 @@ pub fn write_outputs(
     write_atomic(&scene_path, text.as_bytes()).map_err(|e| io(&scene_path, e))?;
     let mut res = results(rec);
     res.inputs = inputs.cloned();
+    res.verdict = Some(verdict::verdict(rec, photo));
     let json = serde_json::to_string_pretty(&res).expect("results serialise");
     let rp = dir.join("results.json");
     write_atomic(&rp, json.as_bytes()).map_err(|e| io(&rp, e))?;
