@@ -734,8 +734,8 @@ def build_measured(out, seed):
     sc.mesh("copper_cyl", "copper", cylinder([0.45, 0.55, -1.0], [0.45, 0.85, -1.0], 0.12, 128, 16))
     sc.mesh("gold_ball", "gold_ball", sphere([-0.45, 0.22, -0.6], 0.22, 160))
     sc.mesh("plastic_ball", "plastic_nl", sphere([0.35, 0.2, -0.35], 0.2, 160))
-    cam = {"width": 256, "height": 256, "eye": [0.0, 1.0, 2.2], "target": [0.0, 1.0, -1.0],
-           "fov": 36.0}
+    cam = {"width": 256, "height": 256, "eye": [0.0, 1.0, 2.4], "target": [0.0, 0.8, -1.0],
+           "fov": 40.0}
     novel = {"width": 256, "height": 256, "eye": [0.7, 1.5, 1.2], "target": [-0.2, 0.5, -1.2],
              "fov": 45.0}
     header = ("# The decisions issue's measured-materials room, written by "
@@ -749,6 +749,43 @@ def build_measured(out, seed):
 
 # ---------------------------------------------------------------------------------------------
 # Mitsuba: matfit's export of the scene with every group's BSDF replaced by the true one
+
+
+def mitsuba_albedos(scene_dir, n=1 << 16):
+    """For the groups whose truth is not a matfit material: the directional-hemispherical
+    albedo of the true Mitsuba BSDF (the mean of its sampling weight, n samples, one-sided) at
+    incidences 0 and 60 degrees, written into truth.json as `albedo_0deg`, `albedo_60deg`.
+    Needs Mitsuba (bench/setup_mitsuba.sh); skipped without it."""
+    try:
+        import mitsuba as mi
+    except ImportError:
+        return False
+    mi.set_variant("scalar_rgb")
+    path = os.path.join(scene_dir, "truth.json")
+    truth = json.load(open(path))
+    rng = np.random.default_rng(0)
+    u = rng.random((n, 3))
+    for g, t in truth["groups"].items():
+        if t.get("exact_in_matfit", True):
+            continue
+        bsdf = mi.load_string(t["mitsuba"].replace("@DIR@", os.path.abspath(scene_dir))
+                              .replace("<bsdf ", '<bsdf version="3.0.0" ', 1))
+        for deg in (0, 60):
+            th = np.radians(deg)
+            si = mi.SurfaceInteraction3f()
+            si.n = si.sh_frame.n = mi.Vector3f(0, 0, 1)
+            si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
+            si.wi = mi.Vector3f(np.sin(th), 0, np.cos(th))
+            si.uv = mi.Point2f(0.5, 0.5)
+            acc = np.zeros(3)
+            ctx = mi.BSDFContext()
+            for k in range(n):
+                _, w = bsdf.sample(ctx, si, float(u[k, 0]), mi.Point2f(u[k, 1], u[k, 2]))
+                acc += np.array([w[0], w[1], w[2]])
+            t[f"albedo_{deg}deg"] = (acc / n).round(4).tolist()
+    with open(path, "w") as f:
+        json.dump(truth, f, indent=1)
+    return True
 
 
 def find_matfit():
@@ -825,6 +862,9 @@ def main():
         truth = build_interior(out, a.seed, a.wallpaper_contrast)
     else:
         truth = build_measured(out, a.seed)
+    if not mitsuba_albedos(out):
+        print("  no Mitsuba: the albedos of the non-matfit groups are not in truth.json",
+              file=sys.stderr)
     print(f"{a.scene}: {truth['triangles']} triangles, {len(truth['groups'])} groups -> {out}")
     matfit = a.matfit or find_matfit()
     if matfit:
