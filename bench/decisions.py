@@ -194,17 +194,19 @@ def group_info(matfit, scene):
             if l.startswith("group ")]
 
 
-def albedo_scene(text, keep_group, names):
-    """Scene text with every textured material's varnish removed, its lights' emission kept
-    (the renderer removes them via --remove) and a white stray light."""
-    def strip(m):
+def albedo_scene(text):
+    """Scene text whose materials are their diffuse part alone (a textured material's varnish
+    removed, a uniform material made Lambert of its ρd, one without ρd black), with a white
+    stray light: a pixel of a lone surface then shows its ρd."""
+    def diffuse_part(m):
         line = m.group(0)
-        if 'type = "textured"' not in line:
+        if 'type = "textured"' in line:
+            for k in ("rho_s", "alpha_x", "alpha_y", "alpha", "theta_deg", "distribution"):
+                line = re.sub(r",\s*%s = (\[[^\]]*\]|\"[^\"]*\"|[-0-9.e]+)" % k, "", line)
             return line
-        for k in ("rho_s", "alpha_x", "alpha_y", "alpha", "theta_deg"):
-            line = re.sub(r",\s*%s = (\[[^\]]*\]|[-0-9.e]+)" % k, "", line)
-        return line
-    text = re.sub(r"^material = \{.*\}$", strip, text, flags=re.M)
+        rho = re.search(r"rho_d = (\[[^\]]*\]|[-0-9.e]+)", line)
+        return 'material = { type = "diffuse", rho_d = %s }' % (rho.group(1) if rho else "0.0")
+    text = re.sub(r"^material = \{.*\}$", diffuse_part, text, flags=re.M)
     text = re.sub(r"^\[stray_light\]\n(radiance = .*\n)?", "", text, flags=re.M)
     return text + "\n[stray_light]\nradiance = [1.0, 1.0, 1.0]\n"
 
@@ -212,7 +214,7 @@ def albedo_scene(text, keep_group, names):
 def albedo_image(matfit, scene_path, group, names, objects_of, work, tag, spp=16):
     """The group's ρd as the photo's camera sees it: only its objects kept, no lights, a white
     stray light."""
-    text = albedo_scene(open(scene_path).read(), group, names)
+    text = albedo_scene(open(scene_path).read())
     path = os.path.join(os.path.dirname(scene_path), f".albedo_{tag}.toml")
     open(path, "w").write(text)
     cmd = [matfit, "render", path, "-o", os.path.join(work, f"albedo_{tag}.pfm"), "--spp",
@@ -354,8 +356,11 @@ def run_scene(name, a, matfit, mi):
         print(f"  seed {s}: recover {wall:.0f} s, novel L1 {novel_l1:.2f}% (floor {floor:.2f}%),"
               f" coverage {cov[0]}/{cov[1]} (+{cov[2]} not determined, {cov[3]} absent)",
               flush=True)
-    return {"name": name, "truth": truth, "floor": floor, "seeds": seeds, "photo_s": photo_s,
-            "novel_s": novel_s, "total_s": time.perf_counter() - t0, "ids": None}
+    r = {"name": name, "truth": truth, "floor": floor, "seeds": seeds, "photo_s": photo_s,
+         "novel_s": novel_s, "total_s": time.perf_counter() - t0}
+    with open(os.path.join(work, "summary.json"), "w") as f:
+        json.dump(r, f, indent=1, default=str)
+    return r
 
 
 def report(r, a):
@@ -385,6 +390,8 @@ def report(r, a):
              + " | agree | 2σ hits |")
     L.append("|---|---|" + "---|" * n + "---|---|")
     for g in groups:
+        if all(s["status"].get(g) == "light" for s in seeds):
+            continue
         t = r["truth"]["groups"].get(g, {})
         lv = [s["levels"].get(g) or "–" for s in seeds]
         top = max(set(lv), key=lv.count)
@@ -443,16 +450,15 @@ def main():
             "", f"`python bench/decisions.py {' '.join(sys.argv[1:])}` at git {git}, "
             f"{platform.node()} ({os.cpu_count()} cores), load before {' '.join(load)}.", ""]
     parts = []
+    md = a.md or os.path.join(a.out, "DECISIONS.md")
+    os.makedirs(os.path.dirname(os.path.abspath(md)), exist_ok=True)
     for name in a.scenes:
         r = run_scene(name, a, matfit, mi)
         parts.append(report(r, a))
         print(parts[-1], flush=True)
-    load = open("/proc/loadavg").read().split()[:3]
-    text = "\n".join(head + parts + [f"Load after: {' '.join(load)}.", ""])
-    md = a.md or os.path.join(a.out, "DECISIONS.md")
-    os.makedirs(os.path.dirname(md), exist_ok=True)
-    with open(md, "w") as f:
-        f.write(text)
+        load = open("/proc/loadavg").read().split()[:3]
+        with open(md, "w") as f:  # after every scene, so that a long run's first ones are kept
+            f.write("\n".join(head + parts + [f"Load after: {' '.join(load)}.", ""]))
     print(f"wrote {md}")
 
 
