@@ -28,7 +28,8 @@ Per scene:
   * (b) per textured group (a truth texture), the PSNR of the recovered diffuse reflectance
     against the true one, per photo pixel of the group (matfit's group index buffer, eroded by
     1 px): each side rendered with only that group's objects, its varnish removed, under a
-    uniform white [stray_light] of radiance 1, so a pixel's value is its ρd (peak 1). "PSNR*"
+    uniform white [stray_light] of radiance 1, so a pixel's value is its ρd (peak 1); "flat"
+    is the PSNR of the truth's own mean colour (what a uniform answer scores). "PSNR*"
     first fits one gain per channel (a textured coat's transmission scales the base: the
     truth of a textured roughplastic is its base under the coat, not the albedo matfit sees);
   * (c) each group's level per seed, and whether at least 4 of 5 seeds (80%) agree;
@@ -347,7 +348,7 @@ def run_scene(name, a, matfit, mi):
             t_, r_ = true_albedo[g][mask].astype(np.float64), ra[mask].astype(np.float64)
             gain = (t_ * r_).sum(0) / np.maximum((r_ * r_).sum(0), 1e-12)
             tex[g] = (psnr(r_, t_), psnr(r_ * gain, t_), int(mask.sum()),
-                      groups.get(g, {}).get("level"))
+                      groups.get(g, {}).get("level"), psnr(t_.mean(0), t_))
         cov = coverage(truth["groups"], groups)
         seeds.append({"seed": s, "wall": wall, "timing": res.get("timing"), "novel": novel_l1,
                       "levels": {g: groups[g].get("level") for g in groups},
@@ -409,16 +410,19 @@ def report(r, a):
     L.append("")
     tex_groups = sorted({g for s in seeds for g in s["tex"]})
     if tex_groups:
-        L.append("| textured group | pixels | " + " | ".join(
+        L.append("| textured group | pixels | flat | " + " | ".join(
             f"seed {s['seed']} PSNR / PSNR* (level)" for s in seeds) + " |")
-        L.append("|---|---|" + "---|" * n)
+        L.append("|---|---|---|" + "---|" * n)
         for g in tex_groups:
             px = next((s["tex"][g][2] for s in seeds if s["tex"].get(g)), 0)
+            flat = next((s["tex"][g][4] for s in seeds
+                         if s["tex"].get(g) and len(s["tex"][g]) > 4), None)
             cells = []
             for s in seeds:
                 v = s["tex"].get(g)
                 cells.append("–" if v is None else f"{v[0]:.1f} / {v[1]:.1f} dB ({v[3]})")
-            L.append(f"| {g} | {px} | " + " | ".join(cells) + " |")
+            L.append(f"| {g} | {px} | " + ("–" if flat is None else f"{flat:.1f} dB") + " | "
+                     + " | ".join(cells) + " |")
         L.append("")
     return "\n".join(L)
 
@@ -435,7 +439,15 @@ def main():
     ap.add_argument("--threads", type=int, default=0, help="Mitsuba's threads (0: all)")
     ap.add_argument("--out", default=os.path.join(HERE, "out", "decisions"))
     ap.add_argument("--md", help="markdown report (default OUT/DECISIONS.md)")
+    ap.add_argument("--from-summary", action="store_true",
+                    help="only print the report of an earlier run (OUT/SCENE/summary.json)")
     a = ap.parse_args()
+    if a.from_summary:
+        for name in a.scenes:
+            path = os.path.join(a.out, name, "summary.json")
+            if os.path.exists(path):
+                print(report(json.load(open(path)), a))
+        return
     matfit = find_matfit(a.matfit)
     import drjit as dr
     import mitsuba as mi
