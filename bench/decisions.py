@@ -354,6 +354,10 @@ def run_scene(name, a, matfit, mi):
                       "levels": {g: groups[g].get("level") for g in groups},
                       "status": {g: groups[g].get("status") for g in groups},
                       "tex": tex, "coverage": cov})
+        with open(os.path.join(work, "summary.json"), "w") as f:  # partial, seed by seed
+            json.dump({"name": name, "truth": truth, "floor": floor, "seeds": seeds,
+                       "photo_s": photo_s, "novel_s": novel_s,
+                       "total_s": time.perf_counter() - t0}, f, indent=1, default=str)
         print(f"  seed {s}: recover {wall:.0f} s, novel L1 {novel_l1:.2f}% (floor {floor:.2f}%),"
               f" coverage {cov[0]}/{cov[1]} (+{cov[2]} not determined, {cov[3]} absent)",
               flush=True)
