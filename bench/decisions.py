@@ -322,47 +322,83 @@ def run_scene(name, a, matfit, mi):
     true_albedo = {g: albedo_image(matfit, scene, g, names, None, work, f"truth_{g}")
                    for g in textured if g in names}
 
+    with open(os.path.join(work, "floor.json"), "w") as f:
+        json.dump({"floor": floor, "photo_s": photo_s, "novel_s": novel_s}, f)
     seeds = []
     for s in range(1, a.seeds + 1):
         out = os.path.join(work, f"seed{s}")
         cmd = [matfit, "recover", scene, photo, "-o", out, "--seed", str(s), "--force"]
         cmd += shlex.split(a.recover_args)
         _, wall = run(cmd, log=os.path.join(work, f"recover_seed{s}.log"))
-        res = json.load(open(os.path.join(out, "results.json")))
-        groups = {g["name"]: g for g in res["groups"]}
-        rec = os.path.join(out, "recovered.toml")
-        nov = os.path.join(work, f"novel_seed{s}.pfm")
-        run([matfit, "render", rec, "-o", nov, "--spp", str(a.novel_spp), "--seed", "1",
-             "--look-from=" + ",".join(map(str, cam["eye"])),
-             "--look-at=" + ",".join(map(str, cam["target"])), "--fov", str(cam["fov"])])
-        novel_l1 = l1(read_pfm(nov).astype(np.float64), nov1)
-        tex = {}
-        for g in textured:
-            if g not in true_albedo:
-                continue
-            mask = eroded(ids == names.index(g))
-            if mask.sum() < 20:
-                tex[g] = None
-                continue
-            ra = albedo_image(matfit, rec, g, names, None, out, f"rec_{g}")
-            t_, r_ = true_albedo[g][mask].astype(np.float64), ra[mask].astype(np.float64)
-            gain = (t_ * r_).sum(0) / np.maximum((r_ * r_).sum(0), 1e-12)
-            tex[g] = (psnr(r_, t_), psnr(r_ * gain, t_), int(mask.sum()),
-                      groups.get(g, {}).get("level"), psnr(t_.mean(0), t_))
-        cov = coverage(truth["groups"], groups)
-        seeds.append({"seed": s, "wall": wall, "timing": res.get("timing"), "novel": novel_l1,
-                      "levels": {g: groups[g].get("level") for g in groups},
-                      "status": {g: groups[g].get("status") for g in groups},
-                      "tex": tex, "coverage": cov})
-        with open(os.path.join(work, "summary.json"), "w") as f:  # partial, seed by seed
-            json.dump({"name": name, "truth": truth, "floor": floor, "seeds": seeds,
-                       "photo_s": photo_s, "novel_s": novel_s,
-                       "total_s": time.perf_counter() - t0}, f, indent=1, default=str)
-        print(f"  seed {s}: recover {wall:.0f} s, novel L1 {novel_l1:.2f}% (floor {floor:.2f}%),"
-              f" coverage {cov[0]}/{cov[1]} (+{cov[2]} not determined, {cov[3]} absent)",
+        seeds.append(score_seed(matfit, work, s, wall, truth, names, ids, true_albedo, nov1, a))
+        r = {"name": name, "truth": truth, "floor": floor, "seeds": seeds, "photo_s": photo_s,
+             "novel_s": novel_s, "total_s": time.perf_counter() - t0}
+        with open(os.path.join(work, "summary.json"), "w") as f:  # after every seed
+            json.dump(r, f, indent=1, default=str)
+        c = seeds[-1]["coverage"]
+        print(f"  seed {s}: recover {wall:.0f} s, novel L1 {seeds[-1]['novel']:.2f}% (floor "
+              f"{floor:.2f}%), coverage {c[0]}/{c[1]} (+{c[2]} not determined, {c[3]} absent)",
               flush=True)
-    r = {"name": name, "truth": truth, "floor": floor, "seeds": seeds, "photo_s": photo_s,
-         "novel_s": novel_s, "total_s": time.perf_counter() - t0}
+    return r
+
+
+def score_seed(matfit, work, s, wall, truth, names, ids, true_albedo, nov1, a):
+    """Scores the recovery in work/seedS: novel view, textures, levels, coverage."""
+    out = os.path.join(work, f"seed{s}")
+    cam = truth["novel_camera"]
+    res = json.load(open(os.path.join(out, "results.json")))
+    groups = {g["name"]: g for g in res["groups"]}
+    rec = os.path.join(out, "recovered.toml")
+    nov = os.path.join(work, f"novel_seed{s}.pfm")
+    run([matfit, "render", rec, "-o", nov, "--spp", str(a.novel_spp), "--seed", "1",
+         "--look-from=" + ",".join(map(str, cam["eye"])),
+         "--look-at=" + ",".join(map(str, cam["target"])), "--fov", str(cam["fov"])])
+    novel_l1 = l1(read_pfm(nov).astype(np.float64), nov1)
+    tex = {}
+    for g in true_albedo:
+        mask = eroded(ids == names.index(g))
+        if mask.sum() < 20:
+            tex[g] = None
+            continue
+        ra = albedo_image(matfit, rec, g, names, None, out, f"rec_{g}")
+        t_, r_ = true_albedo[g][mask].astype(np.float64), ra[mask].astype(np.float64)
+        gain = (t_ * r_).sum(0) / np.maximum((r_ * r_).sum(0), 1e-12)
+        tex[g] = (psnr(r_, t_), psnr(r_ * gain, t_), int(mask.sum()),
+                  groups.get(g, {}).get("level"), psnr(t_.mean(0), t_))
+    return {"seed": s, "wall": wall, "timing": res.get("timing"), "novel": novel_l1,
+            "levels": {g: groups[g].get("level") for g in groups},
+            "status": {g: groups[g].get("status") for g in groups},
+            "tex": tex, "coverage": coverage(truth["groups"], groups)}
+
+
+def rescore(name, a, matfit):
+    """Scores the recoveries an earlier (perhaps interrupted) run left in OUT/SCENE/seed*/,
+    without rendering the photo or recovering again; a seed's time is then results.json's
+    total_s (the recovery's own, without the process start)."""
+    work = os.path.join(a.out, name)
+    gen = os.path.join(work, "gen")
+    scene = os.path.join(gen, "scene.toml")
+    truth = json.load(open(os.path.join(gen, "truth.json"))) if os.path.exists(
+        os.path.join(gen, "truth.json")) else bundled_truth(scene)
+    truth.setdefault("novel_camera", NOVEL.get(name))
+    names = group_names(matfit, scene)
+    ids = read_pfm(os.path.join(work, "group.pfm"))[..., 0].round().astype(int)
+    true_albedo = {}
+    for g, t in truth["groups"].items():
+        path = os.path.join(work, f"albedo_truth_{g}.pfm")
+        if t.get("texture") and os.path.exists(path):
+            true_albedo[g] = read_pfm(path)
+    nov1 = read_pfm(os.path.join(work, "novel_mitsuba.pfm")).astype(np.float64)
+    meta = {"floor": float("nan"), "photo_s": 0.0, "novel_s": 0.0}
+    if os.path.exists(os.path.join(work, "floor.json")):
+        meta = json.load(open(os.path.join(work, "floor.json")))
+    seeds = []
+    for s in range(1, 100):
+        if not os.path.exists(os.path.join(work, f"seed{s}", "results.json")):
+            break
+        wall = json.load(open(os.path.join(work, f"seed{s}", "results.json")))["timing"]["total_s"]
+        seeds.append(score_seed(matfit, work, s, wall, truth, names, ids, true_albedo, nov1, a))
+    r = {"name": name, "truth": truth, "seeds": seeds, "total_s": 0.0, **meta}
     with open(os.path.join(work, "summary.json"), "w") as f:
         json.dump(r, f, indent=1, default=str)
     return r
@@ -443,6 +479,9 @@ def main():
     ap.add_argument("--threads", type=int, default=0, help="Mitsuba's threads (0: all)")
     ap.add_argument("--out", default=os.path.join(HERE, "out", "decisions"))
     ap.add_argument("--md", help="markdown report (default OUT/DECISIONS.md)")
+    ap.add_argument("--rescore", action="store_true",
+                    help="score the recoveries an earlier run left in OUT/SCENE/seed*/ again "
+                         "(no photo, no recovery)")
     ap.add_argument("--from-summary", action="store_true",
                     help="only print the report of an earlier run (OUT/SCENE/summary.json)")
     a = ap.parse_args()
@@ -469,7 +508,7 @@ def main():
     md = a.md or os.path.join(a.out, "DECISIONS.md")
     os.makedirs(os.path.dirname(os.path.abspath(md)), exist_ok=True)
     for name in a.scenes:
-        r = run_scene(name, a, matfit, mi)
+        r = rescore(name, a, matfit) if a.rescore else run_scene(name, a, matfit, mi)
         parts.append(report(r, a))
         print(parts[-1], flush=True)
         load = open("/proc/loadavg").read().split()[:3]
