@@ -350,9 +350,10 @@ def score_seed(matfit, work, s, wall, truth, names, ids, true_albedo, nov1, a):
     groups = {g["name"]: g for g in res["groups"]}
     rec = os.path.join(out, "recovered.toml")
     nov = os.path.join(work, f"novel_seed{s}.pfm")
-    run([matfit, "render", rec, "-o", nov, "--spp", str(a.novel_spp), "--seed", "1",
-         "--look-from=" + ",".join(map(str, cam["eye"])),
-         "--look-at=" + ",".join(map(str, cam["target"])), "--fov", str(cam["fov"])])
+    if not (a.rescore and os.path.exists(nov)):  # a rescore keeps the renders it finds
+        run([matfit, "render", rec, "-o", nov, "--spp", str(a.novel_spp), "--seed", "1",
+             "--look-from=" + ",".join(map(str, cam["eye"])),
+             "--look-at=" + ",".join(map(str, cam["target"])), "--fov", str(cam["fov"])])
     novel_l1 = l1(read_pfm(nov).astype(np.float64), nov1)
     tex = {}
     for g in true_albedo:
@@ -360,7 +361,9 @@ def score_seed(matfit, work, s, wall, truth, names, ids, true_albedo, nov1, a):
         if mask.sum() < 20:
             tex[g] = None
             continue
-        ra = albedo_image(matfit, rec, g, names, None, out, f"rec_{g}")
+        done = os.path.join(out, f"albedo_rec_{g}.pfm")
+        ra = read_pfm(done) if a.rescore and os.path.exists(done) else albedo_image(
+            matfit, rec, g, names, None, out, f"rec_{g}")
         t_, r_ = true_albedo[g][mask].astype(np.float64), ra[mask].astype(np.float64)
         gain = (t_ * r_).sum(0) / np.maximum((r_ * r_).sum(0), 1e-12)
         tex[g] = (psnr(r_, t_), psnr(r_ * gain, t_), int(mask.sum()),
@@ -373,8 +376,9 @@ def score_seed(matfit, work, s, wall, truth, names, ids, true_albedo, nov1, a):
 
 def rescore(name, a, matfit):
     """Scores the recoveries an earlier (perhaps interrupted) run left in OUT/SCENE/seed*/,
-    without rendering the photo or recovering again; a seed's time is then results.json's
-    total_s (the recovery's own, without the process start)."""
+    without rendering the photo or recovering again, reusing the novel-view and albedo renders
+    it finds; a seed's time is then results.json's total_s (the recovery's own, without the
+    process start)."""
     work = os.path.join(a.out, name)
     gen = os.path.join(work, "gen")
     scene = os.path.join(gen, "scene.toml")
