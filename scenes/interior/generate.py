@@ -5,6 +5,9 @@ Mitsuba 3 BSDFs for the same scene (Python 3.11 + numpy; PNG through zlib):
     python scenes/interior/generate.py [interior|measured] [-o DIR] [--seed S]
         [--wallpaper-contrast C] [--matfit PATH]
 
+(numpy is in bench/.venv: `bash bench/setup_mitsuba.sh && source bench/mitsuba_env.sh`; with
+Mitsuba importable the measured room's truth also gets its BSDFs' albedos.)
+
 `interior` (the default): a textured living room with a staircase, production-style:
   ≥ 200k triangles of real geometry (bevelled boxes for the sofa, the stair steps, the frames,
   the table; cylinders for balusters, legs, the lamp; two spheres), 27 material groups of which
