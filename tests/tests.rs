@@ -14,6 +14,7 @@ mod layers;
 mod low_resolution;
 mod microfacet;
 mod mirrors;
+mod misregistered;
 mod orthographic;
 mod photo;
 mod photo_inputs;
