@@ -15,6 +15,7 @@ const LAYERS: &[&[&str]] = &[
     &["prepare"],
     &["fit"],
     &["report", "export", "import"],
+    &["api"],
     &["fuzzing"],
 ];
 
