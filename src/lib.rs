@@ -68,22 +68,28 @@
 #![allow(clippy::too_many_arguments)]
 // Numeric kernels index several parallel arrays by channel or axis; iterator chains would hide it.
 #![allow(clippy::needless_range_loop)]
+// Without `internals`, much of the engine serves only the command line and the tests, and
+// clippy judges the engine's names (`Frame::to_world(&self)`) as if they were not public.
+#![cfg_attr(
+    not(feature = "internals"),
+    allow(dead_code, unused_imports, clippy::wrong_self_convention)
+)]
 
-#[doc(hidden)]
-pub mod api;
-pub mod export;
-pub mod fit;
-#[doc(hidden)]
-pub mod fuzzing;
-pub mod geometry;
-pub mod import;
-pub mod io;
-pub mod math;
-pub mod photo;
-pub mod prepare;
-pub mod render;
-pub mod report;
-pub mod scene;
+/// Declares the engine's modules: public with the `internals` feature (for the command line,
+/// the tests and the benchmarks; no stability promised), private to the crate without it.
+macro_rules! internal {
+    ($($name:ident),* $(,)?) => {$(
+        #[cfg(feature = "internals")]
+        #[doc(hidden)]
+        pub mod $name;
+        #[cfg(not(feature = "internals"))]
+        mod $name;
+    )*};
+}
+
+internal!(
+    api, export, fit, fuzzing, geometry, import, io, math, photo, prepare, render, report, scene,
+);
 
 pub use api::error::{Error, ErrorKind, Location, Result};
 pub use api::{

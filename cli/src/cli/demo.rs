@@ -19,7 +19,7 @@ pub fn figure6_path() -> PathBuf {
     } else {
         PathBuf::from(concat!(
             env!("CARGO_MANIFEST_DIR"),
-            "/scenes/figure6/scene.toml"
+            "/../scenes/figure6/scene.toml"
         ))
     }
 }
