@@ -93,9 +93,9 @@ internal!(
 
 pub use api::error::{Error, ErrorKind, Location, Result};
 pub use api::{
-    composite, edit, edit_from_flags, export, in_view, load, load_edited, read_edit, recover,
-    render, CompositeOptions, Composited, EditFlags, LogLine, Observer, PhotoInput, Progress,
-    RecoverOptions, Recovery, RenderRequest, Silent,
+    composite, edit, edit_from_flags, export, in_view, load, load_edited, read_edit, read_image,
+    recover, render, CompositeOptions, Composited, EditFlags, LogLine, Observer, PhotoInput,
+    Progress, RecoverOptions, Recovery, RenderRequest, Silent,
 };
 pub use export::{ExportReport, Format};
 pub use io::image::Image;

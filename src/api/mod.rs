@@ -113,6 +113,11 @@ pub fn load(path: impl AsRef<Path>) -> Result<Scene> {
     Ok(crate::scene::load_scene(path.as_ref())?)
 }
 
+/// Reads a linear image file (EXR, HDR, PFM; a recovery's synthetic.exr).
+pub fn read_image(path: impl AsRef<Path>) -> Result<Image> {
+    crate::io::image::read_linear(path.as_ref()).kind(ErrorKind::Photo)
+}
+
 /// Recovers the materials of `scene`'s groups from `photos`, as `matfit recover` does: each
 /// photo prepared against the scene (photo K through the scene's `[[view]]` K, or
 /// `options.views`), the camera's pose refined and refined again against a quick fit's
