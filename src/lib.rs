@@ -91,12 +91,14 @@ internal!(
     api, export, fit, fuzzing, geometry, import, io, math, photo, prepare, render, report, scene,
 );
 
-pub use api::error::{Error, ErrorKind, Location, Result};
+mod error;
+
 pub use api::{
     composite, edit, edit_from_flags, export, in_view, load, load_edited, read_edit, read_image,
     recover, render, CompositeOptions, Composited, EditFlags, LogLine, Observer, PhotoInput,
     Progress, RecoverOptions, Recovery, RenderRequest, Silent,
 };
+pub use error::{Error, ErrorKind, Location, Result};
 pub use export::{ExportReport, Format};
 pub use io::image::Image;
 pub use render::aov::Aov;

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 /// The library's top-level modules from the bottom up. A module may import only those on lower
 /// rows; modules on one row do not import each other.
 const LAYERS: &[&[&str]] = &[
-    &["math"],
+    &["math", "error"],
     &["io", "geometry"],
     &["scene"],
     &["photo"],

@@ -2,7 +2,7 @@
 //! the output folder. What they find goes to the caller's [`Observer`]; what stops the work is
 //! an [`Error`].
 
-use super::error::{Error, Result};
+use crate::error::{Error, Result};
 use super::Observer;
 use crate::prepare::{PhotoArgs, PreparedPhoto};
 use crate::scene::lint::{group_name_warnings, lighting, Lighting};

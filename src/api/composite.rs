@@ -2,7 +2,7 @@
 //! by differential rendering (`crate::render::composite`).
 
 use super::checks;
-use super::error::{Error, ErrorKind, Kind, Result};
+use crate::error::{Error, ErrorKind, Kind, Result};
 use super::{Observer, PhotoInput};
 use crate::io::image::Image;
 use crate::photo::{PhotoOptions, Response};

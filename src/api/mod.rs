@@ -6,13 +6,12 @@
 
 pub mod checks;
 pub mod composite;
-pub mod error;
 pub mod recover;
 
 use crate::io::image::Image;
 use crate::scene::edit::Edit;
 use crate::scene::Scene;
-use error::{ErrorKind, Kind, Result};
+use crate::error::{Error, ErrorKind, Kind, Result};
 use std::path::{Path, PathBuf};
 
 pub use crate::fit::recovery::LogLine;
@@ -162,7 +161,7 @@ impl Default for RenderRequest {
 
 /// The scene as its `[[view]]` `view` sees it (a number from 1 or a name).
 pub fn in_view(scene: &Scene, view: &str) -> Result<Scene> {
-    let k = scene.view_index(view).kind(ErrorKind::Options)?;
+    let k = scene.view_index(view)?;
     Ok(scene.in_view(k))
 }
 
@@ -249,7 +248,7 @@ pub fn export(
         Format::Gltf => {
             let ext = output.extension().and_then(|e| e.to_str()).unwrap_or("");
             if !ext.eq_ignore_ascii_case("glb") {
-                return Err(error::Error::options(format!(
+                return Err(Error::options(format!(
                     "{}: output must end in .glb",
                     output.display()
                 )));
@@ -270,4 +269,23 @@ pub fn composite(
     observer: &dyn Observer,
 ) -> Result<Composited> {
     composite::composite(scene, photo, edits, options, observer)
+}
+
+impl From<crate::scene::SceneError> for Error {
+    fn from(e: crate::scene::SceneError) -> Error {
+        use crate::scene::SceneError as S;
+        let (path, line) = match &e {
+            S::Io { path, .. } | S::Toml { path, .. } | S::Scene { path, .. } => {
+                (path.clone(), None)
+            }
+            S::At { path, line, .. } => (path.clone(), Some(*line)),
+        };
+        Error::scene(e.to_string()).at(path, line)
+    }
+}
+
+impl From<crate::fit::RecoverError> for Error {
+    fn from(e: crate::fit::RecoverError) -> Error {
+        Error::recover(e.to_string())
+    }
 }

@@ -5,7 +5,7 @@
 //! outputs written.
 
 use super::checks;
-use super::error::{Error, ErrorKind, Kind, Result};
+use crate::error::{Error, ErrorKind, Kind, Result};
 use super::{Observer, PhotoInput, RecoverOptions};
 use crate::fit::recovery::LogLine;
 use crate::fit::recovery::{fingerprint, PhotoView, RecoveryLoop, CHECKPOINT_VERSION};
@@ -137,8 +137,7 @@ pub fn recover(
         view_keys
             .iter()
             .map(|k| sc.view_index(k))
-            .collect::<std::result::Result<_, _>>()
-            .kind(ErrorKind::Options)?
+            .collect::<Result<_>>()?
     };
     let mut scenes: Vec<Scene> = if sc.views.is_empty() {
         vec![sc.clone()]

@@ -101,22 +101,10 @@ impl fmt::Display for Error {
 
 impl std::error::Error for Error {}
 
-impl From<crate::scene::SceneError> for Error {
-    fn from(e: crate::scene::SceneError) -> Error {
-        use crate::scene::SceneError as S;
-        let (path, line) = match &e {
-            S::Io { path, .. } | S::Toml { path, .. } | S::Scene { path, .. } => {
-                (path.clone(), None)
-            }
-            S::At { path, line, .. } => (path.clone(), Some(*line)),
-        };
-        Error::scene(e.to_string()).at(path, line)
-    }
-}
-
-impl From<crate::fit::RecoverError> for Error {
-    fn from(e: crate::fit::RecoverError) -> Error {
-        Error::recover(e.to_string())
+/// For the engine's functions that still say what failed in a `String`: the message.
+impl From<Error> for String {
+    fn from(e: Error) -> String {
+        e.message
     }
 }
 
