@@ -6,8 +6,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 target="${CARGO_TARGET_DIR:-target}"
 case "$target" in /*) ;; *) target="$PWD/$target" ;; esac
-echo "== python: the module (cargo build --profile ci -p matfit-python)"
-PYO3_BUILD_EXTENSION_MODULE=1 cargo build --profile ci -p matfit-python --locked
+echo "== python: the module (the workspace's ci build, as .ci/run makes it: one engine)"
+PYO3_BUILD_EXTENSION_MODULE=1 cargo build --workspace --profile ci --all-targets --locked
 venv="$target/python-venv"
 if [ ! -x "$venv/bin/python" ]; then
     python3 -m venv "$venv"
