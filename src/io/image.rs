@@ -49,8 +49,8 @@ impl Image {
 
     /// Writes the image, choosing the format by extension (.exr, .hdr, .pfm, .png, .jpg),
     /// atomically.
-    pub fn write(&self, path: &Path) -> Result<(), crate::Error> {
-        self.write_file(path).map_err(crate::Error::io)
+    pub fn write(&self, path: &Path) -> Result<(), crate::error::Error> {
+        self.write_file(path).map_err(crate::error::Error::io)
     }
 
     fn write_file(&self, path: &Path) -> Result<(), String> {

@@ -57,8 +57,8 @@ impl Scene {
     }
 
     /// The view of a 1-based number or a name, as `--view` takes it.
-    pub fn view_index(&self, key: &str) -> Result<usize, crate::Error> {
-        self.view_key(key).map_err(crate::Error::options)
+    pub fn view_index(&self, key: &str) -> Result<usize, crate::error::Error> {
+        self.view_key(key).map_err(crate::error::Error::options)
     }
 
     fn view_key(&self, key: &str) -> Result<usize, String> {
