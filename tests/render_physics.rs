@@ -263,7 +263,7 @@ fn same_seed_gives_bit_identical_images_on_one_and_two_threads() {
 /// A bundled scene at a quarter of its resolution, with another Ward normalisation.
 fn quarter(name: &str, variant: &str) -> (String, std::path::PathBuf) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes")
+        .join("../scenes")
         .join(name)
         .join("scene.toml");
     let text = std::fs::read_to_string(&path).unwrap();

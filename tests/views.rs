@@ -187,9 +187,13 @@ lights = ["lamps"]
     let lamp = sc.in_view(1);
     assert!(lamp.punctual_lights.is_empty() && lamp.objects[1].is_emitter());
     assert_eq!(lamp.camera, sc.camera);
-    assert_eq!(sc.view_index("sun only"), Ok(0));
-    assert_eq!(sc.view_index("2"), Ok(1));
-    assert!(sc.view_index("3").unwrap_err().contains("give 1 to 2"));
+    assert_eq!(sc.view_index("sun only").ok(), Some(0));
+    assert_eq!(sc.view_index("2").ok(), Some(1));
+    assert!(sc
+        .view_index("3")
+        .unwrap_err()
+        .message()
+        .contains("give 1 to 2"));
 }
 
 /// Views' mistakes are named with their line; photos and views must pair up.

@@ -47,8 +47,13 @@ impl Image {
         self.data.iter().copied().sum::<Rgb>() / self.data.len().max(1) as f32
     }
 
-    /// Writes the image, choosing the format by extension, atomically.
-    pub fn write(&self, path: &Path) -> Result<(), String> {
+    /// Writes the image, choosing the format by extension (.exr, .hdr, .pfm, .png, .jpg),
+    /// atomically.
+    pub fn write(&self, path: &Path) -> Result<(), crate::error::Error> {
+        self.write_file(path).map_err(crate::error::Error::io)
+    }
+
+    fn write_file(&self, path: &Path) -> Result<(), String> {
         let ext = extension(path);
         let res = match ext.as_str() {
             "pfm" => {

@@ -3,6 +3,7 @@
 pub mod atomic;
 pub mod image;
 pub mod pfm;
+pub mod progress;
 
 /// Largest image matfit reads or renders, in pixels (2^26, e.g. 8192 × 8192): bigger photos are
 /// refused with a message (downsample them and scale the camera) rather than exhausting memory.

@@ -152,8 +152,20 @@ pub fn prepare_at(
     args: &PhotoArgs,
     pose: Option<Pose>,
 ) -> Result<PreparedPhoto, String> {
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let photo = load_photo(path, w, h, &args.photo_options())?;
+    prepare_loaded(scene, photo, path, args, pose)
+}
+
+/// [`prepare_at`] on a photo already loaded (`path` names it in messages).
+pub fn prepare_loaded(
+    scene: &Scene,
+    mut photo: Photo,
+    path: &Path,
+    args: &PhotoArgs,
+    pose: Option<Pose>,
+) -> Result<PreparedPhoto, String> {
     let mut camera = scene.camera.clone();
-    let mut photo = load_photo(path, camera.width, camera.height, &args.photo_options())?;
     if let Some(v) = &args.vignetting {
         let dark = crate::photo::vignetting::correct(&mut photo, v, camera.cx, camera.cy)?;
         if dark > 0 {

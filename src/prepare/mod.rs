@@ -18,5 +18,5 @@ pub mod openness;
 pub mod pose;
 pub mod register;
 
-pub use args::{prepare, prepare_at, PhotoArgs, PreparedPhoto};
+pub use args::{prepare, prepare_at, prepare_loaded, PhotoArgs, PreparedPhoto};
 pub use mask::{usable_pixels, usable_pixels_covered, GroupPixelStats, MaskOptions, UsableMask};

@@ -4,9 +4,9 @@
 
 use super::{batch, PathTracer};
 use crate::io::image::Image;
+use crate::io::progress::Bar;
 use crate::math::{Rgb, Sampler, Vec2};
 use crate::scene::{Camera, Scene};
-use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
 /// Options of one render.
@@ -14,30 +14,31 @@ use rayon::prelude::*;
 pub struct RenderOptions {
     pub spp: u32,
     pub seed: u64,
-    /// Show a progress bar (it stays hidden anyway when stderr is not a terminal).
+    /// Report progress to the process's progress sink (`crate::io::progress`).
     pub progress: bool,
 }
 
-/// A progress bar over `len` steps, hidden unless asked for and stderr is a terminal.
-pub fn progress_bar(len: u64, what: &str, show: bool) -> ProgressBar {
-    if !show {
-        return ProgressBar::hidden();
-    }
-    let pb = ProgressBar::new(len);
-    pb.set_style(
-        ProgressStyle::with_template(
-            "{msg:>10} [{bar:40}] {percent:>3}% {elapsed_precise} eta {eta}",
-        )
-        .unwrap()
-        .progress_chars("=> "),
-    );
-    pb.set_message(what.to_string());
-    pb
+/// A progress counter over `len` steps, reported to the process's progress sink if `show`
+/// (`crate::io::progress`: the library draws nothing itself).
+pub fn progress_bar(len: u64, what: &str, show: bool) -> Bar<'static> {
+    Bar::new(len, what, show)
 }
 
 /// Renders the scene through `camera` (normally `scene.camera`), at least one sample per pixel.
 pub fn render(scene: &Scene, camera: &Camera, opts: &RenderOptions) -> Image {
-    render_marked(scene, camera, opts, None)
+    let bar = progress_bar(camera.height as u64, "render", opts.progress);
+    render_marked(scene, camera, opts, None, bar)
+}
+
+/// [`render`], reporting its progress to `report` (whatever `opts.progress` says).
+pub fn render_reporting(
+    scene: &Scene,
+    camera: &Camera,
+    opts: &RenderOptions,
+    report: impl Fn(&crate::io::progress::Progress) + Send + Sync,
+) -> Image {
+    let bar = Bar::to(camera.height as u64, "render", report);
+    render_marked(scene, camera, opts, None, bar)
 }
 
 /// Renders only the pixels `wanted` marks (row-major, the camera's size), each to the value
@@ -55,7 +56,8 @@ pub fn render_where(
         w * h,
         "render_where: the mask is not the camera's size"
     );
-    render_marked(scene, camera, opts, Some(wanted))
+    let bar = progress_bar(camera.height as u64, "render", opts.progress);
+    render_marked(scene, camera, opts, Some(wanted), bar)
 }
 
 /// [`render`] of every pixel, or of those `wanted` marks.
@@ -64,12 +66,12 @@ fn render_marked(
     camera: &Camera,
     opts: &RenderOptions,
     wanted: Option<&[bool]>,
+    pb: Bar<'_>,
 ) -> Image {
     let pt = PathTracer::new(scene);
     let spp = opts.spp.max(1);
     let (w, h) = (camera.width as usize, camera.height as usize);
     let mut img = Image::new(w, h);
-    let pb = progress_bar(h as u64, "render", opts.progress);
     // Pixels go to the batch integrator a run at a time, at most ~2^16 samples per run (the
     // size of its buffer of per-sample values).
     let run = (65_536 / spp as usize).clamp(1, w.max(1));

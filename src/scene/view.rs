@@ -57,7 +57,11 @@ impl Scene {
     }
 
     /// The view of a 1-based number or a name, as `--view` takes it.
-    pub fn view_index(&self, key: &str) -> Result<usize, String> {
+    pub fn view_index(&self, key: &str) -> Result<usize, crate::error::Error> {
+        self.view_key(key).map_err(crate::error::Error::options)
+    }
+
+    fn view_key(&self, key: &str) -> Result<usize, String> {
         if self.views.is_empty() {
             return Err(format!(
                 "{} has no [[view]]: --view needs a scene with views",

@@ -35,6 +35,6 @@ pub fn command(args: InspectCli) -> Result<()> {
     let report = matfit::prepare::inspect::inspect(&sc, &photo, &photo_args, &output)
         .map_err(anyhow::Error::msg)?;
     out::print(format_args!("{report}"));
-    checks::exposure_warning(&photo, &photo_args, &lighting);
+    matfit::api::checks::exposure_warning(&photo, &photo_args, &lighting, &out::TERM);
     Ok(())
 }

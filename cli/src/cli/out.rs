@@ -130,3 +130,86 @@ fn strip_ansi(s: &str) -> String {
     }
     out
 }
+
+/// What the library's calls report, on the terminal: lines on standard output, warnings as
+/// [`warn`] gives them, progress as bars on standard error (hidden when it is not a terminal).
+pub struct Term {
+    /// The command that continues an interrupted `recover` (said on Ctrl-C once fitting).
+    pub resume: Option<String>,
+    /// Print the library's lines (`demo` prints its own).
+    pub messages: bool,
+}
+
+/// [`Term`] for most commands.
+pub const TERM: Term = Term {
+    resume: None,
+    messages: true,
+};
+
+impl matfit::Observer for Term {
+    fn message(&self, text: &str) {
+        if self.messages {
+            crate::outln!("{text}");
+        }
+    }
+    fn warning(&self, text: &str) {
+        warn(text);
+    }
+    fn progress(&self, p: &matfit::Progress) {
+        BARS.show(p);
+    }
+    fn fitting(&self) {
+        if let Some(cmd) = &self.resume {
+            super::checks::on_interrupt_say_resume(cmd.clone());
+        }
+    }
+}
+
+/// The progress bar on the terminal: one at a time, for the task that last reported.
+pub struct Bars(Mutex<Option<(String, indicatif::ProgressBar)>>);
+
+pub static BARS: Bars = Bars(Mutex::new(None));
+
+impl Bars {
+    pub fn show(&self, p: &matfit::Progress) {
+        let Ok(mut bar) = self.0.lock() else { return };
+        if bar.as_ref().is_some_and(|(task, _)| task != p.task) {
+            if let Some((_, pb)) = bar.take() {
+                pb.finish_and_clear();
+            }
+        }
+        if p.finished {
+            if let Some((_, pb)) = bar.take() {
+                pb.finish_and_clear();
+            }
+            return;
+        }
+        let (_, pb) = bar.get_or_insert_with(|| {
+            let pb = indicatif::ProgressBar::new(p.total);
+            pb.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "{msg:>10} [{bar:40}] {percent:>3}% {elapsed_precise} eta {eta}",
+                )
+                .unwrap()
+                .progress_chars("=> "),
+            );
+            (p.task.to_string(), pb)
+        });
+        pb.set_position(p.done);
+        let msg = if p.message.is_empty() {
+            p.task
+        } else {
+            p.message
+        };
+        pb.set_message(msg.to_string());
+    }
+}
+
+/// [`BARS`] as the library's progress sink, for the work that reports to no observer.
+pub struct BarSink;
+
+impl matfit::io::progress::Sink for BarSink {
+    fn progress(&self, p: &matfit::Progress) {
+        BARS.show(p);
+    }
+}

@@ -19,7 +19,7 @@ pub fn figure6_path() -> PathBuf {
     } else {
         PathBuf::from(concat!(
             env!("CARGO_MANIFEST_DIR"),
-            "/scenes/figure6/scene.toml"
+            "/../scenes/figure6/scene.toml"
         ))
     }
 }
@@ -188,6 +188,37 @@ pub fn print_table(
     Ok(worst)
 }
 
+/// What the demo shows of the recovery: not the lines `recover` prints (the demo prints its
+/// own), but the registration against the true camera, warnings and progress.
+struct DemoTerm<'a> {
+    truth: &'a Scene,
+}
+
+impl matfit::Observer for DemoTerm<'_> {
+    fn warning(&self, text: &str) {
+        crate::cli::out::warn(text);
+    }
+    fn progress(&self, p: &matfit::Progress) {
+        crate::cli::out::BARS.show(p);
+    }
+    fn prepared(&self, _index: usize, prepared: &matfit::prepare::PreparedPhoto) {
+        if let Some(r) = &prepared.registration {
+            let scene = self.truth;
+            let points: Vec<_> = scene
+                .camera_grid_hits(64, 48)
+                .into_iter()
+                .map(|(_, _, h)| h.p)
+                .collect();
+            let (_, off) = matfit::prepare::pose::motion(&scene.camera, &prepared.camera, &points);
+            crate::outln!(
+                "registration: {}; the model's camera is now {:.2} px RMS off the photo's",
+                r.found(),
+                off
+            );
+        }
+    }
+}
+
 /// Runs the demo; returns the recovery's worst ρ error.
 pub fn run(opts: &DemoOptions) -> Result<f32, String> {
     let t0 = Instant::now();
@@ -236,39 +267,22 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
             opts.shift.1
         );
     }
-    let args = matfit::prepare::args::PhotoArgs {
-        register: opts.register,
-        ..Default::default()
+    let options = matfit::RecoverOptions {
+        fit: opts.recover.clone(),
+        photo: matfit::prepare::args::PhotoArgs {
+            register: opts.register,
+            ..Default::default()
+        },
+        views: Vec::new(),
+        output: Some(rec_dir.clone()),
+        resume: false,
     };
-    let prepared = matfit::prepare::prepare(&model, &photo_path, &args)?;
-    if let Some(r) = &prepared.registration {
-        let points: Vec<_> = scene
-            .camera_grid_hits(64, 48)
-            .into_iter()
-            .map(|(_, _, h)| h.p)
-            .collect();
-        let (_, off) = matfit::prepare::pose::motion(&scene.camera, &prepared.camera, &points);
-        crate::outln!(
-            "registration: {}; the model's camera is now {:.2} px RMS off the photo's",
-            r.found(),
-            off
-        );
-    }
-    model.camera = prepared.camera.clone();
-    let inputs =
-        crate::cli::recover::inputs(&path, &photo_path, &prepared, false, None, &opts.recover);
-    let rec = crate::cli::recover::run_recover(
-        &model,
-        &prepared.photo,
-        &prepared.mask,
-        &[],
-        &opts.recover,
-        &rec_dir,
-        false,
-        &inputs,
-    )?;
+    let observer = DemoTerm { truth: &scene };
+    let full = matfit::recover(&model, &[photo_path.as_path().into()], &options, &observer)
+        .map_err(|e| e.to_string())?;
+    let rec = &full.fit;
     let mut table = Vec::new();
-    let worst = print_table(&scene, &rec, &mut table).map_err(|e| e.to_string())?;
+    let worst = print_table(&scene, rec, &mut table).map_err(|e| e.to_string())?;
     matfit::report::add_to_report(
         &rec_dir,
         &format!("True vs recovered (the demo knows the truth; worst ρ error {worst:.4})"),
@@ -278,7 +292,7 @@ pub fn run(opts: &DemoOptions) -> Result<f32, String> {
     crate::cli::out::print(format_args!("{}", String::from_utf8_lossy(&table)));
     crate::outln!(
         "{}",
-        matfit::report::verdict::verdict(&rec, &prepared.photo).text()
+        matfit::report::verdict::verdict(rec, &full.photo()).text()
     );
     crate::outln!();
     crate::outln!(

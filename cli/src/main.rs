@@ -16,6 +16,8 @@ fn main() -> ExitCode {
         .with_ansi(false)
         .event_format(cli::out::LogFormat)
         .init();
+    // The library draws nothing: its progress comes here.
+    matfit::io::progress::set_sink(Some(std::sync::Arc::new(cli::out::BarSink)));
     if let Some(n) = args.threads {
         if let Err(e) = rayon::ThreadPoolBuilder::new()
             .num_threads(n.max(1))

@@ -32,23 +32,16 @@ pub fn command(args: ExportCli) -> Result<()> {
     } = args;
     let (mut sc, _) = load(&scene)?;
     if let Some(v) = &view {
-        sc = sc.in_view(sc.view_index(v).map_err(anyhow::Error::msg)?);
+        sc = matfit::in_view(&sc, v)?;
     }
-    let report = match format {
+    let format = match format {
         FormatArg::Mitsuba => {
             checks::output_folder(&output, force)?;
-            prepare_output_dir(&output).map_err(anyhow::Error::msg)?;
-            matfit::export::mitsuba::export(&sc, &output).map_err(anyhow::Error::msg)?
+            matfit::Format::Mitsuba
         }
-        FormatArg::Gltf => {
-            let ext = output.extension().and_then(|e| e.to_str()).unwrap_or("");
-            if !ext.eq_ignore_ascii_case("glb") {
-                bail!("{}: output must end in .glb", output.display());
-            }
-            check_output_file(&output).map_err(anyhow::Error::msg)?;
-            matfit::export::gltf::export(&sc, &output).map_err(anyhow::Error::msg)?
-        }
+        FormatArg::Gltf => matfit::Format::Gltf,
     };
+    let report = matfit::export(&sc, format, &output)?;
     for w in &report.warnings {
         out::warn(w.clone());
     }

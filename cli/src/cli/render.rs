@@ -41,18 +41,13 @@ pub fn command(args: RenderCli) -> Result<()> {
         edits,
     } = args;
     let edits = edits.edits()?;
-    let (mut sc, mut lighting) = if edits.is_empty() {
-        load(&scene)?
+    let sc = if edits.is_empty() {
+        load(&scene)?.0
     } else {
-        let sc = load_edited(&scene, &edits)?;
-        let l = checks::scene_warnings(&sc);
-        (sc, l)
+        let edited = matfit::load_edited(&scene, &edits)?;
+        matfit::api::checks::scene_warnings(&edited, &out::TERM);
+        edited
     };
-    if let Some(v) = &view {
-        let k = sc.view_index(v).map_err(anyhow::Error::msg)?;
-        sc = sc.in_view(k);
-        lighting = matfit::scene::lint::lighting(&sc);
-    }
     let ext = output
         .extension()
         .and_then(|e| e.to_str())
@@ -67,26 +62,22 @@ pub fn command(args: RenderCli) -> Result<()> {
     // Before minutes of rendering: the file must be writable.
     check_output_file(&output).map_err(anyhow::Error::msg)?;
     let t = Instant::now();
-    let aov = Aov::from(aov);
-    let (img, what): (Image, String) = match aov {
+    let request = matfit::RenderRequest {
+        spp,
+        seed,
+        aov: Aov::from(aov),
+        false_colour: ext == "png",
+        view,
+    };
+    let img = matfit::render(&sc, &request, &out::TERM)?;
+    let what = match request.aov {
         Aov::Beauty => {
-            checks::require_light(&sc, &lighting)?;
-            let spp = spp.unwrap_or(sc.render.spp).max(1);
-            let opts = RenderOptions {
-                spp,
-                seed: seed.unwrap_or(sc.render.seed),
-                progress: true,
-            };
-            let t = Instant::now();
-            let img = render(&sc, &sc.camera, &opts);
             // bench/ reads this (MATFIT_LOG=info): the render alone, to 10 ms.
             tracing::info!("rendered in {:.2} s", t.elapsed().as_secs_f64());
-            (img, format!("{spp} spp"))
+            let spp = spp.unwrap_or(sc.render.spp).max(1);
+            format!("{spp} spp")
         }
-        other => (
-            aov_image(&sc, &sc.camera, other, ext == "png"),
-            format!("{other:?} AOV").to_lowercase(),
-        ),
+        other => format!("{other:?} AOV").to_lowercase(),
     };
     img.write(&output).map_err(anyhow::Error::msg)?;
     outln!(

@@ -1,17 +1,33 @@
-//! Checks the commands make before their long work: the scene's lights, the photo's exposure
-//! and brightness, and the output folder.
+//! Checks made before long work: the scene's lights, the photo's exposure and brightness, and
+//! the output folder. What they find goes to the caller's [`Observer`]; what stops the work is
+//! an [`Error`].
 
-use super::out::warn;
-use anyhow::{bail, Result};
-use matfit::prepare::{PhotoArgs, PreparedPhoto};
-use matfit::scene::lint::{group_name_warnings, lighting, Lighting};
-use matfit::scene::Scene;
+use crate::error::{Error, Result};
+use super::Observer;
+use crate::prepare::{PhotoArgs, PreparedPhoto};
+use crate::scene::lint::{group_name_warnings, lighting, Lighting};
+use crate::scene::Scene;
 use std::path::Path;
 
+/// A number with at most `digits` decimals and no trailing zeros (1.6, not 1.5999999).
+pub fn num(x: f32, digits: usize) -> String {
+    let s = format!("{x:.digits$}");
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    };
+    if s == "-0" {
+        "0".into()
+    } else {
+        s
+    }
+}
+
 /// Warns of group names that look like typos; returns what the view says about the lights.
-pub fn scene_warnings(sc: &Scene) -> Lighting {
+pub fn scene_warnings(sc: &Scene, obs: &dyn Observer) -> Lighting {
     for w in group_name_warnings(sc) {
-        warn(w);
+        obs.warning(&w);
     }
     lighting(sc)
 }
@@ -56,6 +72,7 @@ pub fn some_usable(
     prepared: &[PreparedPhoto],
     ignore_mask: Option<&Path>,
 ) -> Result<()> {
+    let bail = |m: String| Err(Error::recover(m));
     let reflects = |sc: &Scene, g: usize| {
         !sc.groups[g]
             .objects
@@ -78,7 +95,7 @@ pub fn some_usable(
         let ignored = p.photo.ignored.iter().filter(|&&x| x).count();
         let share = 100.0 * ignored as f64 / p.photo.ignored.len().max(1) as f64;
         let user: usize = p.mask.stats.iter().map(|st| st.user).sum();
-        bail!(
+        return bail(format!(
             "{photo}: no usable pixel is left to fit: the ignore mask {} ignores {share:.0}% of \
              the photo, {user} of the {visible} pixels where the model's surfaces are seen. \
              Is it inverted? --ignore-mask marks what to IGNORE (white, or opaque alpha); a mask \
@@ -86,37 +103,39 @@ pub fn some_usable(
              ignore.png`)",
             m.display(),
             m.display()
-        );
+        ));
     }
-    bail!(
+    bail(format!(
         "{photo}: no usable pixel is left to fit ({visible} pixels show the model's surfaces, \
          none of them usable): see `matfit inspect` for why each was rejected"
-    )
+    ))
 }
 
 /// Refuses a scene whose render would be black (no light, or every light facing away from
 /// what the camera sees); warns of each light that faces away while others do not.
-pub fn require_light(sc: &Scene, l: &Lighting) -> Result<()> {
+pub fn require_light(sc: &Scene, l: &Lighting, obs: &dyn Observer) -> Result<()> {
     if l.none() {
-        bail!(
+        return Err(Error::scene(format!(
             "{}: no object emits light and there is no [[light]] (give a light an `emission = \
              [r, g, b]`, add a directional, point or spot [[light]] or an [environment]): the image \
              would be black",
             sc.path.display()
-        );
+        ))
+        .at(&sc.path, None));
     }
     let hint = "its front side is along the surface normal (edge_u × edge_v for a quad: swap \
                 edge_u and edge_v to turn it)";
     if l.dark() {
         let names: Vec<String> = l.facing_away.iter().map(|&o| object_at(sc, o)).collect();
-        bail!(
+        return Err(Error::scene(format!(
             "{} face{} away from every surface the camera sees, so nothing in view is lit: {hint}",
             names.join(", "),
             if names.len() == 1 { "s" } else { "" }
-        );
+        ))
+        .at(&sc.path, Some(sc.objects[l.facing_away[0]].line)));
     }
     for &o in &l.facing_away {
-        warn(format!(
+        obs.warning(&format!(
             "{} faces away from every surface the camera sees and lights nothing in view: {hint}",
             object_at(sc, o)
         ));
@@ -136,7 +155,7 @@ fn is_ldr(photo: &Path) -> bool {
 
 /// Warns when an 8/16-bit photo comes with no way to know its exposure: k = 1 then means the
 /// file's codes are radiances, which a camera's JPEG almost never is.
-pub fn exposure_warning(photo: &Path, args: &PhotoArgs, l: &Lighting) {
+pub fn exposure_warning(photo: &Path, args: &PhotoArgs, l: &Lighting, obs: &dyn Observer) {
     if !is_ldr(photo)
         || args.exposure.is_some()
         || args.grey_card.is_some()
@@ -149,7 +168,7 @@ pub fn exposure_warning(photo: &Path, args: &PhotoArgs, l: &Lighting) {
     } else {
         " (a light is in view: --exposure-from-lights can calibrate from it)".into()
     };
-    warn(format!(
+    obs.warning(&format!(
         "{}: an 8/16-bit photo and no --exposure, --grey-card or --exposure-from-lights: the \
          exposure is taken as 1 (photo = radiance), which a camera's file rarely is{light}",
         photo.display()
@@ -159,17 +178,19 @@ pub fn exposure_warning(photo: &Path, args: &PhotoArgs, l: &Lighting) {
 /// Says how the exposure was set; warns when some group is far brighter in the photo than any
 /// light of the scene could make a surface (reflected radiance never exceeds the brightest
 /// emitted radiance when no material reflects more than it receives): a wrong exposure.
-pub fn exposure_report(sc: &Scene, photo: &Path, args: &PhotoArgs, p: &PreparedPhoto) {
-    match &p.calibration {
-        Some(c) => crate::outln!(
+pub fn exposure_report(
+    sc: &Scene,
+    photo: &Path,
+    args: &PhotoArgs,
+    p: &PreparedPhoto,
+    obs: &dyn Observer,
+) {
+    obs.message(&match &p.calibration {
+        Some(c) => format!(
             "exposure k = {:.6} calibrated from {} (per channel {:.6}, {:.6}, {:.6})",
-            c.factor,
-            c.source,
-            c.per_channel[0],
-            c.per_channel[1],
-            c.per_channel[2]
+            c.factor, c.source, c.per_channel[0], c.per_channel[1], c.per_channel[2]
         ),
-        None => crate::outln!(
+        None => format!(
             "exposure k = {} ({})",
             p.photo.exposure,
             if args.exposure.is_some() {
@@ -178,7 +199,7 @@ pub fn exposure_report(sc: &Scene, photo: &Path, args: &PhotoArgs, p: &PreparedP
                 "default, not given"
             }
         ),
-    }
+    });
     // The bound below holds for area lights alone (a punctual light has no radiance; an
     // environment's is not checked here).
     if !sc.punctual_lights.is_empty() || sc.environment.is_some() {
@@ -208,15 +229,15 @@ pub fn exposure_report(sc: &Scene, photo: &Path, args: &PhotoArgs, p: &PreparedP
         let mid = l.len() / 2;
         let median = *l.select_nth_unstable_by(mid, f32::total_cmp).1;
         if median > 1.5 * lmax {
-            warn(format!(
+            obs.warning(&format!(
                 "{}: group '{}' is {:.0}× brighter in the photo (median {}) than the brightest \
                  light ('{brightest}', radiance {}) could make any surface: is the exposure \
                  right? (--exposure K, --grey-card GROUP=RHO or --exposure-from-lights)",
                 photo.display(),
                 grp.name,
                 median / lmax,
-                super::table::num(median, 4),
-                super::table::num(lmax, 4),
+                num(median, 4),
+                num(lmax, 4),
             ));
         }
     }
@@ -224,7 +245,7 @@ pub fn exposure_report(sc: &Scene, photo: &Path, args: &PhotoArgs, p: &PreparedP
 
 /// Files a command of matfit writes into its output folder: a folder holding any of them is a
 /// matfit output and may be written again.
-const OUTPUT_MARKS: &[&str] = &[
+pub const OUTPUT_MARKS: &[&str] = &[
     "results.json",
     "checkpoint.json",
     "log.jsonl",
@@ -236,57 +257,21 @@ const OUTPUT_MARKS: &[&str] = &[
     "recovery",
 ];
 
-/// Refuses to write into a folder that holds other things than a matfit output, unless
-/// `force`; says when a previous matfit output is overwritten.
-pub fn output_folder(dir: &Path, force: bool) -> Result<()> {
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return Ok(()); // absent (created later) or not a folder (reported when it is created)
-    };
-    let mut names: Vec<String> = entries
-        .flatten()
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|n| !n.starts_with(".matfit-probe-"))
-        .collect();
-    names.sort();
-    if names.is_empty() {
-        return Ok(());
-    }
-    if names.iter().any(|n| OUTPUT_MARKS.contains(&n.as_str())) {
-        eprintln!("note: writing over the matfit output in {}", dir.display());
-        return Ok(());
-    }
-    if force {
-        eprintln!(
-            "note: writing into {}, which holds other files (--force)",
-            dir.display()
-        );
-        return Ok(());
-    }
-    bail!(
-        "{} is not empty ({} entr{}, e.g. '{}') and is not a matfit output: refusing to write \
-         there (choose another folder, or --force to write into it anyway)",
-        dir.display(),
-        names.len(),
-        if names.len() == 1 { "y" } else { "ies" },
-        names[0]
-    )
-}
-
 /// `recover --resume` continues a run in `dir`: the folder and its checkpoint must be there
 /// (creating an empty folder would only end in "no checkpoint" after the photo's preparation).
 pub fn resumable(dir: &Path) -> Result<()> {
     if !dir.is_dir() {
-        bail!(
+        return Err(Error::recover(format!(
             "cannot resume: {} does not exist, so there is no checkpoint.json to resume from \
              (run without --resume to start)",
             dir.display()
-        );
+        )));
     }
     if !dir.join("checkpoint.json").is_file() {
-        bail!(
+        return Err(Error::recover(format!(
             "cannot resume: {} holds no checkpoint.json (run without --resume to start afresh)",
             dir.display()
-        );
+        )));
     }
     Ok(())
 }
@@ -317,21 +302,13 @@ pub fn remove_old_results(dir: &Path) -> Result<()> {
         match std::fs::remove_file(&p) {
             Ok(()) => {}
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(e) => bail!("cannot remove the old {}: {e}", p.display()),
+            Err(e) => {
+                return Err(Error::io(format!(
+                    "cannot remove the old {}: {e}",
+                    p.display()
+                )))
+            }
         }
     }
     Ok(())
-}
-
-/// On Ctrl-C during `recover`: say how to continue from the last checkpoint, then stop.
-pub fn on_interrupt_say_resume(resume_cmd: String) {
-    let r = ctrlc::set_handler(move || {
-        eprintln!(
-            "\ninterrupted: the last finished global iteration is saved; continue with\n  {resume_cmd}"
-        );
-        std::process::exit(130);
-    });
-    if let Err(e) = r {
-        tracing::debug!("no Ctrl-C handler: {e}");
-    }
 }

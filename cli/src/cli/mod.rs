@@ -19,13 +19,11 @@ use crate::outln;
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 use matfit::io::atomic::{check_output_file, prepare_output_dir};
-use matfit::io::image::Image;
 use matfit::math::Rgb;
 use matfit::photo::Response;
 use matfit::prepare::PhotoArgs;
-use matfit::render::aov::{aov_image, Aov};
-use matfit::render::film::{render, RenderOptions};
-use matfit::scene::edit::{load_edited, Edit, EditFlags};
+use matfit::render::aov::Aov;
+use matfit::scene::edit::{Edit, EditFlags};
 use matfit::scene::{load_scene, Scene};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -441,7 +439,7 @@ impl FitArgs {
 /// Loads a scene and prints its warnings (group names that look like typos).
 fn load(path: &Path) -> Result<(Scene, matfit::scene::lint::Lighting)> {
     let sc = load_scene(path)?;
-    let l = checks::scene_warnings(&sc);
+    let l = matfit::api::checks::scene_warnings(&sc, &out::TERM);
     Ok((sc, l))
 }
 
