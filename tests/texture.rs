@@ -893,8 +893,12 @@ fn papered_room(dir: &std::path::Path, scale: f32, contrast: f32, period: f32) -
 /// pixels) gets its texture, though its uniform fit's ε is under the diffuse threshold from
 /// the first iteration and its cache holds only a quarter of its pixels: the texture test
 /// looks for texel-scale structure in the residual, within whole blocks of pixels
-/// (`fit/detail.rs`), and a group confirmed early is reopened. Every other group keeps its
-/// level. The recovered print is scored against the truth as the poster's is.
+/// (`fit/detail.rs`), and a group confirmed early is reopened; a trial whose gain falls just
+/// under its noise on one cache is tried again and judged on the two together. Every other
+/// group keeps its level. The recovered print is scored against the truth as the poster's is.
+/// Measured: the first trial 0.0267 → 0.0130 with a gain noise of 0.0046 (not kept alone), the
+/// second kept; ε 0.0035 at level 7; per texel 31.7 dB (cut from the photo 15.4 dB), per 2×2
+/// texels 34.0 dB, the mean within 0.8%.
 #[test]
 fn a_large_wall_with_a_faint_print_gets_its_texture() {
     let dir = tempfile::tempdir().unwrap();
@@ -910,6 +914,13 @@ fn a_large_wall_with_a_faint_print_gets_its_texture() {
         wall.level.name(),
         wall.error
     );
+    for (_, e) in events.iter().filter(|(g, e)| {
+        g == "back_wall"
+            && !matches!(e, Event::Fit { .. })
+            && !matches!(e, Event::Tried { level, .. } if *level != Level::Textured)
+    }) {
+        eprintln!("  {e:?}");
+    }
     assert_eq!(
         wall.level,
         Level::Textured,

@@ -117,6 +117,10 @@ pub struct GroupState {
     /// turn): its next trial starts from it rather than from nothing.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pending_texture: Option<TextureState>,
+    /// The texture trials from the current level so far, pooled: the sum of their gains in ε,
+    /// the sum of their gains' noise variances, and their count (`hierarchy.rs`, `climb`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub texture_evidence: Option<(f32, f32, u32)>,
     /// Levels 8–10: the evidence between the two microfacet distributions pooled over the
     /// caches at the current level, as the sum of ε(GGX) − ε(Beckmann), its sum of squares and
     /// the count (`hierarchy.rs`, `fit_current`).
@@ -156,6 +160,7 @@ impl GroupState {
             doubted: None,
             texture_refused: None,
             pending_texture: None,
+            texture_evidence: None,
             distribution_evidence: None,
             detail: None,
         }

@@ -118,6 +118,10 @@ fn smoothing_event(t: &TextureState) -> Option<Event> {
     })
 }
 
+/// A texture that does not earn its place is tried again from the same level, its evidence
+/// pooled with the earlier trials', up to this many trials in all.
+const TEXTURE_TRIALS: u32 = 3;
+
 /// What a climb found ([`GroupState::climb`]).
 struct Climb {
     /// The best level's fit (the current level's if none earned its place) and its texture.
@@ -129,8 +133,10 @@ struct Climb {
     near_miss: bool,
     /// Level 7 was not tried because a group that lights this one is still analysing.
     texture_waits: bool,
-    /// Level 7 was tried and did not earn its place.
+    /// Level 7 was tried and did not earn its place, for good.
     texture_refused: bool,
+    /// The texture trials' pooled evidence, this one included (None: no trial).
+    texture_evidence: Option<(f32, f32, u32)>,
 }
 
 impl GroupState {
@@ -397,6 +403,7 @@ impl GroupState {
         self.doubted = None;
         self.texture_refused = None;
         self.pending_texture = None;
+        self.texture_evidence = None;
         self.distribution_evidence = None;
         self.iterations_at_level = 0;
         self.moves.clear();
@@ -570,8 +577,9 @@ impl GroupState {
         let mut rejected = f32::INFINITY;
         // Level 7 was not tried because a group that lights this one is still analysing.
         let mut texture_waits = false;
-        // Level 7 was tried and did not earn its place.
+        // Level 7 was tried and did not earn its place, for good; the trials' pooled evidence.
         let mut texture_refused = false;
+        let mut texture_evidence = None;
         while let Some(next) = level.next() {
             let started = std::time::Instant::now();
             // Levels 8 and 10 reshape a lobe: a group on which no specular level earned its
@@ -641,7 +649,16 @@ impl GroupState {
                     Some(varnished) if !Self::earns(&varnished.0, &bare.0, opts).0 => varnished,
                     _ => bare,
                 };
-                let (kept, gain_noise) = Self::earns(&best, &f, opts);
+                // Pooled with the earlier trials from this level: a faint print's gain can
+                // sit just under its noise on one cache and clear it on two together.
+                let (single, gain_noise) = Self::earns(&best, &f, opts);
+                let gain = best.error - f.error;
+                let (g, v, n) = self.texture_evidence.unwrap_or((0.0, 0.0, 0));
+                let pooled = (g + gain, v + gain_noise * gain_noise, n + 1);
+                let kept = single
+                    || gain > opts.margin * best.error
+                        && pooled.0 > opts.noise_factor * pooled.1.sqrt();
+                texture_evidence = Some(pooled);
                 events.push(Event::Tried {
                     level: next,
                     error_before: best.error,
@@ -655,7 +672,7 @@ impl GroupState {
                 if kept {
                     best = f;
                     texture = Some(t);
-                } else {
+                } else if gain <= opts.margin * best.error || pooled.2 >= TEXTURE_TRIALS {
                     texture_refused = true;
                 }
                 break;
@@ -722,6 +739,7 @@ impl GroupState {
             near_miss,
             texture_waits,
             texture_refused,
+            texture_evidence,
         }
     }
 
@@ -742,8 +760,12 @@ impl GroupState {
             near_miss,
             texture_waits,
             texture_refused,
+            texture_evidence,
         } = climb;
         self.texture_waiting = texture_waits;
+        if texture_evidence.is_some() {
+            self.texture_evidence = texture_evidence;
+        }
         if texture_refused {
             self.texture_refused = Some(self.level);
             self.pending_texture = None;
@@ -770,6 +792,7 @@ impl GroupState {
             self.texture = texture;
             self.pending_texture = None;
             self.texture_refused = None;
+            self.texture_evidence = None;
             self.distribution_evidence = None;
             self.iterations_at_level = 0;
             self.moves.clear();
