@@ -483,3 +483,40 @@ fn a_wrongly_exposed_photo_is_not_explained_and_the_verdict_says_why() {
         "{stdout}"
     );
 }
+
+/// A ceiling lamp written with its edges swapped faces the ceiling a centimetre above it and
+/// lights the room only through it: warned like a lamp facing away, naming the object; the
+/// same lamp facing down is not.
+#[test]
+fn a_light_facing_a_surface_a_centimetre_away_is_warned_of() {
+    use crate::common::{diffuse, emission, SceneToml};
+    let room = |lamp_faces_up: bool| {
+        let (u, v) = ([0.4, 0.0, 0.0], [0.0, 0.0, 0.4]);
+        let (u, v) = if lamp_faces_up { (v, u) } else { (u, v) };
+        // Seen from inside the room, the ceiling and the floor in view.
+        SceneToml::spaced()
+            .camera(64, 48, [0.0, 0.8, 1.8], [0.0, 1.1, 0.0], 70.0)
+            .floor(&diffuse(&[0.5]))
+            .quad(
+                "ceiling",
+                "ceiling",
+                [-1.0, 1.51, -1.0],
+                [2.0, 0.0, 0.0],
+                [0.0, 0.0, 2.0],
+                &diffuse(&[0.8]),
+            )
+            .quad("lamp", "lamp", [-0.2, 1.5, -0.2], u, v, &emission(&[5.0]))
+            .to_toml()
+    };
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    for (up, name) in [(true, "up.toml"), (false, "down.toml")] {
+        write(dir, name, &room(up));
+        let (code, _, err) = run(&["render", name, "-o", "x.exr", "--spp", "1"], dir);
+        assert_eq!(code, 0, "{err}");
+        let warned = err.lines().any(|l| {
+            l.starts_with("warning: ") && l.contains("'lamp'") && l.contains("faces a surface")
+        });
+        assert_eq!(warned, up, "{name}: {err}");
+    }
+}

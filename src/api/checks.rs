@@ -140,6 +140,12 @@ pub fn require_light(sc: &Scene, l: &Lighting, obs: &dyn Observer) -> Result<()>
             object_at(sc, o)
         ));
     }
+    for &(o, d) in &l.near_surface {
+        obs.warning(&format!(
+            "{} faces a surface {d:.3} scene units in front of it and lights the scene only              through that surface: {hint}",
+            object_at(sc, o)
+        ));
+    }
     Ok(())
 }
 

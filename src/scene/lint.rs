@@ -13,6 +13,11 @@ pub struct Lighting {
     /// Emitters whose front side (along the surface normal, edge_u × edge_v for a quad) faces
     /// away from every surface point the camera sees: they light nothing in the picture.
     pub facing_away: Vec<usize>,
+    /// Emitters whose front side meets a surface within [`NEAR_SURFACE`] of the scene's size
+    /// over most of their area (a ceiling lamp written with its edges swapped, facing the
+    /// ceiling a centimetre away: it lights the room only through that surface), with the
+    /// median distance.
+    pub near_surface: Vec<(usize, f32)>,
     /// Emitters the camera sees directly.
     pub in_view: Vec<usize>,
     /// Punctual lights (`[[light]]`) and the environment, which are not checked for what they
@@ -32,6 +37,12 @@ impl Lighting {
     }
 }
 
+/// A light's front side "meets a surface" when the nearest surface along its normal is closer
+/// than this fraction of the scene's bounding-box diagonal (3.5 cm in a room 5 m across) over
+/// at least [`NEAR_SHARE`] of the points tried on it.
+pub const NEAR_SURFACE: f32 = 0.005;
+pub const NEAR_SHARE: f32 = 0.9;
+
 /// Points the camera sees on a `nx`×`ny` grid of the film: (point, normal on the camera's
 /// side, object).
 fn visible_points(scene: &Scene, nx: u32, ny: u32) -> Vec<(Vec3, Vec3, usize)> {
@@ -50,6 +61,11 @@ fn visible_points(scene: &Scene, nx: u32, ny: u32) -> Vec<(Vec3, Vec3, usize)> {
 pub fn lighting(scene: &Scene) -> Lighting {
     let g = &scene.geometry;
     let pts = visible_points(scene, 48, 36);
+    let (lo, hi) = g.positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let near = NEAR_SURFACE * (hi - lo).length().max(1e-6);
     let mut out = Lighting {
         punctual: scene.punctual_lights.len() + usize::from(scene.environment.is_some()),
         ..Lighting::default()
@@ -78,9 +94,40 @@ pub fn lighting(scene: &Scene) -> Lighting {
         });
         if !lights_something {
             out.facing_away.push(e);
+        } else if let Some(d) = front_blocked(scene, obj.tri_range.clone(), step, near) {
+            out.near_surface.push((e, d));
         }
     }
     out
+}
+
+/// The median distance to the nearest surface in front of the triangles `tris` (every `step`-th)
+/// when at least [`NEAR_SHARE`] of them meet one within `near`.
+fn front_blocked(
+    scene: &Scene,
+    tris: std::ops::Range<u32>,
+    step: usize,
+    near: f32,
+) -> Option<f32> {
+    let g = &scene.geometry;
+    let mut d: Vec<f32> = tris
+        .step_by(step)
+        .map(|t| {
+            let tri = &g.tris[t as usize];
+            let ng = g.faces[t as usize].ng;
+            let v = tri.v.map(|i| g.positions[i as usize]);
+            let centroid = (v[0] + v[1] + v[2]) / 3.0;
+            let ray = crate::geometry::Ray::new(centroid + ng * (1e-4 * near), ng);
+            scene.intersect(&ray, near).map_or(f32::INFINITY, |h| h.t)
+        })
+        .collect();
+    let n = d.len();
+    let hits = d.iter().filter(|x| x.is_finite()).count();
+    if n == 0 || (hits as f32) < NEAR_SHARE * n as f32 {
+        return None;
+    }
+    d.sort_by(f32::total_cmp);
+    Some(d[n / 2])
 }
 
 /// One message per group name that looks like a typo of another: one edit away from it, or a
