@@ -28,9 +28,7 @@
 //! the image's own pixels (`cache::choose_pixels`).
 
 use super::cache::{GroupCache, PixelGrid};
-use super::fitter::spec_of;
 use super::level::Level;
-use super::objective::pixel_specs;
 use super::params::GroupParams;
 use crate::math::Rgb;
 use crate::scene::WardVariant;
@@ -67,17 +65,7 @@ pub fn uniform_detail(
     if level == Level::Textured {
         return Detail::default();
     }
-    let specs = pixel_specs(cache, spec_of(level, params), variant, false);
-    let (rho_d, rho_s) = match level {
-        Level::PerfectSpecular => (Rgb::ZERO, Rgb::ONE),
-        _ => (params.rho_d, params.rho_s),
-    };
-    let (model, spec): (Vec<Rgb>, Vec<Rgb>) = cache
-        .pixels
-        .iter()
-        .zip(&specs)
-        .map(|(p, s)| (rho_d * s.diffuse(p).0 + rho_s * s.s, rho_s * s.s))
-        .unzip();
+    let (model, spec) = super::texture::uniform_parts(cache, level, params, variant);
     detail(cache, &model, &spec, cache.width)
 }
 

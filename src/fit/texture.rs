@@ -158,23 +158,27 @@ pub fn uniform_model(
     params: &GroupParams,
     variant: WardVariant,
 ) -> Vec<Rgb> {
+    uniform_parts(cache, level, params, variant).0
+}
+
+/// [`uniform_model`] and, per cached pixel, its specular part ρs·S.
+pub fn uniform_parts(
+    cache: &GroupCache,
+    level: Level,
+    params: &GroupParams,
+    variant: WardVariant,
+) -> (Vec<Rgb>, Vec<Rgb>) {
     let specs = pixel_specs(cache, spec_of(level, params), variant, false);
-    let rho_s = if level == Level::PerfectSpecular {
-        Rgb::ONE
-    } else {
-        params.rho_s
-    };
-    let rho_d = if level == Level::PerfectSpecular {
-        Rgb::ZERO
-    } else {
-        params.rho_d
+    let (rho_d, rho_s) = match level {
+        Level::PerfectSpecular => (Rgb::ZERO, Rgb::ONE),
+        _ => (params.rho_d, params.rho_s),
     };
     cache
         .pixels
         .iter()
         .zip(&specs)
-        .map(|(p, s)| rho_d * s.diffuse(p).0 + rho_s * s.s)
-        .collect()
+        .map(|(p, s)| (rho_d * s.diffuse(p).0 + rho_s * s.s, rho_s * s.s))
+        .unzip()
 }
 
 /// The radiance of `texture` (with its lobe `lobe` on top) per cached pixel; None if the cache

@@ -325,13 +325,20 @@ fn derivative_terms(
         .map(|(d, s)| (d, s, Vec::with_capacity(k), Vec::with_capacity(k)))
         .collect();
     for j in 0..k {
-        let mut moved = cache.clone();
-        moved.samples = (0..cache.samples.len())
-            .map(|s| Sample {
-                c: tracked.dc[s * k + j],
-                ..cache.samples[s]
-            })
-            .collect();
+        // What `pixel_specs` reads (pixels, samples, tiles), not the texel rows or the
+        // tracked derivatives a whole copy would carry.
+        let mut moved = GroupCache {
+            pixels: cache.pixels.clone(),
+            samples: (0..cache.samples.len())
+                .map(|s| Sample {
+                    c: tracked.dc[s * k + j],
+                    ..cache.samples[s]
+                })
+                .collect(),
+            tiles: cache.tiles,
+            width: cache.width,
+            ..Default::default()
+        };
         for (i, p) in moved.pixels.iter_mut().enumerate() {
             p.d_half = tracked.d_half[i * k + j];
             p.d = p.d_half[0] * 0.5 + p.d_half[1] * 0.5;

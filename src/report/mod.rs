@@ -234,6 +234,19 @@ impl From<&crate::fit::stray::StrayEstimate> for StrayResult {
 /// The status of a fitted group whose final ε is far above its noise floor.
 pub const NOT_EXPLAINED: &str = "not explained";
 
+/// A group's status as the outputs state it: [`NOT_EXPLAINED`] for a fitted group whose final
+/// ε (`final_error`: ε and noise floor) is far above its noise floor, else [`status_word`].
+pub fn group_status(
+    s: &crate::fit::GroupState,
+    final_error: Option<(f32, f32)>,
+    unseen: Option<&crate::fit::unseen::UnseenEstimate>,
+) -> &'static str {
+    match final_error {
+        Some((e, n)) if s.is_fitted() && !verdict::explained(e, n) => NOT_EXPLAINED,
+        _ => status_word(s.status, unseen),
+    }
+}
+
 pub fn status_word(
     status: Status,
     unseen: Option<&crate::fit::unseen::UnseenEstimate>,
@@ -307,15 +320,7 @@ pub fn results(rec: &Recovery) -> Results {
                 name: s.name.clone(),
                 level: level.name(),
                 level_number: level.number(),
-                status: match fe {
-                    Some((e, n))
-                        if matches!(s.status, Status::Confirmed | Status::Analysing)
-                            && !verdict::explained(e, n) =>
-                    {
-                        NOT_EXPLAINED
-                    }
-                    _ => status_word(s.status, unseen),
-                },
+                status: group_status(s, fe, unseen),
                 error: fe.map(|e| e.0),
                 noise_floor: fe.map(|e| e.1),
                 fit_error: s.error,

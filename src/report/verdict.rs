@@ -7,7 +7,7 @@
 //! model of the scene that is not the photo's (geometry, the lights' placement, unmodelled
 //! objects). The verdict names those the numbers point at.
 
-use crate::fit::{Recovery, Status};
+use crate::fit::Recovery;
 use crate::photo::Photo;
 use serde::Serialize;
 
@@ -85,14 +85,12 @@ fn clipped_note(share: f32) -> String {
 
 /// The verdict on `rec`, recovered from `photo`.
 pub fn verdict(rec: &Recovery, photo: &Photo) -> Verdict {
-    let fitted =
-        |s: &crate::fit::GroupState| matches!(s.status, Status::Confirmed | Status::Analysing);
     let (mut bad, mut bad_px, mut all_px) = (Vec::new(), 0usize, 0usize);
     for (g, s) in rec.groups.iter().enumerate() {
         let Some((e, n)) = rec.final_error[g] else {
             continue;
         };
-        if !fitted(s) {
+        if !s.is_fitted() {
             continue;
         }
         let px = rec.pixel_stats[g].usable;

@@ -207,18 +207,11 @@ pub fn recovered(rec: &Recovery) -> String {
             [
                 st.name.clone(),
                 level,
-                match rec.final_error.get(g).copied().flatten() {
-                    Some((e, n))
-                        if matches!(st.status, Status::Confirmed | Status::Analysing)
-                            && !matfit::report::verdict::explained(e, n) =>
-                    {
-                        matfit::report::NOT_EXPLAINED
-                    }
-                    _ => matfit::report::status_word(
-                        st.status,
-                        rec.unseen.iter().find(|u| u.group == g),
-                    ),
-                }
+                matfit::report::group_status(
+                    st,
+                    rec.final_error.get(g).copied().flatten(),
+                    rec.unseen.iter().find(|u| u.group == g),
+                )
                 .to_string(),
                 rd,
                 rs,
