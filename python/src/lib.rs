@@ -10,6 +10,8 @@ use pyo3::exceptions::{PyException, PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+use std::sync::mpsc::RecvTimeoutError;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
@@ -36,13 +38,14 @@ fn py_err(e: matfit::Error) -> PyErr {
 }
 
 /// The front door's observer for Python: progress to a Python callable (at most ten times a
-/// second, and at the end), warnings to `warnings.warn`, the log kept, and Ctrl-C checked
-/// after every global iteration.
+/// second, and at the end), warnings to `warnings.warn`, the log kept, and Ctrl-C passed on as
+/// the library's cancellation (see [`PyObserver::run`]).
 struct PyObserver {
     progress: Option<Py<PyAny>>,
     last: Mutex<Option<Instant>>,
     log: Mutex<Vec<String>>,
     interrupt: Mutex<Option<PyErr>>,
+    stop: AtomicBool,
 }
 
 impl PyObserver {
@@ -52,7 +55,40 @@ impl PyObserver {
             last: Mutex::new(None),
             log: Mutex::new(Vec::new()),
             interrupt: Mutex::new(None),
+            stop: AtomicBool::new(false),
         }
+    }
+
+    /// Runs `work` without the GIL on a thread of its own, while this thread looks for signals
+    /// every 50 ms: Python runs signal handlers only on its main thread, and the library asks
+    /// `cancelled` from its own threads (a render between rows, a recovery between
+    /// iterations). A KeyboardInterrupt sets the flag `cancelled` reads and is kept to be
+    /// raised when the work has stopped.
+    fn run<T: Send>(&self, py: Python<'_>, work: impl FnOnce() -> T + Send) -> T {
+        py.detach(|| {
+            std::thread::scope(|s| {
+                let (done, finished) = std::sync::mpsc::channel();
+                let worker = s.spawn(move || {
+                    let out = work();
+                    let _ = done.send(());
+                    out
+                });
+                while let Err(RecvTimeoutError::Timeout) =
+                    finished.recv_timeout(Duration::from_millis(50))
+                {
+                    if self.stop.load(Relaxed) {
+                        continue;
+                    }
+                    if let Err(e) = Python::attach(|py| py.check_signals()) {
+                        *self.interrupt.lock().unwrap() = Some(e);
+                        self.stop.store(true, Relaxed);
+                    }
+                }
+                worker
+                    .join()
+                    .unwrap_or_else(|p| std::panic::resume_unwind(p))
+            })
+        })
     }
 
     /// The error to raise for `e`: the KeyboardInterrupt caught, if that is what stopped it.
@@ -101,13 +137,7 @@ impl matfit::Observer for PyObserver {
         }
     }
     fn cancelled(&self) -> bool {
-        Python::attach(|py| match py.check_signals() {
-            Ok(()) => false,
-            Err(e) => {
-                *self.interrupt.lock().unwrap() = Some(e);
-                true
-            }
-        })
+        self.stop.load(Relaxed)
     }
 }
 
@@ -218,10 +248,9 @@ impl Scene {
             view,
         };
         let obs = PyObserver::new(progress);
-        let img = py
-            .detach(|| matfit::render(&self.inner, &request, &obs))
-            .map_err(py_err)?;
-        py.check_signals()?;
+        let img = obs
+            .run(py, || matfit::render(&self.inner, &request, &obs))
+            .map_err(|e| obs.error(e))?;
         use matfit::Aov as A;
         if matches!(aov, A::Group | A::Object | A::MirrorGroup | A::MirrorObject) {
             let ids: Vec<i32> = img.data.iter().map(|c| c.x as i32).collect();
@@ -368,8 +397,8 @@ fn recover<'py>(
         set_option(&mut opts, &k, &v)?;
     }
     let obs = PyObserver::new(progress);
-    let rec = py
-        .detach(|| matfit::recover(&scene.inner, &inputs, &opts, &obs))
+    let rec = obs
+        .run(py, || matfit::recover(&scene.inner, &inputs, &opts, &obs))
         .map_err(|e| obs.error(e))?;
     let out = PyDict::new(py);
     let results = serde_json::to_string(&rec.results()).expect("results serialise");
@@ -431,9 +460,11 @@ fn composite<'py>(
         exposure,
     };
     let obs = PyObserver::new(progress);
-    let c = py
-        .detach(|| matfit::composite(&scene.inner, &photo, &edits, &options, &obs))
-        .map_err(py_err)?;
+    let c = obs
+        .run(py, || {
+            matfit::composite(&scene.inner, &photo, &edits, &options, &obs)
+        })
+        .map_err(|e| obs.error(e))?;
     rgb_array(py, &c.image)
 }
 

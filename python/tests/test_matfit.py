@@ -190,6 +190,42 @@ def test_ctrl_c_raises_keyboard_interrupt_and_keeps_the_checkpoint(photo, tmp_pa
     assert (out / "results.json").exists() and rec.groups
 
 
+def test_ctrl_c_stops_a_render_partway(tmp_path):
+    """A render of minutes stops within a second of Ctrl-C, not when it would have ended."""
+    script = textwrap.dedent(
+        f"""
+        import time, matfit
+        scene = matfit.Scene.load({str(FIGURE6)!r})
+        print("rendering", flush=True)
+        t = time.perf_counter()
+        try:
+            scene.render(spp=4096, seed=1)
+            print("finished")
+        except KeyboardInterrupt:
+            print(f"KeyboardInterrupt after {{time.perf_counter() - t:.2f}} s")
+        """
+    )
+    p = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    assert p.stdout.readline().strip() == "rendering"
+    time.sleep(1.0)
+    sent = time.perf_counter()
+    p.send_signal(signal.SIGINT)
+    stdout, _ = p.communicate(timeout=120)
+    stopped = time.perf_counter() - sent
+    print(f"\nrender stopped {stopped:.2f} s after Ctrl-C: {stdout.strip()}")
+    assert "KeyboardInterrupt" in stdout, stdout
+    # 4096 spp of figure6 takes minutes on two cores; a row takes milliseconds.
+    assert stopped < 10, stopped
+
+
+def test_progress_is_drawn_without_tqdm(scene, capsys, monkeypatch):
+    """progress=True draws a bar on stderr even where tqdm is not installed."""
+    monkeypatch.setitem(sys.modules, "tqdm.auto", None)
+    scene.render(spp=2, seed=1, progress=True)
+    err = capsys.readouterr().err
+    assert "render" in err and "%" in err and "[" in err, err
+
+
 def read_pfm(path):
     with open(path, "rb") as f:
         kind = f.readline().strip()

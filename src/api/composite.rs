@@ -103,8 +103,13 @@ pub fn composite(
         progress: true,
     };
     let report = |p: &super::Progress| obs.progress(p);
-    let without = crate::render::film::render_reporting(base, &base.camera, &ropts, report);
-    let with = crate::render::film::render_reporting(&edited, &base.camera, &ropts, report);
+    let cancelled = || obs.cancelled();
+    let render = |sc: &Scene, o: &RenderOptions| {
+        crate::render::film::render_reporting(sc, &base.camera, o, report, &cancelled)
+            .ok_or_else(super::interrupted_render)
+    };
+    let without = render(base, &ropts)?;
+    let with = render(&edited, &ropts)?;
     let old: HashSet<&str> = base.objects.iter().map(|o| o.name.as_str()).collect();
     let added: Vec<bool> = edited
         .objects
@@ -121,7 +126,7 @@ pub fn composite(
         seed: ropts.seed.wrapping_add(1),
         progress: true,
     };
-    let other = crate::render::film::render_reporting(base, &base.camera, &noise_opts, report);
+    let other = render(base, &noise_opts)?;
     let sigma = noise_sigma(&without, &other, ropts.spp, noise_opts.spp);
     let changed = out
         .data

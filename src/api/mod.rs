@@ -37,10 +37,16 @@ pub trait Observer: Sync {
     /// The inputs are checked and the long work starts.
     fn fitting(&self) {}
     /// Asked after every global iteration of a recovery: true stops it there, its checkpoint
-    /// written, with an [`ErrorKind::Interrupted`] error.
+    /// written, with an [`ErrorKind::Interrupted`] error. A render asks it before each row,
+    /// from its worker threads, and stops with the same error.
     fn cancelled(&self) -> bool {
         false
     }
+}
+
+/// The error of a render its observer stopped.
+fn interrupted_render() -> Error {
+    Error::new(ErrorKind::Interrupted, "interrupted: the render was stopped")
 }
 
 /// An observer that ignores everything.
@@ -185,12 +191,14 @@ pub fn render(scene: &Scene, request: &RenderRequest, observer: &dyn Observer) -
                 seed: request.seed.unwrap_or(sc.render.seed),
                 progress: true,
             };
-            Ok(crate::render::film::render_reporting(
+            crate::render::film::render_reporting(
                 sc,
                 &sc.camera,
                 &opts,
                 |p| observer.progress(p),
-            ))
+                &|| observer.cancelled(),
+            )
+            .ok_or_else(interrupted_render)
         }
         other => Ok(crate::render::aov::aov_image(
             sc,

@@ -27,18 +27,22 @@ pub fn progress_bar(len: u64, what: &str, show: bool) -> Bar<'static> {
 /// Renders the scene through `camera` (normally `scene.camera`), at least one sample per pixel.
 pub fn render(scene: &Scene, camera: &Camera, opts: &RenderOptions) -> Image {
     let bar = progress_bar(camera.height as u64, "render", opts.progress);
-    render_marked(scene, camera, opts, None, bar)
+    render_marked(scene, camera, opts, None, bar, None)
 }
 
-/// [`render`], reporting its progress to `report` (whatever `opts.progress` says).
+/// [`render`], reporting its progress to `report` (whatever `opts.progress` says) and asking
+/// `cancelled` between rows: None when it said stop (the rows not yet started are skipped).
 pub fn render_reporting(
     scene: &Scene,
     camera: &Camera,
     opts: &RenderOptions,
     report: impl Fn(&crate::io::progress::Progress) + Send + Sync,
-) -> Image {
+    cancelled: &(dyn Fn() -> bool + Sync),
+) -> Option<Image> {
     let bar = Bar::to(camera.height as u64, "render", report);
-    render_marked(scene, camera, opts, None, bar)
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    let img = render_marked(scene, camera, opts, None, bar, Some((cancelled, &stop)));
+    (!stop.into_inner()).then_some(img)
 }
 
 /// Renders only the pixels `wanted` marks (row-major, the camera's size), each to the value
@@ -57,17 +61,20 @@ pub fn render_where(
         "render_where: the mask is not the camera's size"
     );
     let bar = progress_bar(camera.height as u64, "render", opts.progress);
-    render_marked(scene, camera, opts, Some(wanted), bar)
+    render_marked(scene, camera, opts, Some(wanted), bar, None)
 }
 
-/// [`render`] of every pixel, or of those `wanted` marks.
+/// [`render`] of every pixel, or of those `wanted` marks; with `cancel`, a row starts only
+/// while its function says go on, and the flag records that it said stop.
 fn render_marked(
     scene: &Scene,
     camera: &Camera,
     opts: &RenderOptions,
     wanted: Option<&[bool]>,
     pb: Bar<'_>,
+    cancel: Option<(&(dyn Fn() -> bool + Sync), &std::sync::atomic::AtomicBool)>,
 ) -> Image {
+    use std::sync::atomic::Ordering::Relaxed;
     let pt = PathTracer::new(scene);
     let spp = opts.spp.max(1);
     let (w, h) = (camera.width as usize, camera.height as usize);
@@ -76,6 +83,12 @@ fn render_marked(
     // size of its buffer of per-sample values).
     let run = (65_536 / spp as usize).clamp(1, w.max(1));
     img.data.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        if let Some((cancelled, stop)) = cancel {
+            if stop.load(Relaxed) || cancelled() {
+                stop.store(true, Relaxed);
+                return;
+            }
+        }
         let marked = |x: usize| wanted.is_none_or(|m| m[y * w + x]);
         let mut x = 0;
         while x < w {

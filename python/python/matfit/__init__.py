@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import os
 import sys
+import time
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional, Sequence, Union
 
@@ -60,9 +61,33 @@ def _interactive() -> bool:
     return bool(getattr(sys.stderr, "isatty", lambda: False)())
 
 
+class _TextBar:
+    """tqdm's calls, drawn as one line on stderr rewritten in place (a terminal and a
+    notebook both honour the carriage return): the bar when tqdm is not installed."""
+
+    def __init__(self, total: int, desc: str, leave: bool = False) -> None:
+        self.total, self.n, self.desc = max(total, 1), 0, desc
+        self.start = time.monotonic()
+
+    def set_description(self, desc: str, refresh: bool = True) -> None:
+        self.desc = desc
+
+    def refresh(self) -> None:
+        frac = min(self.n / self.total, 1.0)
+        filled = int(frac * 30)
+        elapsed = time.monotonic() - self.start
+        line = f"{self.desc[:40]:<40} [{'#' * filled}{'.' * (30 - filled)}] {frac:4.0%} {elapsed:5.0f} s"
+        sys.stderr.write("\r" + line)
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        sys.stderr.write("\r" + " " * 90 + "\r")
+        sys.stderr.flush()
+
+
 class _Progress:
     """The Rust side's progress as tqdm bars (tqdm.auto: a widget in notebooks, text in a
-    terminal); nothing when tqdm is missing or no one watches."""
+    terminal), or as a line of text when tqdm is not installed; nothing when no one watches."""
 
     def __init__(self) -> None:
         self.bar = None
@@ -72,11 +97,9 @@ class _Progress:
 
             self.tqdm = tqdm
         except Exception:
-            self.tqdm = None
+            self.tqdm = _TextBar
 
     def __call__(self, task: str, done: int, total: int, message: str, finished: bool) -> None:
-        if self.tqdm is None:
-            return
         if self.bar is not None and (task != self.task or finished):
             self.bar.n = self.bar.total if finished else self.bar.n
             self.bar.close()
