@@ -195,6 +195,84 @@ fn a_stray_light_is_fitted_with_the_materials_through_the_binary() {
     assert!((got.x / 0.05 - 1.0).abs() < 0.05, "recovered.toml: {got}");
 }
 
+/// The same with the ball a rough plastic, fitted where only the levels that export to Mitsuba
+/// exactly are allowed (`--exportable mitsuba`: the ball must climb to plastic or microfacet,
+/// levels 8–10): the stray light is estimated there as well as beside Ward.
+#[test]
+fn a_stray_light_is_fitted_beside_a_plastic_ball_through_the_binary() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (text, truth) = sunroom_with_stray_light();
+    let ward =
+        "material = { type = \"ward\", rho_d = [0.3, 0.3, 0.1], rho_s = 0.15, alpha = 0.12 }";
+    let plastic =
+        "material = { type = \"plastic\", rho_d = [0.3, 0.3, 0.1], rho_s = 0.04, alpha = 0.12 }";
+    assert!(truth.contains(ward));
+    let truth_path = write(d, "truth.toml", &truth.replace(ward, plastic));
+    let model = write(d, "model.toml", &text);
+    let (code, _, err) = run(
+        &[
+            "render",
+            truth_path.to_str().unwrap(),
+            "--spp",
+            "256",
+            "-o",
+            "photo.exr",
+        ],
+        d,
+    );
+    assert_eq!(code, 0, "{err}");
+    let (code, out, err) = run(
+        &[
+            "recover",
+            model.to_str().unwrap(),
+            "photo.exr",
+            "--stray-light",
+            "--exportable",
+            "mitsuba",
+            "-o",
+            "out",
+        ],
+        d,
+    );
+    assert_eq!(code, 0, "{out}{err}");
+    let json = results(&d.join("out"));
+    let ball = result_group(&json, "ball");
+    eprintln!("ball: {ball}\nstray light: {}", json["stray_light"]);
+    assert_eq!(ball["level"], "plastic", "{ball}");
+    let rho_d = crate::common::json_rgb(&ball["params"]["rho_d"]);
+    let want_rho_d = [0.3, 0.3, 0.1];
+    assert!(
+        (0..3).all(|c| (rho_d[c] - want_rho_d[c]).abs() < 0.01),
+        "ball ρd {rho_d:?}"
+    );
+    let alpha = ball["params"]["alpha_x"].as_f64().unwrap();
+    assert!((alpha / 0.12 - 1.0).abs() < 0.05, "ball α {alpha}");
+    let s = &json["stray_light"];
+    assert_eq!(s["estimated"], true, "{s}");
+    let want = [0.05, 0.05, 0.06];
+    for c in 0..3 {
+        let got = s["radiance"][c].as_f64().unwrap();
+        let sigma = s["sigma"][c].as_f64().unwrap();
+        assert!(
+            (got / want[c] - 1.0).abs() < 0.05 && sigma > 0.0,
+            "stray light {s}"
+        );
+    }
+    // The diffuse groups as without stray light.
+    let truth_scene = parse_scene(&truth, &truth_path).unwrap();
+    for o in &truth_scene.objects {
+        if let Material::Diffuse { rho_d } = o.material {
+            let v = crate::common::json_rgb(&result_group(&json, &o.name)["params"]["rho_d"]);
+            assert!(
+                (0..3).all(|c| (v[c] as f32 - rho_d[c]).abs() < 0.015),
+                "{} ρd {v:?} vs {rho_d}",
+                o.name
+            );
+        }
+    }
+}
+
 #[test]
 fn three_photos_of_a_glossy_ball_share_one_stray_light() {
     // scenes/lightstage at 64×64: three photos, each under one distant light, all with the

@@ -484,6 +484,71 @@ fn a_wrongly_exposed_photo_is_not_explained_and_the_verdict_says_why() {
     );
 }
 
+/// The case as a user meets it: an 8-bit sRGB JPEG shot 2.5× brighter than a good exposure
+/// (one that puts the 99th percentile at 0.9), no exposure given. Its highlights clip; the run
+/// is not explained, the verdict names the exposure first and says how many pixels were
+/// clipped and left out of every fit, and no group is "confirmed" at an error many times its
+/// noise floor. The well-exposed JPEG, its exposure given, is explained: 8 bits and the sRGB
+/// curve alone raise no alarm.
+#[test]
+fn an_over_exposed_jpeg_without_an_exposure_is_not_explained() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    scene_and_photo(dir, &small_scene(), 64);
+    let linear = matfit::io::image::read_linear(&dir.join("photo.exr")).unwrap();
+    let mut lum: Vec<f32> = linear.data.iter().map(|c| c.max_element()).collect();
+    lum.sort_by(f32::total_cmp);
+    let good = 0.9 / lum[lum.len() * 99 / 100];
+    let jpeg = |name: &str, k: f32| -> f64 {
+        let mut img = linear.clone();
+        for c in &mut img.data {
+            *c *= k;
+        }
+        img.write(&dir.join(name)).unwrap();
+        img.data.iter().filter(|c| c.max_element() > 1.0).count() as f64 / img.data.len() as f64
+    };
+    let recover = |photo: &str, out: &str, exposure: Option<String>| {
+        let mut args = vec!["recover", "scene.toml", photo, "-o", out];
+        args.extend(QUICK);
+        if let Some(e) = &exposure {
+            args.extend(["--exposure", e.as_str()]);
+        }
+        let (code, stdout, err) = run(&args, dir);
+        assert_eq!(code, 0, "{err}");
+        (crate::common::results(&dir.join(out)), stdout)
+    };
+
+    let clipped = jpeg("over.jpg", 2.5 * good);
+    assert!(clipped > 0.005, "the test needs clipped pixels: {clipped}");
+    let (res, stdout) = recover("over.jpg", "over", None);
+    let verdict = &res["verdict"];
+    eprintln!("{verdict}\n{stdout}");
+    assert_eq!(verdict["explained"], false, "{verdict}");
+    assert_eq!(verdict["causes"][0]["cause"], "exposure", "{verdict}");
+    let share = verdict["clipped_share"].as_f64().unwrap();
+    assert!(
+        share >= 0.5 * clipped && share <= 1.5 * clipped + 0.01,
+        "clipped share {share} vs {clipped} of pixels over 1"
+    );
+    assert!(stdout.contains("verdict: NOT EXPLAINED"), "{stdout}");
+    assert!(stdout.contains("clipped"), "{stdout}");
+    for g in res["groups"].as_array().unwrap() {
+        if let (Some(e), Some(nf)) = (g["error"].as_f64(), g["noise_floor"].as_f64()) {
+            if e > 5.0 * nf + 0.03 {
+                assert_ne!(g["status"], "confirmed", "{g}");
+            }
+        }
+    }
+
+    jpeg("right.jpg", good);
+    let (res, stdout) = recover("right.jpg", "right", Some(good.to_string()));
+    assert_eq!(
+        res["verdict"]["explained"], true,
+        "{}\n{stdout}",
+        res["verdict"]
+    );
+}
+
 /// A ceiling lamp written with its edges swapped faces the ceiling a centimetre above it and
 /// lights the room only through it: warned like a lamp facing away, naming the object; the
 /// same lamp facing down is not.
