@@ -94,13 +94,16 @@ internal!(
 mod error;
 
 pub use api::{
-    composite, edit, edit_from_flags, export, in_view, load, load_edited, read_edit, read_image,
-    recover, render, CompositeOptions, Composited, EditFlags, LogLine, Observer, PhotoInput,
-    Progress, RecoverOptions, Recovery, RenderRequest, Silent,
+    composite, edit, edit_from_flags, export, in_view, load, load_edited, parse_grey_card,
+    parse_response, read_edit, read_image, recover, render, CompositeOptions, Composited,
+    EditFlags, LogLine, Observer, PhotoInput, Progress, RecoverOptions, Recovery, RenderRequest,
+    Silent,
 };
 pub use error::{Error, ErrorKind, Location, Result};
 pub use export::{ExportReport, Format};
 pub use io::image::Image;
+pub use math::Rgb;
+pub use photo::Response;
 pub use render::aov::Aov;
 pub use scene::edit::Edit;
 pub use scene::Scene;

@@ -162,7 +162,7 @@ fn image_from(array: PyReadonlyArray3<'_, f32>) -> PyResult<matfit::Image> {
     let mut img = matfit::Image::new(w, h);
     for y in 0..h {
         for x in 0..w {
-            img.data[y * w + x] = matfit::math::Rgb::new(a[[y, x, 0]], a[[y, x, 1]], a[[y, x, 2]]);
+            img.data[y * w + x] = matfit::Rgb::new(a[[y, x, 0]], a[[y, x, 1]], a[[y, x, 2]]);
         }
     }
     Ok(img)
@@ -337,8 +337,7 @@ fn set_option(
         "exposure" => p.exposure = Some(v.as_f64().ok_or_else(|| bad("a number"))? as f32),
         "grey_card" => {
             let s = v.as_str().ok_or_else(|| bad("'GROUP=RHO'"))?;
-            p.grey_card =
-                Some(matfit::prepare::args::parse_grey_card(s).map_err(OptionsError::new_err)?);
+            p.grey_card = Some(matfit::parse_grey_card(s).map_err(py_err)?);
         }
         "exposure_from_lights" => {
             p.exposure_from_lights = v.as_bool().ok_or_else(|| bad("a bool"))?
@@ -350,7 +349,7 @@ fn set_option(
         }
         "response" => {
             let s = v.as_str().ok_or_else(|| bad("a response"))?;
-            p.response = matfit::photo::Response::parse(s).map_err(OptionsError::new_err)?;
+            p.response = matfit::parse_response(s).map_err(py_err)?;
         }
         "views" => options.views = serde_json::from_value(v).map_err(|_| bad("a list of views"))?,
         "output" => options.output = Some(PathBuf::from(v.as_str().ok_or_else(|| bad("a path"))?)),
@@ -406,7 +405,7 @@ fn recover<'py>(
     let log: Vec<String> = std::mem::take(&mut *obs.log.lock().unwrap());
     out.set_item("log", PyList::new(py, log)?)?;
     let photo = rec.photo();
-    let (error, _) = py.detach(|| matfit::report::error_images(&rec.fit, &photo, 1.0));
+    let error = py.detach(|| rec.error_image());
     out.set_item("photo", rgb_array(py, &photo.image)?)?;
     out.set_item("synthetic", rgb_array(py, &rec.fit.synthetic)?)?;
     out.set_item("error", rgb_array(py, &error)?)?;
@@ -456,7 +455,7 @@ fn composite<'py>(
     let options = matfit::CompositeOptions {
         spp,
         seed,
-        response: matfit::photo::Response::parse(response).map_err(OptionsError::new_err)?,
+        response: matfit::parse_response(response).map_err(py_err)?,
         exposure,
     };
     let obs = PyObserver::new(progress);

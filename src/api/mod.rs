@@ -44,6 +44,16 @@ pub trait Observer: Sync {
     }
 }
 
+/// A camera response as `--response` names it: `linear`, `srgb`, `gamma:G`, `table:FILE`.
+pub fn parse_response(s: &str) -> Result<crate::photo::Response> {
+    crate::photo::Response::parse(s).map_err(|m| Error::new(ErrorKind::Options, m))
+}
+
+/// A grey card as `--grey-card` names it: `GROUP=RHO` or `GROUP=R,G,B`.
+pub fn parse_grey_card(s: &str) -> Result<(String, crate::math::Rgb)> {
+    crate::prepare::args::parse_grey_card(s).map_err(|m| Error::new(ErrorKind::Options, m))
+}
+
 /// The error of a render its observer stopped.
 fn interrupted_render() -> Error {
     Error::new(ErrorKind::Interrupted, "interrupted: the render was stopped")

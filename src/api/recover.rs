@@ -11,6 +11,7 @@ use crate::fit::recovery::LogLine;
 use crate::fit::recovery::{fingerprint, PhotoView, RecoveryLoop, CHECKPOINT_VERSION};
 use crate::fit::Checkpoint;
 use crate::io::atomic::write_atomic;
+use crate::io::image::Image;
 use crate::io::progress::Bar;
 use crate::photo::Photo;
 use crate::prepare::{PhotoArgs, PreparedPhoto, UsableMask};
@@ -41,6 +42,12 @@ impl Recovery {
         } else {
             Cow::Borrowed(photo)
         }
+    }
+
+    /// The first photo's absolute error against the synthetic image, per pixel (the report's
+    /// error map, unscaled).
+    pub fn error_image(&self) -> Image {
+        crate::report::error_images(&self.fit, &self.photo(), 1.0).0
     }
 
     /// What results.json holds: per group the model, parameters with 1σ, ε.
