@@ -37,7 +37,7 @@ use crate::scene::WardVariant;
 pub const MIN_Z: f32 = 4.0;
 
 /// The texel-scale structure a uniform model leaves ([`uniform_detail`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Detail {
     /// RMS of the coherent residual as a fraction of the group's mean radiance.
     pub rms: f32,
@@ -52,6 +52,22 @@ impl Detail {
     /// Whether the structure is a texture's: at least `threshold` RMS and certain.
     pub fn is_texture(&self, threshold: f32) -> bool {
         self.rms >= threshold && self.z >= MIN_Z
+    }
+
+    /// The structure of one model measured on several caches (independent path samples, the
+    /// same photo): the mean RMS and explained share, and Stouffer's z, Σz / √n. A statistic
+    /// near its threshold on one cache decides by the cache's noise, and so by the seed;
+    /// pooled, it decides by what the model leaves.
+    pub fn pooled(all: &[Detail]) -> Option<Detail> {
+        if all.is_empty() {
+            return None;
+        }
+        let n = all.len() as f32;
+        Some(Detail {
+            rms: all.iter().map(|d| d.rms).sum::<f32>() / n,
+            z: all.iter().map(|d| d.z).sum::<f32>() / n.sqrt(),
+            explained: all.iter().map(|d| d.explained).sum::<f32>() / n,
+        })
     }
 }
 

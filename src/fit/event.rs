@@ -105,11 +105,13 @@ pub enum Event {
         noise_floor: f32,
         detail: f32,
     },
-    /// Algorithm 1's gate let the group try level 7 from its best uniform level: its ε missed
-    /// by the texture threshold beyond the noise (`gross`), or its residual holds texel-scale
-    /// structure (`detail.rs`: RMS fraction `detail`, z-score `z`, and the share of the
-    /// high-passed residual that registration and highlight misfit explained).
+    /// Algorithm 1's gate on the group's best uniform level, asked when its climb reaches level
+    /// 7: `open` (it tries a texture) when its ε missed by the texture threshold beyond the
+    /// noise (`gross`), or its residual holds texel-scale structure (`detail.rs`: RMS fraction
+    /// `detail`, z-score `z`, and the share of the high-passed residual that registration and
+    /// highlight misfit explained). Logged closed too: why a group kept a uniform model.
     TextureGate {
+        open: bool,
         level: Level,
         gross: bool,
         detail: f32,

@@ -130,6 +130,10 @@ pub struct GroupState {
     /// None when textured, without an atlas, or not yet measured).
     #[serde(skip)]
     pub detail: Option<super::detail::Detail>,
+    /// The texel-scale structure of every cache since the group reached its level, and that
+    /// level: what a confirmed group's reopening is decided on (`hierarchy.rs`, `reopen`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub detail_pool: Vec<(Level, super::detail::Detail)>,
 }
 
 impl GroupState {
@@ -163,6 +167,7 @@ impl GroupState {
             texture_evidence: None,
             distribution_evidence: None,
             detail: None,
+            detail_pool: Vec::new(),
         }
     }
 

@@ -118,6 +118,9 @@ fn smoothing_event(t: &TextureState) -> Option<Event> {
     })
 }
 
+/// A confirmed group reopens for a texture on the structure of at least this many caches.
+const REOPEN_CACHES: usize = 2;
+
 /// A texture that does not earn its place is tried again from the same level, its evidence
 /// pooled with the earlier trials', up to this many trials in all.
 const TEXTURE_TRIALS: u32 = 3;
@@ -313,6 +316,12 @@ impl GroupState {
         let mut events = self.fit_and_climb(cache, atlas, variant, opts, turn);
         self.detail = (atlas.is_some() && self.level != Level::Textured)
             .then(|| uniform_detail(cache, self.level, &self.params, variant));
+        if self.detail_pool.last().is_some_and(|(l, _)| *l != self.level) {
+            self.detail_pool.clear();
+        }
+        if let Some(d) = self.detail {
+            self.detail_pool.push((self.level, d));
+        }
         events.extend(self.reopen(opts));
         // At the level it ends at (a climb fits the new level on this cache too).
         let fits = match (&self.average, self.status) {
@@ -370,8 +379,14 @@ impl GroupState {
     /// a texture explains analyses again, so that its next climb tries level 7: a group
     /// confirmed early (its ε under the threshold before its cache could show the structure)
     /// is not kept from its texture. Not from a level whose texture was already refused.
+    /// Decided on the structure pooled over at least [`REOPEN_CACHES`] caches at its level
+    /// ([`Detail::pooled`]): a confirmed decision is undone by evidence, not by one cache.
     fn reopen(&mut self, opts: &HierarchyOptions) -> Option<Event> {
-        let d = self.detail?;
+        let pool: Vec<Detail> = self.detail_pool.iter().map(|&(_, d)| d).collect();
+        if pool.len() < REOPEN_CACHES {
+            return None;
+        }
+        let d = Detail::pooled(&pool)?;
         if self.status != Status::Confirmed
             || self.level == Level::Textured
             || self.texture_refused == Some(self.level)
@@ -598,16 +613,17 @@ impl GroupState {
             }
             if next == Level::Textured {
                 let (open, d, gross) = texture_gate(cache, &best, variant, opts);
-                if !open {
-                    break;
-                }
                 events.push(Event::TextureGate {
+                    open,
                     level: best.level,
                     gross,
                     detail: d.rms,
                     z: d.z,
                     explained: d.explained,
                 });
+                if !open {
+                    break;
+                }
                 if let Some(behind) = &turn.texture_waits_for {
                     texture_waits = true;
                     exhausted = false;
