@@ -720,6 +720,41 @@ fn the_published_cornell_box_imports_with_mitsubas_own_colours() {
     );
 }
 
+/// A constant `<spectrum>` on a light is equal-energy light, as Mitsuba 3's RGB variants load
+/// it (Bitterli's scenes light rooms this way); the same on a reflectance stays grey.
+#[test]
+fn a_constant_spectrum_on_a_light_is_equal_energy_white() {
+    let dir = tempfile::tempdir().unwrap();
+    let xml = scene_with(
+        dir.path(),
+        "<shape type=\"rectangle\" id=\"lamp\">\
+         <emitter type=\"area\"><spectrum name=\"radiance\" value=\"16.032\"/></emitter>\
+         </shape>\n<shape type=\"rectangle\" id=\"card\"><bsdf type=\"diffuse\">\
+         <spectrum name=\"reflectance\" value=\"0.4\"/></bsdf>\
+         <transform name=\"to_world\"><translate z=\"-1\"/></transform></shape>",
+    );
+    let out = dir.path().join("out.toml");
+    let warnings = import(&xml, &out);
+    assert!(
+        warnings.contains(":9: `radiance`: constant spectrum 16.032 is equal-energy light"),
+        "{warnings}"
+    );
+    let f = toml_of(&out);
+    // What Mitsuba 3.9's scalar_rgb holds for this light (its `radiance` after loading).
+    let want = [19.3153, 15.2030, 14.5717];
+    let got = floats(&object(&f, "lamp")["emission"]);
+    assert!(
+        got.len() == 3
+            && got
+                .iter()
+                .zip(want)
+                .all(|(g, w)| (g / w - 1.0).abs() < 5e-4),
+        "{got:?}"
+    );
+    let card = floats(&object(&f, "card")["material"]["rho_d"]);
+    assert!(close(&card, &[0.4], 1e-9), "{card:?}");
+}
+
 /// An XML scene around `body`, its camera 5 units up +z looking at the origin, written to
 /// `dir/scene.xml` (lines 1–8 are the header; `body` starts on line 9).
 fn scene_with(dir: &Path, body: &str) -> std::path::PathBuf {

@@ -110,6 +110,8 @@
 //!   warning).
 //! - **Spectra.** A sampled spectrum (wavelength:value pairs) becomes linear sRGB as Mitsuba's
 //!   RGB variants convert it ([`super::spectrum`]); a warning, since a spectral render differs.
+//!   A constant spectrum is grey, except on an emitter, where Mitsuba takes it as equal-energy
+//!   light, pinkish in sRGB (a warning).
 
 use super::ImportReport;
 use crate::scene::schema::{
@@ -500,8 +502,23 @@ impl<'a> Ctx<'a> {
                         "a <spectrum> read from a file cannot be imported: give an <rgb>",
                     )
                 })?;
+                let emitted = matches!(name, "radiance" | "irradiance" | "intensity");
                 if !v.contains(':') {
-                    return Ok(Some(Ok(DVec3::splat(self.number(p, &v)?))));
+                    let x = self.number(p, &v)?;
+                    if !emitted {
+                        return Ok(Some(Ok(DVec3::splat(x))));
+                    }
+                    let rgb = super::spectrum::uniform_emission_to_srgb(x);
+                    self.warn(
+                        p,
+                        format!(
+                            "`{name}`: constant spectrum {x} is equal-energy light, linear sRGB \
+                             ({:.4}, {:.4}, {:.4}) as Mitsuba's RGB variants convert it (an \
+                             <rgb> or <float> gives grey)",
+                            rgb.x, rgb.y, rgb.z
+                        ),
+                    );
+                    return Ok(Some(Ok(rgb)));
                 }
                 let mut samples = Vec::new();
                 for pair in v.split(',') {
@@ -528,7 +545,6 @@ impl<'a> Ctx<'a> {
                         }
                     }
                 }
-                let emitted = matches!(name, "radiance" | "irradiance" | "intensity");
                 let rgb = super::spectrum::to_srgb(&samples, emitted);
                 self.warn(
                     p,
@@ -1674,8 +1690,6 @@ impl<'a> Ctx<'a> {
                     );
                     return Ok(None);
                 }
-                // Mitsuba's face_normals shades with the triangles' own normals: a copy of the
-                // mesh without its vertex normals, which matfit then shades the same way.
                 // Mitsuba's face_normals shades with the triangles' own normals: a copy of the
                 // mesh without its vertex normals, which matfit then shades the same way.
                 if self.boolean(n, "face_normals")? && mesh.normals.is_some() {
