@@ -755,6 +755,59 @@ fn a_constant_spectrum_on_a_light_is_equal_energy_white() {
     assert!(close(&card, &[0.4], 1e-9), "{card:?}");
 }
 
+/// A `mask` imports as its nested BSDF, opaque, with a warning that names the light Mitsuba
+/// lets through it.
+#[test]
+fn a_mask_is_opaque_with_a_warning_naming_its_opacity() {
+    let dir = tempfile::tempdir().unwrap();
+    let xml = scene_with(
+        dir.path(),
+        "<shape type=\"rectangle\" id=\"blind\"><bsdf type=\"mask\">\
+         <float name=\"opacity\" value=\"0.25\"/><bsdf type=\"diffuse\">\
+         <rgb name=\"reflectance\" value=\"0.6, 0.5, 0.4\"/></bsdf></bsdf></shape>",
+    );
+    let out = dir.path().join("out.toml");
+    let warnings = import(&xml, &out);
+    assert!(
+        warnings.contains(
+            ":9: <bsdf type=\"mask\">: Mitsuba passes 1 − opacity of the light straight \
+             through it (opacity (0.2500, 0.2500, 0.2500)); matfit's surfaces are opaque"
+        ),
+        "{warnings}"
+    );
+    assert!(!warnings.contains("`opacity`"), "{warnings}");
+    let rho = floats(&object(&toml_of(&out), "blind")["material"]["rho_d"]);
+    assert!(close(&rho, &[0.6, 0.5, 0.4], 1e-6), "{rho:?}");
+}
+
+/// A `roughconductor` with eta and k keeps its microfacet lobe (distribution and α), with ρs its
+/// Fresnel reflectance at normal incidence times specular_reflectance: a guess, warned.
+#[test]
+fn rough_conductors_with_eta_and_k_import_as_microfacet_guesses() {
+    let dir = tempfile::tempdir().unwrap();
+    let xml = scene_with(
+        dir.path(),
+        "<shape type=\"rectangle\" id=\"hood\"><bsdf type=\"roughconductor\">\
+         <string name=\"distribution\" value=\"beckmann\"/>\
+         <float name=\"alpha\" value=\"0.2\"/><rgb name=\"eta\" value=\"2\"/>\
+         <rgb name=\"k\" value=\"3\"/><rgb name=\"specular_reflectance\" value=\"0.9\"/>\
+         </bsdf></shape>",
+    );
+    let out = dir.path().join("out.toml");
+    let warnings = import(&xml, &out);
+    assert!(
+        warnings.contains(":9: <bsdf type=\"roughconductor\"> imported as microfacet"),
+        "{warnings}"
+    );
+    let f = toml_of(&out);
+    let m = &object(&f, "hood")["material"];
+    assert_eq!(m["type"].as_str(), Some("microfacet"), "{m}");
+    assert_eq!(m["distribution"].as_str(), Some("beckmann"), "{m}");
+    // F0 = ((η − 1)² + k²)/((η + 1)² + k²) = 10/18, times 0.9.
+    assert!(close(&floats(&m["rho_s"]), &[0.5], 1e-6), "{m}");
+    assert!(close(&floats(&m["alpha"]), &[0.2], 1e-6), "{m}");
+}
+
 /// An XML scene around `body`, its camera 5 units up +z looking at the origin, written to
 /// `dir/scene.xml` (lines 1–8 are the header; `body` starts on line 9).
 fn scene_with(dir: &Path, body: &str) -> std::path::PathBuf {

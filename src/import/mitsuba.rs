@@ -84,7 +84,7 @@
 //!   warning). Exact: `diffuse` (reflectance rgb / constant or sampled spectrum / bitmap texture →
 //!   textured; `raw` matters to 8/16-bit images only, whose matfit decoding is sRGB: a warning)
 //!   → diffuse; `bumpmap`/`normalmap` → its nested BSDF (a warning: matfit has no bump
-//!   maps); `conductor` with material `none` → mirror ρs = specular_reflectance;
+//!   maps); `mask` → its nested BSDF, opaque (a warning naming the opacity); `conductor` with material `none` → mirror ρs = specular_reflectance;
 //!   `blendbsdf` of those → diffuse_mirror ρd = (1−w)·ρd₁ + w·ρd₂, ρs likewise (the exporter's
 //!   blend inverted); `roughconductor` with material `none` and `distribution` "ggx" or
 //!   "beckmann", alone or blended with a `diffuse` → microfacet, likewise; a textured `diffuse`
@@ -98,9 +98,9 @@
 //!   rise, far off at grazing views): the exact plastic with ρd the texels' mean (nonlinear
 //!   folded in per texel), a warning that the texture's variation is lost. Initial guesses, not truth (a warning
 //!   each), with ρs from Fresnel reflectance at normal incidence F0: conductors with eta/k (or a named metal, from a small
-//!   table) → mirror ρs = F0·specular_reflectance; `roughconductor` → Ward ρd 0, ρs as the
-//!   conductor, α = alpha (αx, αy = alpha_u, alpha_v; Beckmann's and Ward's α are the same slope
-//!   width); `plastic` → diffuse_mirror with F0 = ((η−1)/(η+1))², η = int_ior/ext_ior,
+//!   table) → mirror ρs = F0·specular_reflectance; `roughconductor` → microfacet of its
+//!   distribution (Ward for another) ρd 0, ρs as the conductor, α = alpha (αx, αy = alpha_u,
+//!   alpha_v; Beckmann's and Ward's α are the same slope width); `plastic` → diffuse_mirror with F0 = ((η−1)/(η+1))², η = int_ior/ext_ior,
 //!   ρs = F0·specular_reflectance, ρd = (1−F0)·diffuse_reflectance (a texture: its mean);
 //!   `principled` →
 //!   Ward α = roughness², F0 = 0.08·specular blended to base_color by metallic,
@@ -283,8 +283,8 @@ struct Lobes {
     s: DVec3,
     alpha: Option<(f64, f64)>,
     texture: Option<String>,
-    /// The rough part is exactly matfit's microfacet lobe of this distribution: a GGX or
-    /// Beckmann `roughconductor` with `material = "none"`.
+    /// The rough part is matfit's microfacet lobe of this distribution: a GGX or Beckmann
+    /// `roughconductor` (exactly with `material = "none"`, else with Fresnel frozen at F0).
     microfacet: Option<Distribution>,
     /// A `roughplastic`: matfit's plastic with this coat's η and distribution (d and s as
     /// matfit's ρd and ρs).
@@ -1906,10 +1906,27 @@ impl<'a> Ctx<'a> {
                             self.describe(b)
                         ),
                     ),
-                    _ => self.warn(
-                        b,
-                        format!("{} is ignored; its nested BSDF is used", self.describe(b)),
-                    ),
+                    _ => {
+                        let opacity = match self.prop(b, "opacity")? {
+                            Some(p) if p.tag_name().name() == "texture" => {
+                                "a textured opacity".to_string()
+                            }
+                            _ => {
+                                let o = self.rgb(b, "opacity", 0.5)?;
+                                format!("opacity ({:.4}, {:.4}, {:.4})", o.x, o.y, o.z)
+                            }
+                        };
+                        self.warn(
+                            b,
+                            format!(
+                                "{}: Mitsuba passes 1 − opacity of the light straight through \
+                                 it ({opacity}); matfit's surfaces are opaque, so its nested \
+                                 BSDF is used in full (brighter, and darker behind it, than \
+                                 in Mitsuba)",
+                                self.describe(b)
+                            ),
+                        )
+                    }
                 }
                 if inner.len() > 1 {
                     self.warn(
@@ -1945,12 +1962,16 @@ impl<'a> Ctx<'a> {
                 } else {
                     String::new()
                 };
-                let microfacet =
-                    Distribution::from_name(&distribution).filter(|_| rough && f0.is_none());
+                // With eta/k the lobe's shape is still Mitsuba's; only the Fresnel term is
+                // frozen at normal incidence.
+                let microfacet = Distribution::from_name(&distribution).filter(|_| rough);
                 if f0.is_some() || (rough && microfacet.is_none()) {
                     guess(
                         self,
-                        if rough {
+                        if microfacet.is_some() {
+                            "microfacet (its distribution) ρd 0, ρs = F0 × \
+                             specular_reflectance, α = alpha (no Fresnel rise toward grazing)"
+                        } else if rough {
                             "Ward ρd 0, ρs = F0 × specular_reflectance, α = alpha"
                         } else {
                             "a mirror with ρs = Fresnel reflectance at normal incidence × specular_reflectance"
