@@ -1024,6 +1024,14 @@ fn every_refusal_is_reported_in_one_run() {
         e.contains("these approximations") && e.contains(":8: <bsdf type=\"dielectric\">"),
         "{e}"
     );
+    // Glass is made opaque: the warning says what that does to what lies behind it.
+    assert!(
+        e.contains(
+            "diffuse 0.5 (matfit has no 'dielectric' material; opaque, so what Mitsuba lights \
+             through it is darker)"
+        ),
+        "{e}"
+    );
 }
 
 /// `<include>` splices another file in (its lines named in messages); `<path>` adds a folder

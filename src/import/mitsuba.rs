@@ -2200,9 +2200,15 @@ impl<'a> Ctx<'a> {
                 }
             }
             other => {
+                // A transmitting BSDF made opaque also shades whatever Mitsuba lights through it.
+                let opaque = if other.contains("dielectric") {
+                    "; opaque, so what Mitsuba lights through it is darker"
+                } else {
+                    ""
+                };
                 guess(
                     self,
-                    &format!("diffuse 0.5 (matfit has no '{other}' material)"),
+                    &format!("diffuse 0.5 (matfit has no '{other}' material{opaque})"),
                 );
                 Lobes {
                     d: DVec3::splat(0.5),
