@@ -808,6 +808,38 @@ fn rough_conductors_with_eta_and_k_import_as_microfacet_guesses() {
     assert!(close(&floats(&m["alpha"]), &[0.2], 1e-6), "{m}");
 }
 
+/// A smooth `nonlinear` plastic's diffuse part ρ/(1 − ρ·F_int) goes into the guess's ρd as
+/// ρ(1 − F_int)/(1 − ρ·F_int), F_int Mitsuba's fdr_int of the coat (here η = 1.5).
+#[test]
+fn a_nonlinear_smooth_plastic_folds_its_diffuse_term_into_rho_d() {
+    let dir = tempfile::tempdir().unwrap();
+    let plastic = |id: &str, nonlinear: bool| {
+        format!(
+            "<shape type=\"rectangle\" id=\"{id}\"><bsdf type=\"plastic\">\
+             <float name=\"int_ior\" value=\"1.5\"/><float name=\"ext_ior\" value=\"1\"/>\
+             <boolean name=\"nonlinear\" value=\"{nonlinear}\"/>\
+             <rgb name=\"diffuse_reflectance\" value=\"0.6\"/></bsdf></shape>"
+        )
+    };
+    let xml = scene_with(
+        dir.path(),
+        &format!("{}\n{}", plastic("tub", true), plastic("sink", false)),
+    );
+    let out = dir.path().join("out.toml");
+    let warnings = import(&xml, &out);
+    assert!(warnings.contains("(`nonlinear`: each ρ as"), "{warnings}");
+    let f = toml_of(&out);
+    let f0 = 0.04;
+    // Egan and Hilgeman's fit at 1/η, as Mitsuba computes fdr_int.
+    let e = 1.0 / 1.5f64;
+    let f_int = -1.4399 * e * e + 0.7099 * e + 0.6681 + 0.0636 / e;
+    let want = (1.0 - f0) * 0.6 * (1.0 - f_int) / (1.0 - 0.6 * f_int);
+    let tub = floats(&object(&f, "tub")["material"]["rho_d"]);
+    assert!(close(&tub, &[want], 2e-3), "{tub:?} vs {want}");
+    let sink = floats(&object(&f, "sink")["material"]["rho_d"]);
+    assert!(close(&sink, &[(1.0 - f0) * 0.6], 1e-6), "{sink:?}");
+}
+
 /// An XML scene around `body`, its camera 5 units up +z looking at the origin, written to
 /// `dir/scene.xml` (lines 1–8 are the header; `body` starts on line 9).
 fn scene_with(dir: &Path, body: &str) -> std::path::PathBuf {
