@@ -93,10 +93,9 @@
 //!   matfit's varnish is Ward's); `roughplastic` with `distribution` "ggx" or "beckmann"
 //!   → plastic (ρd = diffuse_reflectance, ρs = F0·specular_reflectance, α, η = int_ior/ext_ior,
 //!   a named IOR as Mitsuba's table; `nonlinear`'s ρ/(1 − ρ·F_int) as the linear model's
-//!   ρd = ρ(1 − F_int)/(1 − ρ·F_int), also exact). With a bitmap `diffuse_reflectance`, which
-//!   matfit's plastic cannot hold (its textured level's Ward varnish lacks the coat's Fresnel
-//!   rise, far off at grazing views): the exact plastic with ρd the texels' mean (nonlinear
-//!   folded in per texel), a warning that the texture's variation is lost. Initial guesses, not truth (a warning
+//!   ρd = ρ(1 − F_int)/(1 − ρ·F_int), also exact). With a bitmap `diffuse_reflectance`: the
+//!   texture under the same coat (a textured material with `eta`), exact too; `nonlinear` goes
+//!   into a copy of the texture in `textures/`, per texel. Initial guesses, not truth (a warning
 //!   each), with ρs from Fresnel reflectance at normal incidence F0: conductors with eta/k (or a named metal, from a small
 //!   table) → mirror ρs = F0·specular_reflectance; `roughconductor` → microfacet of its
 //!   distribution (Ward for another) ρd 0, ρs as the conductor, α = alpha (αx, αy = alpha_u,
@@ -165,6 +164,7 @@ pub fn import_str(
         errors: sources.errors.clone(),
         warned: HashSet::new(),
         reoriented: HashMap::new(),
+        linearised: HashMap::new(),
         textures: Vec::new(),
         meshes: Vec::new(),
         made: HashMap::new(),
@@ -240,6 +240,9 @@ struct Ctx<'a> {
     warned: HashSet<(usize, &'static str)>,
     /// Re-oriented copies of textures: (source path, orientation) → the copy's path.
     reoriented: HashMap<(String, Orient), String>,
+    /// A nonlinear plastic's texture, each texel ρ taken to ρ(1 − F_int)/(1 − ρ·F_int): by source
+    /// path and F_int's bits, the copy's path.
+    linearised: HashMap<(String, u64), String>,
     /// The copies' images, to be written next to the scene file.
     textures: Vec<(String, crate::io::image::Image)>,
     /// Meshes the import made (serialized meshes, disks), to be written next to the scene file.
@@ -763,6 +766,31 @@ impl<'a> Ctx<'a> {
         let mean = sum / (i.data.len().max(1) as f64);
         self.means.insert(cache, mean);
         Ok(mean)
+    }
+
+    /// A copy of the texture at `path` with each texel ρ taken to ρ(1 − f)/(1 − ρ·f): a
+    /// nonlinear plastic's base as the linear one's, as a linear EXR in `textures/`.
+    fn linearised(&mut self, n: N<'a>, path: &str, f: f64) -> Result<String, String> {
+        let key = (path.to_string(), f.to_bits());
+        if let Some(p) = self.linearised.get(&key) {
+            return Ok(p.clone());
+        }
+        let mut image = self.texture_image(n, path)?;
+        let g = |r: f32| (r as f64 * (1.0 - f) / (1.0 - r as f64 * f)) as f32;
+        for t in image.data.iter_mut() {
+            *t = crate::math::Rgb::new(g(t.x), g(t.y), g(t.z));
+        }
+        let stem = Path::new(path)
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let mut name = format!("textures/{stem}_linear.exr");
+        if self.textures.iter().any(|(n, _)| *n == name) {
+            name = format!("textures/{stem}_linear_{}.exr", self.textures.len());
+        }
+        self.textures.push((name.clone(), image));
+        self.linearised.insert(key, name.clone());
+        Ok(name)
     }
 
     /// A file named in the XML, found as Mitsuba finds it (relative to the main file's folder,
@@ -2016,33 +2044,25 @@ impl<'a> Ctx<'a> {
                 };
                 match self.color(b, "diffuse_reflectance")? {
                     Some(Err(texture)) => {
-                        // matfit's plastic holds no texture. Its textured level's Ward varnish
-                        // lacks the coat's Fresnel rise, which dominates at grazing views, so the
-                        // coat kept exact over the texels' mean diffuse is the closer stand-in
-                        // (bench/README.md, "Design measurements").
-                        let mean = self.texture_mean_of(b, &texture, nonlinear.then_some(f_int))?;
-                        self.warn(
-                            b,
-                            format!(
-                                "{} with a textured diffuse_reflectance ({texture}): matfit's \
-                                 plastic holds no texture, so ρd is the texels' mean ({:.4}, \
-                                 {:.4}, {:.4}){} under the exact coat; the texture's variation \
-                                 is lost",
-                                self.describe(b),
-                                mean.x,
-                                mean.y,
-                                mean.z,
-                                if nonlinear {
-                                    ", `nonlinear` folded in per texel"
-                                } else {
-                                    ""
-                                }
-                            ),
-                        );
+                        if known.is_none() {
+                            guess(
+                                self,
+                                "plastic with a GGX coat of the same alpha and η, ρs = F0 × \
+                                 specular_reflectance",
+                            );
+                        }
+                        // Exact: the texture (nonlinear folded into a copy, per texel) under
+                        // matfit's coat.
+                        let texture = if nonlinear {
+                            self.linearised(b, &texture, f_int)?
+                        } else {
+                            texture
+                        };
                         Lobes {
-                            d: mean,
+                            d: DVec3::ONE,
                             s,
                             alpha: Some((a, a)),
+                            texture: Some(texture),
                             plastic: Some((eta, known.unwrap_or_default())),
                             ..Default::default()
                         }
@@ -2356,6 +2376,10 @@ impl<'a> Ctx<'a> {
         };
         let has_s = s.max_element() > 0.0;
         if let Some(t) = l.texture {
+            // Under a plastic's coat the lobe is kept even where ρs is zero (the coat still
+            // refracts).
+            let coat = l.plastic.filter(|_| l.alpha.is_some());
+            let has_s = has_s || coat.is_some();
             return MaterialSpec::Textured {
                 texture: t,
                 scale: (d != DVec3::ONE).then(|| c(d)),
@@ -2366,6 +2390,8 @@ impl<'a> Ctx<'a> {
                 alpha_x: if has_s { alpha_x } else { None },
                 alpha_y: if has_s { alpha_y } else { None },
                 theta_deg: None,
+                eta: coat.map(|(eta, _)| eta as f32),
+                distribution: coat.map(|(_, d)| d),
             };
         }
         if let (Some((eta, distribution)), Some((a, _))) = (l.plastic, l.alpha) {
