@@ -549,8 +549,8 @@ Groups outside the tolerance are those whose materials matfit approximates, or t
 through one: each scene's import warnings (all kinds, most frequent first) name them below,
 e.g. a `roughconductor` with eta/k with its Fresnel term frozen at normal incidence, a smooth
 `plastic` as diffuse + mirror, `dielectric` glass as opaque diffuse 0.5 (which also darkens
-what Mitsuba lights through it), a `mask` made opaque (likewise), bump maps dropped, a textured
-plastic's texture replaced by its mean.
+what Mitsuba lights through it), a `mask` made opaque (likewise), bump maps dropped, a smooth
+`plastic`'s texture replaced by its mean.
 
 Details:
 
