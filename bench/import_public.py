@@ -518,7 +518,7 @@ def main():
                     k = re.sub(r"^warning: \S+:\d+: ", "", l)
                     k = re.sub(r"\d+(\.\d+)?", "N", k)[:150]
                     kinds[k] = kinds.get(k, 0) + 1
-                top = sorted(kinds.items(), key=lambda kv: -kv[1])[:6]
+                top = sorted(kinds.items(), key=lambda kv: -kv[1])
                 details.append(f"- {r['name']} import warnings ({len(w)}): " + "; ".join(
                     f"{n}× “{k}”" for k, n in top))
         with open(args.md, "w") as f:
@@ -545,10 +545,12 @@ python bench/import_public.py {' '.join(sys.argv[1:])}
 
 {table}
 
-Groups outside the tolerance are those whose materials matfit approximates: each scene's
-import warnings (grouped by kind, most frequent first) name them below, e.g. a `roughconductor`
-with eta/k as Ward, a smooth `plastic` as diffuse + mirror, `dielectric` glass as diffuse 0.5,
-bump maps dropped, a textured plastic's texture replaced by its mean.
+Groups outside the tolerance are those whose materials matfit approximates, or that are lit
+through one: each scene's import warnings (all kinds, most frequent first) name them below,
+e.g. a `roughconductor` with eta/k with its Fresnel term frozen at normal incidence, a smooth
+`plastic` as diffuse + mirror, `dielectric` glass as opaque diffuse 0.5 (which also darkens
+what Mitsuba lights through it), a `mask` made opaque (likewise), bump maps dropped, a smooth
+`plastic`'s texture replaced by its mean.
 
 Details:
 

@@ -720,6 +720,126 @@ fn the_published_cornell_box_imports_with_mitsubas_own_colours() {
     );
 }
 
+/// A constant `<spectrum>` on a light is equal-energy light, as Mitsuba 3's RGB variants load
+/// it (Bitterli's scenes light rooms this way); the same on a reflectance stays grey.
+#[test]
+fn a_constant_spectrum_on_a_light_is_equal_energy_white() {
+    let dir = tempfile::tempdir().unwrap();
+    let xml = scene_with(
+        dir.path(),
+        "<shape type=\"rectangle\" id=\"lamp\">\
+         <emitter type=\"area\"><spectrum name=\"radiance\" value=\"16.032\"/></emitter>\
+         </shape>\n<shape type=\"rectangle\" id=\"card\"><bsdf type=\"diffuse\">\
+         <spectrum name=\"reflectance\" value=\"0.4\"/></bsdf>\
+         <transform name=\"to_world\"><translate z=\"-1\"/></transform></shape>",
+    );
+    let out = dir.path().join("out.toml");
+    let warnings = import(&xml, &out);
+    assert!(
+        warnings.contains(":9: `radiance`: constant spectrum 16.032 is equal-energy light"),
+        "{warnings}"
+    );
+    let f = toml_of(&out);
+    // What Mitsuba 3.9's scalar_rgb holds for this light (its `radiance` after loading).
+    let want = [19.3153, 15.2030, 14.5717];
+    let got = floats(&object(&f, "lamp")["emission"]);
+    assert!(
+        got.len() == 3
+            && got
+                .iter()
+                .zip(want)
+                .all(|(g, w)| (g / w - 1.0).abs() < 5e-4),
+        "{got:?}"
+    );
+    let card = floats(&object(&f, "card")["material"]["rho_d"]);
+    assert!(close(&card, &[0.4], 1e-9), "{card:?}");
+}
+
+/// A `mask` imports as its nested BSDF, opaque, with a warning that names the light Mitsuba
+/// lets through it.
+#[test]
+fn a_mask_is_opaque_with_a_warning_naming_its_opacity() {
+    let dir = tempfile::tempdir().unwrap();
+    let xml = scene_with(
+        dir.path(),
+        "<shape type=\"rectangle\" id=\"blind\"><bsdf type=\"mask\">\
+         <float name=\"opacity\" value=\"0.25\"/><bsdf type=\"diffuse\">\
+         <rgb name=\"reflectance\" value=\"0.6, 0.5, 0.4\"/></bsdf></bsdf></shape>",
+    );
+    let out = dir.path().join("out.toml");
+    let warnings = import(&xml, &out);
+    assert!(
+        warnings.contains(
+            ":9: <bsdf type=\"mask\">: Mitsuba passes 1 − opacity of the light straight \
+             through it (opacity (0.2500, 0.2500, 0.2500)); matfit's surfaces are opaque"
+        ),
+        "{warnings}"
+    );
+    assert!(!warnings.contains("`opacity`"), "{warnings}");
+    let rho = floats(&object(&toml_of(&out), "blind")["material"]["rho_d"]);
+    assert!(close(&rho, &[0.6, 0.5, 0.4], 1e-6), "{rho:?}");
+}
+
+/// A `roughconductor` with eta and k keeps its microfacet lobe (distribution and α), with ρs its
+/// Fresnel reflectance at normal incidence times specular_reflectance: a guess, warned.
+#[test]
+fn rough_conductors_with_eta_and_k_import_as_microfacet_guesses() {
+    let dir = tempfile::tempdir().unwrap();
+    let xml = scene_with(
+        dir.path(),
+        "<shape type=\"rectangle\" id=\"hood\"><bsdf type=\"roughconductor\">\
+         <string name=\"distribution\" value=\"beckmann\"/>\
+         <float name=\"alpha\" value=\"0.2\"/><rgb name=\"eta\" value=\"2\"/>\
+         <rgb name=\"k\" value=\"3\"/><rgb name=\"specular_reflectance\" value=\"0.9\"/>\
+         </bsdf></shape>",
+    );
+    let out = dir.path().join("out.toml");
+    let warnings = import(&xml, &out);
+    assert!(
+        warnings.contains(":9: <bsdf type=\"roughconductor\"> imported as microfacet"),
+        "{warnings}"
+    );
+    let f = toml_of(&out);
+    let m = &object(&f, "hood")["material"];
+    assert_eq!(m["type"].as_str(), Some("microfacet"), "{m}");
+    assert_eq!(m["distribution"].as_str(), Some("beckmann"), "{m}");
+    // F0 = ((η − 1)² + k²)/((η + 1)² + k²) = 10/18, times 0.9.
+    assert!(close(&floats(&m["rho_s"]), &[0.5], 1e-6), "{m}");
+    assert!(close(&floats(&m["alpha"]), &[0.2], 1e-6), "{m}");
+}
+
+/// A smooth `nonlinear` plastic's diffuse part ρ/(1 − ρ·F_int) goes into the guess's ρd as
+/// ρ(1 − F_int)/(1 − ρ·F_int), F_int Mitsuba's fdr_int of the coat (here η = 1.5).
+#[test]
+fn a_nonlinear_smooth_plastic_folds_its_diffuse_term_into_rho_d() {
+    let dir = tempfile::tempdir().unwrap();
+    let plastic = |id: &str, nonlinear: bool| {
+        format!(
+            "<shape type=\"rectangle\" id=\"{id}\"><bsdf type=\"plastic\">\
+             <float name=\"int_ior\" value=\"1.5\"/><float name=\"ext_ior\" value=\"1\"/>\
+             <boolean name=\"nonlinear\" value=\"{nonlinear}\"/>\
+             <rgb name=\"diffuse_reflectance\" value=\"0.6\"/></bsdf></shape>"
+        )
+    };
+    let xml = scene_with(
+        dir.path(),
+        &format!("{}\n{}", plastic("tub", true), plastic("sink", false)),
+    );
+    let out = dir.path().join("out.toml");
+    let warnings = import(&xml, &out);
+    assert!(warnings.contains("(`nonlinear`: each ρ as"), "{warnings}");
+    let f = toml_of(&out);
+    let f0 = 0.04;
+    // Egan and Hilgeman's fit at 1/η, as Mitsuba computes fdr_int.
+    let e = 1.0 / 1.5f64;
+    let f_int = -1.4399 * e * e + 0.7099 * e + 0.6681 + 0.0636 / e;
+    let want = (1.0 - f0) * 0.6 * (1.0 - f_int) / (1.0 - 0.6 * f_int);
+    let tub = floats(&object(&f, "tub")["material"]["rho_d"]);
+    assert!(close(&tub, &[want], 2e-3), "{tub:?} vs {want}");
+    let sink = floats(&object(&f, "sink")["material"]["rho_d"]);
+    assert!(close(&sink, &[(1.0 - f0) * 0.6], 1e-6), "{sink:?}");
+}
+
 /// An XML scene around `body`, its camera 5 units up +z looking at the origin, written to
 /// `dir/scene.xml` (lines 1–8 are the header; `body` starts on line 9).
 fn scene_with(dir: &Path, body: &str) -> std::path::PathBuf {
@@ -934,6 +1054,14 @@ fn every_refusal_is_reported_in_one_run() {
     );
     assert!(
         e.contains("these approximations") && e.contains(":8: <bsdf type=\"dielectric\">"),
+        "{e}"
+    );
+    // Glass is made opaque: the warning says what that does to what lies behind it.
+    assert!(
+        e.contains(
+            "diffuse 0.5 (matfit has no 'dielectric' material; opaque, so what Mitsuba lights \
+             through it is darker)"
+        ),
         "{e}"
     );
 }
@@ -1159,11 +1287,11 @@ fn checkerboards_import_as_textures_drawn_as_mitsuba_evaluates_them() {
     }
 }
 
-/// A bitmap under a rough plastic no longer becomes 0.5: matfit's plastic holds no texture, so
-/// the coat stays exact over ρd = the texels' mean (`nonlinear` folded in per texel), with a
-/// warning that the texture's variation is lost.
+/// A `roughplastic` over a bitmap imports as the texture under matfit's plastic coat (exact);
+/// a `nonlinear` one's base goes into a copy of the texture, each texel ρ as
+/// ρ(1 − F_int)/(1 − ρ·F_int).
 #[test]
-fn textured_rough_plastics_import_with_their_texels_mean() {
+fn textured_rough_plastics_import_as_the_texture_under_the_coat() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let mut img = matfit::io::image::Image::new(2, 1);
@@ -1190,33 +1318,137 @@ fn textured_rough_plastics_import_with_their_texels_mean() {
     let xml = scene_with(d, &format!("{}\n{}", plastic(false), plastic(true)));
     let out = d.join("out.toml");
     let warnings = import(&xml, &out);
-    assert!(
-        warnings.contains(
-            ":9: <bsdf type=\"roughplastic\"> with a textured diffuse_reflectance (wood.exr): \
-             matfit's plastic holds no texture, so ρd is the texels' mean (0.5000, 0.4000, \
-             0.3000) under the exact coat"
-        ),
-        "{warnings}"
-    );
+    assert!(!warnings.contains("texels' mean"), "{warnings}");
     let f = toml_of(&out);
-    let linear = &object(&f, "floorfalse")["material"];
-    assert_eq!(linear["type"].as_str(), Some("plastic"), "{linear}");
-    assert!(
-        close(&floats(&linear["rho_d"]), &[0.5, 0.4, 0.3], 1e-6),
-        "{linear}"
+    for (name, texture) in [
+        ("floorfalse", "wood.exr"),
+        ("floortrue", "textures/wood_linear.exr"),
+    ] {
+        let m = &object(&f, name)["material"];
+        assert_eq!(m["type"].as_str(), Some("textured"), "{m}");
+        assert_eq!(m["texture"].as_str(), Some(texture), "{m}");
+        assert!(close(&floats(&m["rho_s"]), &[0.04], 1e-4), "{m}");
+        assert!(close(&floats(&m["alpha"]), &[0.1], 1e-6), "{m}");
+        assert!(close(&floats(&m["eta"]), &[1.5], 1e-6), "{m}");
+    }
+    // Nonlinear: every texel ρ(1 − F)/(1 − ρF) with one F (the coat's), found from the first.
+    let copy = matfit::io::image::read_linear(&d.join("textures/wood_linear.exr")).unwrap();
+    let r0 = copy.get(0, 0).x as f64;
+    let f_int = (0.2 - r0) / (0.2 * (1.0 - r0));
+    assert!(f_int > 0.3 && f_int < 0.8, "{f_int}");
+    let got = copy.get(1, 0);
+    for (g, rho) in [(got.x, 0.8), (got.y, 0.6), (got.z, 0.4)] {
+        let want = rho * (1.0 - f_int) / (1.0 - rho * f_int);
+        assert!((g as f64 - want).abs() < 1e-5, "{got} vs {want}");
+    }
+    // The scene loads, and the floor is a plastic over the texture.
+    let scene = load_scene(&out).unwrap();
+    assert!(scene
+        .objects
+        .iter()
+        .all(|o| matches!(o.material, Material::TexturedPlastic { .. })));
+}
+
+/// A plastic over a uniform texture renders as the plastic of that ρd: the same image, same
+/// seed.
+#[test]
+fn a_plastic_over_a_uniform_texture_renders_as_the_plain_plastic() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut img = matfit::io::image::Image::new(2, 2);
+    for (x, y) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+        img.set(x, y, Rgb::new(0.6, 0.4, 0.2));
+    }
+    img.write(&d.join("flat.exr")).unwrap();
+    let scene_of = |base: &str, name: &str| {
+        let body = format!(
+            "<shape type=\"rectangle\" id=\"card\"><bsdf type=\"roughplastic\">\
+             <float name=\"alpha\" value=\"0.2\"/>\
+             <string name=\"distribution\" value=\"beckmann\"/>{base}</bsdf>\
+             <transform name=\"to_world\"><rotate x=\"1\" angle=\"30\"/></transform></shape>\n\
+             <shape type=\"sphere\"><transform name=\"to_world\"><scale value=\"0.3\"/>\
+             <translate x=\"1\" y=\"1\" z=\"2\"/></transform>\
+             <emitter type=\"area\"><rgb name=\"radiance\" value=\"20\"/></emitter></shape>"
+        );
+        let sub = d.join(name);
+        std::fs::create_dir_all(&sub).unwrap();
+        std::fs::copy(d.join("flat.exr"), sub.join("flat.exr")).unwrap();
+        let xml = scene_with(&sub, &body);
+        let out = sub.join("out.toml");
+        import(&xml, &out);
+        load_scene(&out).unwrap()
+    };
+    let textured = scene_of(
+        "<texture type=\"bitmap\" name=\"diffuse_reflectance\">\
+         <string name=\"filename\" value=\"flat.exr\"/></texture>",
+        "textured",
     );
-    assert!(close(&floats(&linear["rho_s"]), &[0.04], 1e-4), "{linear}");
-    assert!(close(&floats(&linear["alpha"]), &[0.1], 1e-6), "{linear}");
-    assert!(close(&floats(&linear["eta"]), &[1.5], 1e-6), "{linear}");
-    // Nonlinear: each texel's ρ (1 − F)/(1 − ρ F), then the mean: below the linear one's.
-    let nonlinear = floats(&object(&f, "floortrue")["material"]["rho_d"]);
+    let plain = scene_of(
+        "<rgb name=\"diffuse_reflectance\" value=\"0.6, 0.4, 0.2\"/>",
+        "plain",
+    );
+    assert!(matches!(
+        textured.objects[0].material,
+        Material::TexturedPlastic { .. }
+    ));
+    assert!(matches!(
+        plain.objects[0].material,
+        Material::Plastic { .. }
+    ));
+    let means = object_means(&textured, &plain, 16);
+    let card = means.iter().find(|m| m.0 == "card").expect("card seen");
+    assert!(card.3 >= 4, "{means:?}");
     assert!(
-        nonlinear
+        ((card.1 - card.2) / card.2).abs().max_element() < 1e-4,
+        "{means:?}"
+    );
+    // Exported to Mitsuba as a roughplastic over a bitmap, it comes back the same.
+    let mi = d.join("mi");
+    let src = d.join("textured/out.toml");
+    let (code, stdout, stderr) = run(
+        &[
+            "export",
+            "mitsuba",
+            src.to_str().unwrap(),
+            "-o",
+            mi.to_str().unwrap(),
+        ],
+        d,
+    );
+    assert_eq!(code, 0, "{stdout}\n{stderr}");
+    let back_toml = d.join("back.toml");
+    import(&mi.join("scene.xml"), &back_toml);
+    let back = load_scene(&back_toml).unwrap();
+    let card = |sc: &Scene| {
+        sc.objects
             .iter()
-            .zip([0.5, 0.4, 0.3])
-            .all(|(n, l)| *n < l && *n > 0.5 * l),
-        "{nonlinear:?}"
-    );
+            .find(|o| o.name == "card")
+            .unwrap()
+            .material
+            .clone()
+    };
+    match (card(&back), card(&textured)) {
+        (
+            Material::TexturedPlastic {
+                rho_s,
+                alpha,
+                eta,
+                distribution,
+                ..
+            },
+            Material::TexturedPlastic {
+                rho_s: r0,
+                alpha: a0,
+                eta: e0,
+                distribution: d0,
+                ..
+            },
+        ) => {
+            assert!((rho_s - r0).abs().max_element() < 1e-5, "{rho_s} vs {r0}");
+            assert_eq!((alpha, eta, distribution), (a0, e0, d0));
+        }
+        (m, _) => panic!("came back as {m:?}"),
+    }
 }
 
 /// A bump map warns at its line and imports as its nested BSDF; an envmap's translation is

@@ -296,6 +296,34 @@ fn cases() -> Vec<Case> {
             vec!["scene.toml:16", "object 'floor'", "`alpha` goes with `rho_s`"],
         ),
         (
+            "plastic coat without its rho_s",
+            s.replace(
+                "{ type = \"diffuse\", rho_d = 0.5 }",
+                "{ type = \"textured\", texture = \"t.png\", alpha = 0.1, eta = 1.5 }",
+            ),
+            vec![],
+            vec!["scene.toml:16", "object 'floor'", "`eta` goes with `rho_s`"],
+        ),
+        (
+            "anisotropic plastic coat",
+            s.replace(
+                "{ type = \"diffuse\", rho_d = 0.5 }",
+                "{ type = \"textured\", texture = \"t.png\", rho_s = 0.04, alpha_x = 0.1, \
+                 alpha_y = 0.2, eta = 1.5 }",
+            ),
+            vec![],
+            vec!["scene.toml:16", "object 'floor'", "coat (`eta`) is isotropic"],
+        ),
+        (
+            "distribution without a coat",
+            s.replace(
+                "{ type = \"diffuse\", rho_d = 0.5 }",
+                "{ type = \"textured\", texture = \"t.png\", distribution = \"beckmann\" }",
+            ),
+            vec![],
+            vec!["scene.toml:16", "object 'floor'", "`distribution` goes with `eta`"],
+        ),
+        (
             "NaN emission",
             s.replace("emission = 5.0", "emission = nan"),
             vec![],

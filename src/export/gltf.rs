@@ -110,7 +110,10 @@ pub fn glb(scene: &Scene) -> Result<(Vec<u8>, Vec<String>), String> {
         let spec = material_spec(&obj.material, scene.render.ward_variant, &mut w);
         // The base colour texture, once per texture and baked factor.
         let texture = match (&obj.material, spec.texture_factor) {
-            (Material::Textured { texture, .. }, Some(factor)) => {
+            (
+                Material::Textured { texture, .. } | Material::TexturedPlastic { texture, .. },
+                Some(factor),
+            ) => {
                 let key = (
                     Arc::as_ptr(texture) as usize,
                     factor.to_array().map(f32::to_bits),
@@ -493,6 +496,27 @@ pub fn material_spec(m: &Material, variant: WardVariant, warnings: &mut Vec<Stri
                 s
             }
         },
+        Material::TexturedPlastic {
+            scale,
+            rho_s,
+            alpha,
+            distribution,
+            ..
+        } => {
+            // As a plastic, with the base's compensation in the texels as for a varnish.
+            let (r, aniso) = ward_roughness(*alpha, *alpha, 0.0, warnings);
+            if *distribution != crate::scene::Distribution::Ggx {
+                warnings.push(format!(
+                    "a {} plastic coat is exported as glTF's GGX coat of the same α (a narrower \
+                     core and a wider halo)",
+                    distribution.name()
+                ));
+            }
+            let mut s = layered(Rgb::ZERO, *rho_s, r, aniso, warnings);
+            s.texture_factor = Some(*scale * base_compensation(*rho_s, warnings));
+            s.base_color = Rgb::ONE;
+            s
+        }
     }
 }
 
@@ -677,7 +701,26 @@ fn same_material(a: &crate::scene::Object, b: &crate::scene::Object) -> bool {
                 varnish: vb,
             },
         ) => Arc::ptr_eq(ta, tb) && sa == sb && va == vb,
-        (Material::Textured { .. }, _) | (_, Material::Textured { .. }) => false,
+        (
+            Material::TexturedPlastic {
+                texture: ta,
+                scale: sa,
+                rho_s: ra,
+                alpha: aa,
+                eta: ea,
+                distribution: da,
+            },
+            Material::TexturedPlastic {
+                texture: tb,
+                scale: sb,
+                rho_s: rb,
+                alpha: ab,
+                eta: eb,
+                distribution: db,
+            },
+        ) => Arc::ptr_eq(ta, tb) && (sa, ra, aa, ea, da) == (sb, rb, ab, eb, db),
+        (Material::Textured { .. } | Material::TexturedPlastic { .. }, _)
+        | (_, Material::Textured { .. } | Material::TexturedPlastic { .. }) => false,
         (x, y) => format!("{x:?}") == format!("{y:?}"),
     };
     same && a.emission == b.emission
@@ -699,10 +742,12 @@ pub fn object_mesh(scene: &Scene, oi: usize, tangents: bool) -> ObjectMesh {
     let obj = &scene.objects[oi];
     let range = obj.tri_range.start as usize..obj.tri_range.end as usize;
     let atlas = match &obj.material {
-        Material::Textured { texture, .. } => match &texture.mapping {
-            Mapping::Atlas(a) => Some((a.clone(), texture.width, texture.height)),
-            Mapping::Uv => None,
-        },
+        Material::Textured { texture, .. } | Material::TexturedPlastic { texture, .. } => {
+            match &texture.mapping {
+                Mapping::Atlas(a) => Some((a.clone(), texture.width, texture.height)),
+                Mapping::Uv => None,
+            }
+        }
         _ => None,
     };
     let has_uvs = atlas.is_some()

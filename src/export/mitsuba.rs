@@ -120,7 +120,9 @@ pub fn export(scene: &Scene, dir: &Path) -> Result<ExportReport, String> {
                 theta,
                 ..
             } if alpha_x != alpha_y => object_ply_with(scene, oi, Some(*theta)),
-            Material::Textured { .. } => textured_ply(scene, oi),
+            Material::Textured { .. } | Material::TexturedPlastic { .. } => {
+                textured_ply(scene, oi)
+            }
             _ => object_ply(scene, oi),
         };
         let path = dir.join(&file);
@@ -675,6 +677,35 @@ fn bsdf_xml(
                 name,
                 "textured",
                 warnings,
+            )
+        }
+        Material::TexturedPlastic {
+            texture,
+            scale,
+            rho_s,
+            alpha,
+            eta,
+            distribution,
+        } => {
+            // Exact, as for a plastic; Mitsuba's bitmap has no scale: baked into the file.
+            let f0 = crate::render::bsdf::plastic::fresnel_dielectric(1.0, *eta);
+            let file = textures.file(texture, *scale, false);
+            let wrap = match texture.mapping {
+                Mapping::Uv => "repeat",
+                Mapping::Atlas(_) => "clamp",
+            };
+            format!(
+                "<bsdf type=\"roughplastic\">\n    <string name=\"distribution\" value=\"{}\"/>\n    \
+                 <float name=\"alpha\" value=\"{alpha}\"/>\n    <float name=\"int_ior\" value=\"{eta}\"/>\n    \
+                 <float name=\"ext_ior\" value=\"1\"/>\n    \
+                 <texture type=\"bitmap\" name=\"diffuse_reflectance\">\n        \
+                 <string name=\"filename\" value=\"{}\"/>\n        \
+                 <boolean name=\"raw\" value=\"true\"/>\n        \
+                 <string name=\"filter_type\" value=\"bilinear\"/>\n        \
+                 <string name=\"wrap_mode\" value=\"{wrap}\"/>\n    </texture>\n    {}\n</bsdf>\n",
+                distribution.name(),
+                escape(&file),
+                rgb("specular_reflectance", *rho_s / f0)
             )
         }
         Material::Black => diffuse(Rgb::ZERO),

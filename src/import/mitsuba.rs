@@ -84,7 +84,7 @@
 //!   warning). Exact: `diffuse` (reflectance rgb / constant or sampled spectrum / bitmap texture →
 //!   textured; `raw` matters to 8/16-bit images only, whose matfit decoding is sRGB: a warning)
 //!   → diffuse; `bumpmap`/`normalmap` → its nested BSDF (a warning: matfit has no bump
-//!   maps); `conductor` with material `none` → mirror ρs = specular_reflectance;
+//!   maps); `mask` → its nested BSDF, opaque (a warning naming the opacity); `conductor` with material `none` → mirror ρs = specular_reflectance;
 //!   `blendbsdf` of those → diffuse_mirror ρd = (1−w)·ρd₁ + w·ρd₂, ρs likewise (the exporter's
 //!   blend inverted); `roughconductor` with material `none` and `distribution` "ggx" or
 //!   "beckmann", alone or blended with a `diffuse` → microfacet, likewise; a textured `diffuse`
@@ -93,15 +93,15 @@
 //!   matfit's varnish is Ward's); `roughplastic` with `distribution` "ggx" or "beckmann"
 //!   → plastic (ρd = diffuse_reflectance, ρs = F0·specular_reflectance, α, η = int_ior/ext_ior,
 //!   a named IOR as Mitsuba's table; `nonlinear`'s ρ/(1 − ρ·F_int) as the linear model's
-//!   ρd = ρ(1 − F_int)/(1 − ρ·F_int), also exact). With a bitmap `diffuse_reflectance`, which
-//!   matfit's plastic cannot hold (its textured level's Ward varnish lacks the coat's Fresnel
-//!   rise, far off at grazing views): the exact plastic with ρd the texels' mean (nonlinear
-//!   folded in per texel), a warning that the texture's variation is lost. Initial guesses, not truth (a warning
+//!   ρd = ρ(1 − F_int)/(1 − ρ·F_int), also exact). With a bitmap `diffuse_reflectance`: the
+//!   texture under the same coat (a textured material with `eta`), exact too; `nonlinear` goes
+//!   into a copy of the texture in `textures/`, per texel. Initial guesses, not truth (a warning
 //!   each), with ρs from Fresnel reflectance at normal incidence F0: conductors with eta/k (or a named metal, from a small
-//!   table) → mirror ρs = F0·specular_reflectance; `roughconductor` → Ward ρd 0, ρs as the
-//!   conductor, α = alpha (αx, αy = alpha_u, alpha_v; Beckmann's and Ward's α are the same slope
-//!   width); `plastic` → diffuse_mirror with F0 = ((η−1)/(η+1))², η = int_ior/ext_ior,
-//!   ρs = F0·specular_reflectance, ρd = (1−F0)·diffuse_reflectance (a texture: its mean);
+//!   table) → mirror ρs = F0·specular_reflectance; `roughconductor` → microfacet of its
+//!   distribution (Ward for another) ρd 0, ρs as the conductor, α = alpha (αx, αy = alpha_u,
+//!   alpha_v; Beckmann's and Ward's α are the same slope width); `plastic` → diffuse_mirror with F0 = ((η−1)/(η+1))², η = int_ior/ext_ior,
+//!   ρs = F0·specular_reflectance, ρd = (1−F0)·diffuse_reflectance (a texture: its mean;
+//!   `nonlinear` folded in as for `roughplastic`, with the smooth coat's F_int);
 //!   `principled` →
 //!   Ward α = roughness², F0 = 0.08·specular blended to base_color by metallic,
 //!   ρd = (1−metallic)(1−F0)·base_color. Anything else
@@ -110,6 +110,8 @@
 //!   warning).
 //! - **Spectra.** A sampled spectrum (wavelength:value pairs) becomes linear sRGB as Mitsuba's
 //!   RGB variants convert it ([`super::spectrum`]); a warning, since a spectral render differs.
+//!   A constant spectrum is grey, except on an emitter, where Mitsuba takes it as equal-energy
+//!   light, pinkish in sRGB (a warning).
 
 use super::ImportReport;
 use crate::scene::schema::{
@@ -162,6 +164,7 @@ pub fn import_str(
         errors: sources.errors.clone(),
         warned: HashSet::new(),
         reoriented: HashMap::new(),
+        linearised: HashMap::new(),
         textures: Vec::new(),
         meshes: Vec::new(),
         made: HashMap::new(),
@@ -237,6 +240,9 @@ struct Ctx<'a> {
     warned: HashSet<(usize, &'static str)>,
     /// Re-oriented copies of textures: (source path, orientation) → the copy's path.
     reoriented: HashMap<(String, Orient), String>,
+    /// A nonlinear plastic's texture, each texel ρ taken to ρ(1 − F_int)/(1 − ρ·F_int): by source
+    /// path and F_int's bits, the copy's path.
+    linearised: HashMap<(String, u64), String>,
     /// The copies' images, to be written next to the scene file.
     textures: Vec<(String, crate::io::image::Image)>,
     /// Meshes the import made (serialized meshes, disks), to be written next to the scene file.
@@ -281,8 +287,8 @@ struct Lobes {
     s: DVec3,
     alpha: Option<(f64, f64)>,
     texture: Option<String>,
-    /// The rough part is exactly matfit's microfacet lobe of this distribution: a GGX or
-    /// Beckmann `roughconductor` with `material = "none"`.
+    /// The rough part is matfit's microfacet lobe of this distribution: a GGX or Beckmann
+    /// `roughconductor` (exactly with `material = "none"`, else with Fresnel frozen at F0).
     microfacet: Option<Distribution>,
     /// A `roughplastic`: matfit's plastic with this coat's η and distribution (d and s as
     /// matfit's ρd and ρs).
@@ -500,8 +506,23 @@ impl<'a> Ctx<'a> {
                         "a <spectrum> read from a file cannot be imported: give an <rgb>",
                     )
                 })?;
+                let emitted = matches!(name, "radiance" | "irradiance" | "intensity");
                 if !v.contains(':') {
-                    return Ok(Some(Ok(DVec3::splat(self.number(p, &v)?))));
+                    let x = self.number(p, &v)?;
+                    if !emitted {
+                        return Ok(Some(Ok(DVec3::splat(x))));
+                    }
+                    let rgb = super::spectrum::uniform_emission_to_srgb(x);
+                    self.warn(
+                        p,
+                        format!(
+                            "`{name}`: constant spectrum {x} is equal-energy light, linear sRGB \
+                             ({:.4}, {:.4}, {:.4}) as Mitsuba's RGB variants convert it (an \
+                             <rgb> or <float> gives grey)",
+                            rgb.x, rgb.y, rgb.z
+                        ),
+                    );
+                    return Ok(Some(Ok(rgb)));
                 }
                 let mut samples = Vec::new();
                 for pair in v.split(',') {
@@ -528,7 +549,6 @@ impl<'a> Ctx<'a> {
                         }
                     }
                 }
-                let emitted = matches!(name, "radiance" | "irradiance" | "intensity");
                 let rgb = super::spectrum::to_srgb(&samples, emitted);
                 self.warn(
                     p,
@@ -746,6 +766,31 @@ impl<'a> Ctx<'a> {
         let mean = sum / (i.data.len().max(1) as f64);
         self.means.insert(cache, mean);
         Ok(mean)
+    }
+
+    /// A copy of the texture at `path` with each texel ρ taken to ρ(1 − f)/(1 − ρ·f): a
+    /// nonlinear plastic's base as the linear one's, as a linear EXR in `textures/`.
+    fn linearised(&mut self, n: N<'a>, path: &str, f: f64) -> Result<String, String> {
+        let key = (path.to_string(), f.to_bits());
+        if let Some(p) = self.linearised.get(&key) {
+            return Ok(p.clone());
+        }
+        let mut image = self.texture_image(n, path)?;
+        let g = |r: f32| (r as f64 * (1.0 - f) / (1.0 - r as f64 * f)) as f32;
+        for t in image.data.iter_mut() {
+            *t = crate::math::Rgb::new(g(t.x), g(t.y), g(t.z));
+        }
+        let stem = Path::new(path)
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let mut name = format!("textures/{stem}_linear.exr");
+        if self.textures.iter().any(|(n, _)| *n == name) {
+            name = format!("textures/{stem}_linear_{}.exr", self.textures.len());
+        }
+        self.textures.push((name.clone(), image));
+        self.linearised.insert(key, name.clone());
+        Ok(name)
     }
 
     /// A file named in the XML, found as Mitsuba finds it (relative to the main file's folder,
@@ -1676,8 +1721,6 @@ impl<'a> Ctx<'a> {
                 }
                 // Mitsuba's face_normals shades with the triangles' own normals: a copy of the
                 // mesh without its vertex normals, which matfit then shades the same way.
-                // Mitsuba's face_normals shades with the triangles' own normals: a copy of the
-                // mesh without its vertex normals, which matfit then shades the same way.
                 if self.boolean(n, "face_normals")? && mesh.normals.is_some() {
                     let copy = super::mesh::Mesh {
                         positions: mesh.positions.iter().map(|p| p.as_dvec3()).collect(),
@@ -1892,10 +1935,27 @@ impl<'a> Ctx<'a> {
                             self.describe(b)
                         ),
                     ),
-                    _ => self.warn(
-                        b,
-                        format!("{} is ignored; its nested BSDF is used", self.describe(b)),
-                    ),
+                    _ => {
+                        let opacity = match self.prop(b, "opacity")? {
+                            Some(p) if p.tag_name().name() == "texture" => {
+                                "a textured opacity".to_string()
+                            }
+                            _ => {
+                                let o = self.rgb(b, "opacity", 0.5)?;
+                                format!("opacity ({:.4}, {:.4}, {:.4})", o.x, o.y, o.z)
+                            }
+                        };
+                        self.warn(
+                            b,
+                            format!(
+                                "{}: Mitsuba passes 1 − opacity of the light straight through \
+                                 it ({opacity}); matfit's surfaces are opaque, so its nested \
+                                 BSDF is used in full (brighter, and darker behind it, than \
+                                 in Mitsuba)",
+                                self.describe(b)
+                            ),
+                        )
+                    }
                 }
                 if inner.len() > 1 {
                     self.warn(
@@ -1931,12 +1991,16 @@ impl<'a> Ctx<'a> {
                 } else {
                     String::new()
                 };
-                let microfacet =
-                    Distribution::from_name(&distribution).filter(|_| rough && f0.is_none());
+                // With eta/k the lobe's shape is still Mitsuba's; only the Fresnel term is
+                // frozen at normal incidence.
+                let microfacet = Distribution::from_name(&distribution).filter(|_| rough);
                 if f0.is_some() || (rough && microfacet.is_none()) {
                     guess(
                         self,
-                        if rough {
+                        if microfacet.is_some() {
+                            "microfacet (its distribution) ρd 0, ρs = F0 × \
+                             specular_reflectance, α = alpha (no Fresnel rise toward grazing)"
+                        } else if rough {
                             "Ward ρd 0, ρs = F0 × specular_reflectance, α = alpha"
                         } else {
                             "a mirror with ρs = Fresnel reflectance at normal incidence × specular_reflectance"
@@ -1980,33 +2044,25 @@ impl<'a> Ctx<'a> {
                 };
                 match self.color(b, "diffuse_reflectance")? {
                     Some(Err(texture)) => {
-                        // matfit's plastic holds no texture. Its textured level's Ward varnish
-                        // lacks the coat's Fresnel rise, which dominates at grazing views, so the
-                        // coat kept exact over the texels' mean diffuse is the closer stand-in
-                        // (bench/README.md, "Design measurements").
-                        let mean = self.texture_mean_of(b, &texture, nonlinear.then_some(f_int))?;
-                        self.warn(
-                            b,
-                            format!(
-                                "{} with a textured diffuse_reflectance ({texture}): matfit's \
-                                 plastic holds no texture, so ρd is the texels' mean ({:.4}, \
-                                 {:.4}, {:.4}){} under the exact coat; the texture's variation \
-                                 is lost",
-                                self.describe(b),
-                                mean.x,
-                                mean.y,
-                                mean.z,
-                                if nonlinear {
-                                    ", `nonlinear` folded in per texel"
-                                } else {
-                                    ""
-                                }
-                            ),
-                        );
+                        if known.is_none() {
+                            guess(
+                                self,
+                                "plastic with a GGX coat of the same alpha and η, ρs = F0 × \
+                                 specular_reflectance",
+                            );
+                        }
+                        // Exact: the texture (nonlinear folded into a copy, per texel) under
+                        // matfit's coat.
+                        let texture = if nonlinear {
+                            self.linearised(b, &texture, f_int)?
+                        } else {
+                            texture
+                        };
                         Lobes {
-                            d: mean,
+                            d: DVec3::ONE,
                             s,
                             alpha: Some((a, a)),
+                            texture: Some(texture),
                             plastic: Some((eta, known.unwrap_or_default())),
                             ..Default::default()
                         }
@@ -2036,20 +2092,36 @@ impl<'a> Ctx<'a> {
             "plastic" => {
                 let eta = self.ior_ratio(b)?;
                 let f0 = ((eta - 1.0) / (eta + 1.0)).powi(2);
+                // A nonlinear plastic's diffuse part ρ/(1 − ρ·F_int) is the linear one's with
+                // ρ' = ρ (1 − F_int)/(1 − ρ·F_int), as for `roughplastic`.
+                let nonlinear = self.boolean(b, "nonlinear")?;
+                let f_int = smooth_internal_reflectance(eta);
+                let linear = |rho: f64| {
+                    if nonlinear {
+                        rho * (1.0 - f_int) / (1.0 - rho * f_int)
+                    } else {
+                        rho
+                    }
+                };
                 guess(
                     self,
                     &format!(
                         "diffuse_mirror with F0 = ((η−1)/(η+1))² = {f0:.4}, ρs = F0 × \
-                         specular_reflectance, ρd = (1 − F0) × diffuse_reflectance"
+                         specular_reflectance, ρd = (1 − F0) × diffuse_reflectance{}",
+                        if nonlinear {
+                            format!(
+                                " (`nonlinear`: each ρ as ρ(1 − F_int)/(1 − ρ·F_int), F_int = \
+                                 {f_int:.4})"
+                            )
+                        } else {
+                            String::new()
+                        }
                     ),
                 );
                 let s = self.rgb(b, "specular_reflectance", 1.0)? * f0;
-                if self.boolean(b, "nonlinear")? {
-                    self.warn(b, "`nonlinear` plastic: matfit's guess above is linear");
-                }
                 match self.color(b, "diffuse_reflectance")? {
                     Some(Err(texture)) => {
-                        let mean = self.texture_mean(b, &texture)?;
+                        let mean = self.texture_mean_of(b, &texture, nonlinear.then_some(f_int))?;
                         self.warn(
                             b,
                             format!(
@@ -2068,14 +2140,17 @@ impl<'a> Ctx<'a> {
                             ..Default::default()
                         }
                     }
-                    d => Lobes {
-                        d: match d {
+                    d => {
+                        let d = match d {
                             Some(Ok(c)) => c,
                             _ => DVec3::splat(0.5),
-                        } * (1.0 - f0),
-                        s,
-                        ..Default::default()
-                    },
+                        };
+                        Lobes {
+                            d: DVec3::new(linear(d.x), linear(d.y), linear(d.z)) * (1.0 - f0),
+                            s,
+                            ..Default::default()
+                        }
+                    }
                 }
             }
             "principled" => {
@@ -2165,9 +2240,15 @@ impl<'a> Ctx<'a> {
                 }
             }
             other => {
+                // A transmitting BSDF made opaque also shades whatever Mitsuba lights through it.
+                let opaque = if other.contains("dielectric") {
+                    "; opaque, so what Mitsuba lights through it is darker"
+                } else {
+                    ""
+                };
                 guess(
                     self,
-                    &format!("diffuse 0.5 (matfit has no '{other}' material)"),
+                    &format!("diffuse 0.5 (matfit has no '{other}' material{opaque})"),
                 );
                 Lobes {
                     d: DVec3::splat(0.5),
@@ -2295,6 +2376,10 @@ impl<'a> Ctx<'a> {
         };
         let has_s = s.max_element() > 0.0;
         if let Some(t) = l.texture {
+            // Under a plastic's coat the lobe is kept even where ρs is zero (the coat still
+            // refracts).
+            let coat = l.plastic.filter(|_| l.alpha.is_some());
+            let has_s = has_s || coat.is_some();
             return MaterialSpec::Textured {
                 texture: t,
                 scale: (d != DVec3::ONE).then(|| c(d)),
@@ -2305,6 +2390,8 @@ impl<'a> Ctx<'a> {
                 alpha_x: if has_s { alpha_x } else { None },
                 alpha_y: if has_s { alpha_y } else { None },
                 theta_deg: None,
+                eta: coat.map(|(eta, _)| eta as f32),
+                distribution: coat.map(|(_, d)| d),
             };
         }
         if let (Some((eta, distribution)), Some((a, _))) = (l.plastic, l.alpha) {
@@ -2350,6 +2437,21 @@ impl<'a> Ctx<'a> {
             },
         }
     }
+}
+
+/// The internal diffuse reflectance of a smooth dielectric coat of index η (what Mitsuba's
+/// `plastic` calls fdr_int): light from inside, cosine-weighted, reflected back by Fresnel
+/// (total internal reflection included), 2∫₀¹ F(μ, 1/η) μ dμ by the midpoint rule.
+fn smooth_internal_reflectance(eta: f64) -> f64 {
+    const N: usize = 4096;
+    (0..N)
+        .map(|i| {
+            let mu = (i as f64 + 0.5) / N as f64;
+            2.0 * mu * crate::render::bsdf::plastic::fresnel_dielectric(mu as f32, (1.0 / eta) as f32)
+                as f64
+        })
+        .sum::<f64>()
+        / N as f64
 }
 
 /// The coat's internal diffuse reflectance F_int, from its diffuse part 1/(π η² (1 − F_int)).
@@ -2508,6 +2610,18 @@ pub(crate) fn decompose(m: DMat4) -> Option<TransformSpec> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Mitsuba's fdr_int for a smooth coat: Egan and Hilgeman's fit at 1/η, which Mitsuba
+    /// states is within 0.1% for indices up to 1.5.
+    #[test]
+    fn a_smooth_coat_reflects_back_what_mitsubas_fit_says() {
+        for eta in [1.33f64, 1.5] {
+            let e = 1.0 / eta;
+            let fit = -1.4399 * e * e + 0.7099 * e + 0.6681 + 0.0636 / e;
+            let got = smooth_internal_reflectance(eta);
+            assert!((got / fit - 1.0).abs() < 1.5e-3, "η {eta}: {got} vs {fit}");
+        }
+    }
 
     /// matfit's transform of the keys (as `scene/load.rs` builds it), applied to a point.
     fn apply(t: &TransformSpec, p: DVec3) -> DVec3 {

@@ -65,7 +65,17 @@ pub fn to_srgb(samples: &[(f64, f64)], emission: bool) -> DVec3 {
         xyz += cmf * (weight * value(lambda));
         norm += cmf.y * weight;
     }
-    let xyz = xyz / norm;
+    xyz_to_srgb(xyz / norm)
+}
+
+/// Linear sRGB of a constant spectrum `value` given for an emitter: Mitsuba's RGB variants take
+/// it as XYZ = (value, value, value), equal-energy light, which is pinkish in sRGB (whose white
+/// is D65), so that they match its spectral variants. A constant reflectance stays grey.
+pub fn uniform_emission_to_srgb(value: f64) -> DVec3 {
+    xyz_to_srgb(DVec3::splat(value))
+}
+
+fn xyz_to_srgb(xyz: DVec3) -> DVec3 {
     DVec3::new(
         3.2406 * xyz.x - 1.5372 * xyz.y - 0.4986 * xyz.z,
         -0.9689 * xyz.x + 1.8758 * xyz.y + 0.0415 * xyz.z,
@@ -97,5 +107,17 @@ mod tests {
         );
         // Zero outside its samples.
         assert_eq!(to_srgb(&[(900.0, 1.0), (950.0, 1.0)], true), DVec3::ZERO);
+    }
+
+    /// Mitsuba 3.9's `scalar_rgb` loads `<spectrum name="radiance" value="16.032"/>` on an area
+    /// light as the colour (19.3153, 15.2030, 14.5717); a flat spectrum sampled over the whole
+    /// range converts to nearly the same.
+    #[test]
+    fn a_constant_emission_spectrum_is_equal_energy_light() {
+        let got = uniform_emission_to_srgb(16.032);
+        let want = DVec3::new(19.3153, 15.2030, 14.5717);
+        assert!(((got - want) / want).abs().max_element() < 5e-4, "{got}");
+        let sampled = to_srgb(&[(360.0, 16.032), (830.0, 16.032)], true);
+        assert!(((sampled - want) / want).abs().max_element() < 5e-3, "{sampled}");
     }
 }

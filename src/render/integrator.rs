@@ -106,6 +106,21 @@ pub fn bsdf_at(material: &Material, hit: &SurfaceHit, variant: WardVariant) -> (
             hit,
             variant,
         ),
+        Material::TexturedPlastic {
+            texture,
+            scale,
+            rho_s,
+            alpha,
+            eta,
+            distribution,
+        } => (
+            Bsdf::Plastic {
+                rho_d: *scale * texture.at(hit),
+                rho_s: *rho_s,
+                coat: super::bsdf::Coat::get(*alpha, *eta, *distribution),
+            },
+            hit.frame,
+        ),
         Material::Black => (Bsdf::Black, hit.frame),
     }
 }

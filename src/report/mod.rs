@@ -291,7 +291,7 @@ fn level_of(m: &Material) -> Level {
         } if alpha_x == alpha_y && *theta == 0.0 => Level::Microfacet,
         Material::Microfacet { .. } => Level::AnisotropicMicrofacet,
         Material::Plastic { .. } => Level::Plastic,
-        Material::Textured { .. } => Level::Textured,
+        Material::Textured { .. } | Material::TexturedPlastic { .. } => Level::Textured,
         Material::Diffuse { .. } | Material::Black => Level::Diffuse,
     }
 }
@@ -396,7 +396,9 @@ fn with_written_textures(rec: &Recovery, dir: &Path) -> Result<crate::scene::Sce
     let mut scene = rec.scene.clone();
     let mut written = std::collections::BTreeSet::new();
     for obj in scene.objects.iter_mut() {
-        let Material::Textured { texture, .. } = &mut obj.material else {
+        let (Material::Textured { texture, .. } | Material::TexturedPlastic { texture, .. }) =
+            &mut obj.material
+        else {
             continue;
         };
         if !matches!(texture.mapping, crate::scene::texture::Mapping::Atlas(_))

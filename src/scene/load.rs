@@ -335,7 +335,9 @@ fn map_atlas_textures(
                 ))
             })
             .clone();
-        let Material::Textured { texture, .. } = &mut objects[i].material else {
+        let (Material::Textured { texture, .. } | Material::TexturedPlastic { texture, .. }) =
+            &mut objects[i].material
+        else {
             continue;
         };
         if (texture.width, texture.height) != (atlas.width, atlas.height) || atlas.texel != *texel {
@@ -641,8 +643,38 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
             alpha_x,
             alpha_y,
             theta_deg,
+            eta,
+            distribution,
         } => {
+            // A coat instead of a varnish: the plastic's keys, checked as there.
+            let coat = match (eta, rho_s) {
+                (Some(eta), Some(rho_s)) => {
+                    if alpha_x.is_some() || alpha_y.is_some() || theta_deg.is_some() {
+                        return Err(
+                            "a textured material's coat (`eta`) is isotropic: `alpha` only".into(),
+                        );
+                    }
+                    let Some(a) = alpha else {
+                        return Err("a textured material's coat (`eta`) needs `alpha`".into());
+                    };
+                    let (a, _, _) = lobe(Some(*a), None, None, None, "a coat")?;
+                    if !(eta.is_finite() && *eta > 1.0) {
+                        return Err(format!("`eta` must be a number > 1, got {eta}"));
+                    }
+                    let rho_s = color(rho_s, "rho_s")?;
+                    energy(Rgb::ZERO, rho_s, "`rho_s`")?;
+                    Some((rho_s, a, *eta, distribution.unwrap_or_default()))
+                }
+                (Some(_), None) => {
+                    return Err("a textured material's `eta` goes with `rho_s` (the coat's)".into())
+                }
+                (None, _) if distribution.is_some() => {
+                    return Err("a textured material's `distribution` goes with `eta`".into())
+                }
+                (None, _) => None,
+            };
             let varnish = match rho_s {
+                _ if coat.is_some() => None,
                 Some(rho_s) => {
                     let (alpha_x, alpha_y, theta) =
                         lobe(*alpha, *alpha_x, *alpha_y, *theta_deg, "a varnish")?;
@@ -685,18 +717,30 @@ pub fn build_material_in(m: &MaterialSpec, dir: &Path) -> Result<Material, Strin
             }
             let p = dir.join(texture);
             let img = crate::io::image::read_linear(&p).map_err(|e| format!("texture: {e}"))?;
+            let texture = Arc::new(Texture {
+                width: img.width,
+                height: img.height,
+                texels: img.data,
+                path: PathBuf::from(texture),
+                mapping: super::texture::Mapping::Uv,
+            });
+            let scale = match scale {
+                Some(s) => color(s, "scale")?,
+                None => Rgb::ONE,
+            };
+            if let Some((rho_s, alpha, eta, distribution)) = coat {
+                return Ok(Material::TexturedPlastic {
+                    texture,
+                    scale,
+                    rho_s,
+                    alpha,
+                    eta,
+                    distribution,
+                });
+            }
             Material::Textured {
-                texture: Arc::new(Texture {
-                    width: img.width,
-                    height: img.height,
-                    texels: img.data,
-                    path: PathBuf::from(texture),
-                    mapping: super::texture::Mapping::Uv,
-                }),
-                scale: match scale {
-                    Some(s) => color(s, "scale")?,
-                    None => Rgb::ONE,
-                },
+                texture,
+                scale,
                 varnish,
             }
         }

@@ -112,6 +112,17 @@ pub enum Material {
         scale: Rgb,
         varnish: Option<Varnish>,
     },
+    /// [`Material::Plastic`] over a textured base: ρd(u, v) = scale × texture(u, v) under a
+    /// uniform rough dielectric coat (Mitsuba's `roughplastic` with a bitmap
+    /// `diffuse_reflectance`).
+    TexturedPlastic {
+        texture: Arc<Texture>,
+        scale: Rgb,
+        rho_s: Rgb,
+        alpha: f32,
+        eta: f32,
+        distribution: Distribution,
+    },
     /// Reflects nothing (emitters by default).
     Black,
 }
@@ -126,7 +137,8 @@ impl Material {
             | Material::Ward { rho_d, .. }
             | Material::Microfacet { rho_d, .. }
             | Material::Plastic { rho_d, .. } => *rho_d,
-            Material::Textured { texture, scale, .. } => {
+            Material::Textured { texture, scale, .. }
+            | Material::TexturedPlastic { texture, scale, .. } => {
                 let n = texture.texels.len().max(1) as f32;
                 texture.texels.iter().copied().sum::<Rgb>() / n * *scale
             }
@@ -137,7 +149,8 @@ impl Material {
     /// The diffuse albedo at `hit`: a texture's value there, else [`Material::rho_d`].
     pub fn rho_d_at(&self, hit: &super::SurfaceHit) -> Rgb {
         match self {
-            Material::Textured { texture, scale, .. } => *scale * texture.at(hit),
+            Material::Textured { texture, scale, .. }
+            | Material::TexturedPlastic { texture, scale, .. } => *scale * texture.at(hit),
             m => m.rho_d(),
         }
     }
@@ -148,7 +161,8 @@ impl Material {
             | Material::DiffuseMirror { rho_s, .. }
             | Material::Ward { rho_s, .. }
             | Material::Microfacet { rho_s, .. }
-            | Material::Plastic { rho_s, .. } => *rho_s,
+            | Material::Plastic { rho_s, .. }
+            | Material::TexturedPlastic { rho_s, .. } => *rho_s,
             Material::Textured {
                 varnish: Some(v), ..
             } => v.rho_s,

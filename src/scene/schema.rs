@@ -434,6 +434,13 @@ pub enum MaterialSpec {
         alpha_y: Option<f32>,
         #[serde(default, skip_serializing_if = "Option::is_none")]
         theta_deg: Option<f32>,
+        /// With `eta`, the lobe is a rough dielectric coat instead, as in a plastic material:
+        /// `rho_s` (the coat's reflectance at normal incidence), `alpha`, `eta` and
+        /// `distribution` ("ggx", the default, or "beckmann").
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        eta: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        distribution: Option<Distribution>,
     },
     Black,
 }

@@ -92,6 +92,34 @@ pub fn material_spec(m: &Material) -> MaterialSpec {
                 alpha_x,
                 alpha_y,
                 theta_deg,
+                eta: None,
+                distribution: None,
+            }
+        }
+        Material::TexturedPlastic {
+            texture,
+            scale,
+            rho_s,
+            alpha,
+            eta,
+            distribution,
+        } => {
+            let atlas = match &texture.mapping {
+                super::texture::Mapping::Atlas(a) => Some(a.texel),
+                super::texture::Mapping::Uv => None,
+            };
+            MaterialSpec::Textured {
+                texture: texture.path.to_string_lossy().into_owned(),
+                scale: Some(c(*scale)),
+                mapping: atlas.map(|_| "atlas".to_string()),
+                texel_size: atlas,
+                rho_s: Some(c(*rho_s)),
+                alpha: Some(*alpha),
+                alpha_x: None,
+                alpha_y: None,
+                theta_deg: None,
+                eta: Some(*eta),
+                distribution: Some(*distribution),
             }
         }
         Material::Black => MaterialSpec::Black,

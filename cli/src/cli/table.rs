@@ -105,6 +105,21 @@ pub fn material(m: &Material) -> String {
                 None => t,
             }
         }
+        Material::TexturedPlastic {
+            texture,
+            scale,
+            rho_s,
+            alpha,
+            distribution,
+            ..
+        } => format!(
+            "textured {} × {} under a plastic ({} coat) ρs {} α {}",
+            texture.path.display(),
+            rgb(*scale),
+            distribution_label(*distribution),
+            rgb(*rho_s),
+            num(*alpha, 4)
+        ),
         Material::Black => "black".into(),
     }
 }
@@ -166,6 +181,16 @@ fn columns(m: &Material) -> (String, String, String) {
             ),
             None => (format!("texture × {}", rgb(*scale)), dash(), dash()),
         },
+        Material::TexturedPlastic {
+            scale,
+            rho_s,
+            alpha: a,
+            ..
+        } => (
+            format!("texture × {}", rgb(*scale)),
+            rgb(*rho_s),
+            alpha(*a, *a, 0.0),
+        ),
         Material::Black => (dash(), dash(), dash()),
     }
 }
