@@ -93,21 +93,35 @@ fn restart_from_nested(
 /// Algorithm 1's gate on a group's best uniform model: it tries a texture if it misses by the
 /// texture threshold beyond its noise floor (gross: a small group's ε can reach the threshold
 /// on its cache's noise alone), or leaves texel-scale structure that only a texture explains
-/// (`detail.rs`). Returns whether, and the detail.
+/// (`detail.rs`). The structure is judged on this cache, or pooled with `earlier`, the same
+/// model's on the earlier caches ([`Detail::pooled`]), where the photo shows more than noise:
+/// ε at least [`POOLED_GATE_NOISE`] times the noise floor. A small group's print (a staircase's
+/// wood) is certain on several caches before it is on one; but where ε is its noise, what a
+/// uniform model leaves on every cache is the caches' own correlated noise and misfit, which
+/// pooling would make look certain too. Returns whether, the detail, and whether gross.
 fn texture_gate(
     cache: &GroupCache,
     best: &LevelFit,
+    earlier: &[Detail],
     variant: WardVariant,
     opts: &HierarchyOptions,
 ) -> (bool, Detail, bool) {
     let gross = best.error - best.noise_floor >= opts.thresholds.texture_error;
-    let detail = uniform_detail(cache, best.level, &best.params, variant);
-    (
-        gross || detail.is_texture(opts.thresholds.texture_detail),
-        detail,
-        gross,
-    )
+    let thr = opts.thresholds.texture_detail;
+    let this = uniform_detail(cache, best.level, &best.params, variant);
+    let all: Vec<Detail> = earlier.iter().copied().chain([this]).collect();
+    let pooled = Detail::pooled(&all)
+        .filter(|_| all.len() > 1 && best.error >= POOLED_GATE_NOISE * best.noise_floor);
+    let detail = match pooled {
+        Some(p) if !this.is_texture(thr) && p.is_texture(thr) => p,
+        _ => this,
+    };
+    (gross || detail.is_texture(thr), detail, gross)
 }
+
+/// How far above its noise floor a group's ε must be for its texel-scale structure to be
+/// judged pooled over its caches ([`texture_gate`]).
+const POOLED_GATE_NOISE: f32 = 2.0;
 
 /// The [`Event::Smoothing`] of a texture whose fit chose its smoothness weight.
 fn smoothing_event(t: &TextureState) -> Option<Event> {
@@ -363,7 +377,7 @@ impl GroupState {
                 best = f;
             }
         }
-        let (texture, detail, _) = texture_gate(cache, &best, variant, opts);
+        let (texture, detail, _) = texture_gate(cache, &best, &[], variant, opts);
         if texture {
             return Some(Event::TextureKept {
                 level: best.level,
@@ -375,6 +389,14 @@ impl GroupState {
         Some(self.demote(&best))
     }
 
+    /// The structure its uniform `level` left on the earlier caches, if that is its level.
+    fn detail_at(&self, level: Level) -> Vec<Detail> {
+        (self.detail_pool.iter())
+            .filter(|&&(l, _)| l == level)
+            .map(|&(_, d)| d)
+            .collect()
+    }
+
     /// A confirmed group at a uniform level whose model leaves texel-scale structure that only
     /// a texture explains analyses again, so that its next climb tries level 7: a group
     /// confirmed early (its ε under the threshold before its cache could show the structure)
@@ -382,7 +404,7 @@ impl GroupState {
     /// Decided on the structure pooled over at least [`REOPEN_CACHES`] caches at its level
     /// ([`Detail::pooled`]): a confirmed decision is undone by evidence, not by one cache.
     fn reopen(&mut self, opts: &HierarchyOptions) -> Option<Event> {
-        let pool: Vec<Detail> = self.detail_pool.iter().map(|&(_, d)| d).collect();
+        let pool = self.detail_at(self.level);
         if pool.len() < REOPEN_CACHES {
             return None;
         }
@@ -612,7 +634,8 @@ impl GroupState {
                 continue;
             }
             if next == Level::Textured {
-                let (open, d, gross) = texture_gate(cache, &best, variant, opts);
+                let (open, d, gross) =
+                    texture_gate(cache, &best, &self.detail_at(best.level), variant, opts);
                 events.push(Event::TextureGate {
                     open,
                     level: best.level,

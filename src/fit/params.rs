@@ -348,7 +348,9 @@ impl GroupParams {
             Material::Textured {
                 varnish: Some(v), ..
             } => Some((v.alpha_x, v.alpha_y, v.theta)),
-            Material::Plastic { alpha, .. } => Some((*alpha, *alpha, 0.0)),
+            Material::Plastic { alpha, .. } | Material::TexturedPlastic { alpha, .. } => {
+                Some((*alpha, *alpha, 0.0))
+            }
             _ => None,
         };
         if let Some((ax, ay, theta)) = lobe {
