@@ -516,6 +516,7 @@ def main():
                 kinds = {}
                 for l in w:
                     k = re.sub(r"^warning: \S+:\d+: ", "", l)
+                    k = k.replace(os.path.expanduser("~"), "~")
                     k = re.sub(r"\d+(\.\d+)?", "N", k)[:150]
                     kinds[k] = kinds.get(k, 0) + 1
                 top = sorted(kinds.items(), key=lambda kv: -kv[1])
@@ -539,7 +540,7 @@ python bench/import_public.py {' '.join(sys.argv[1:])}
 - renders: {args.width} px wide, {args.spp} spp × 2 seeds per renderer; a group passes when
   every channel of its mean has |rel| ≤ {args.tol:.0%} + 3σ (σ from the seed-to-seed
   differences). "whole image" is the largest channel's |rel| of the image mean.
-- scenes are fetched into {args.cache} (not committed); stand-ins are listed under notes.
+- scenes are fetched into {args.cache.replace(os.path.expanduser("~"), "~")} (not committed); stand-ins are listed under notes.
 
 {summary}.
 

@@ -8,6 +8,7 @@ use matfit::math::Rgb;
 use matfit::render::film::{render, RenderOptions};
 use matfit::scene::load::parse_scene;
 use matfit::scene::{load_scene, Material};
+use std::path::Path;
 
 const S: [f32; 3] = [0.3, 0.6, 0.9];
 
@@ -108,6 +109,39 @@ pub fn sunroom_with_stray_light() -> (String, String) {
     (text, truth)
 }
 
+/// Renders `truth` (256 spp) as the photo in `d` and recovers `model` from it with
+/// `--stray-light` and `extra` into `d/out`: the recovery's standard output.
+fn render_and_recover_with_stray_light(
+    d: &Path,
+    truth: &Path,
+    model: &Path,
+    extra: &[&str],
+) -> String {
+    let (code, _, err) = run(
+        &[
+            "render",
+            truth.to_str().unwrap(),
+            "--spp",
+            "256",
+            "-o",
+            "photo.exr",
+        ],
+        d,
+    );
+    assert_eq!(code, 0, "{err}");
+    let mut args = vec![
+        "recover",
+        model.to_str().unwrap(),
+        "photo.exr",
+        "--stray-light",
+    ];
+    args.extend(extra);
+    args.extend(["-o", "out"]);
+    let (code, out, err) = run(&args, d);
+    assert_eq!(code, 0, "{out}{err}");
+    out
+}
+
 #[test]
 fn a_stray_light_is_fitted_with_the_materials_through_the_binary() {
     // scenes/sunroom (open-topped) at half size. The photo has a stray light of 8% of the
@@ -118,30 +152,7 @@ fn a_stray_light_is_fitted_with_the_materials_through_the_binary() {
     let (text, truth) = sunroom_with_stray_light();
     let truth_path = write(d, "truth.toml", &truth);
     let model = write(d, "model.toml", &text);
-    let (code, _, err) = run(
-        &[
-            "render",
-            truth_path.to_str().unwrap(),
-            "--spp",
-            "256",
-            "-o",
-            "photo.exr",
-        ],
-        d,
-    );
-    assert_eq!(code, 0, "{err}");
-    let (code, out, err) = run(
-        &[
-            "recover",
-            model.to_str().unwrap(),
-            "photo.exr",
-            "--stray-light",
-            "-o",
-            "out",
-        ],
-        d,
-    );
-    assert_eq!(code, 0, "{out}{err}");
+    let out = render_and_recover_with_stray_light(d, &truth_path, &model, &[]);
     // The summary states the estimate (its value is checked in results.json below).
     assert!(out.contains("stray light (0.0"), "{out}");
     let json = results(&d.join("out"));
@@ -210,32 +221,7 @@ fn a_stray_light_is_fitted_beside_a_plastic_ball_through_the_binary() {
     assert!(truth.contains(ward));
     let truth_path = write(d, "truth.toml", &truth.replace(ward, plastic));
     let model = write(d, "model.toml", &text);
-    let (code, _, err) = run(
-        &[
-            "render",
-            truth_path.to_str().unwrap(),
-            "--spp",
-            "256",
-            "-o",
-            "photo.exr",
-        ],
-        d,
-    );
-    assert_eq!(code, 0, "{err}");
-    let (code, out, err) = run(
-        &[
-            "recover",
-            model.to_str().unwrap(),
-            "photo.exr",
-            "--stray-light",
-            "--exportable",
-            "mitsuba",
-            "-o",
-            "out",
-        ],
-        d,
-    );
-    assert_eq!(code, 0, "{out}{err}");
+    render_and_recover_with_stray_light(d, &truth_path, &model, &["--exportable", "mitsuba"]);
     let json = results(&d.join("out"));
     let ball = result_group(&json, "ball");
     eprintln!("ball: {ball}\nstray light: {}", json["stray_light"]);

@@ -93,12 +93,8 @@ fn restart_from_nested(
 /// Algorithm 1's gate on a group's best uniform model: it tries a texture if it misses by the
 /// texture threshold beyond its noise floor (gross: a small group's ε can reach the threshold
 /// on its cache's noise alone), or leaves texel-scale structure that only a texture explains
-/// (`detail.rs`). The structure is judged on this cache, or pooled with `earlier`, the same
-/// model's on the earlier caches ([`Detail::pooled`]), where the photo shows more than noise:
-/// ε at least [`POOLED_GATE_NOISE`] times the noise floor. A small group's print (a staircase's
-/// wood) is certain on several caches before it is on one; but where ε is its noise, what a
-/// uniform model leaves on every cache is the caches' own correlated noise and misfit, which
-/// pooling would make look certain too. Returns whether, the detail, and whether gross.
+/// ([`judged_detail`], this cache's with `earlier`, the same model's on the earlier caches).
+/// Returns whether, the detail judged, and whether gross.
 fn texture_gate(
     cache: &GroupCache,
     best: &LevelFit,
@@ -107,20 +103,39 @@ fn texture_gate(
     opts: &HierarchyOptions,
 ) -> (bool, Detail, bool) {
     let gross = best.error - best.noise_floor >= opts.thresholds.texture_error;
-    let thr = opts.thresholds.texture_detail;
     let this = uniform_detail(cache, best.level, &best.params, variant);
-    let all: Vec<Detail> = earlier.iter().copied().chain([this]).collect();
-    let pooled = Detail::pooled(&all)
-        .filter(|_| all.len() > 1 && best.error >= POOLED_GATE_NOISE * best.noise_floor);
-    let detail = match pooled {
-        Some(p) if !this.is_texture(thr) && p.is_texture(thr) => p,
-        _ => this,
-    };
+    let thr = opts.thresholds.texture_detail;
+    let detail = judged_detail(this, earlier, best.error, best.noise_floor, thr);
     (gross || detail.is_texture(thr), detail, gross)
 }
 
+/// The texel-scale structure a uniform model's texture decisions go by (the gate, a confirmed
+/// group's reopening): `this` cache's, or, where that is no texture's, the structure pooled
+/// with `earlier`, the same model's on earlier caches ([`Detail::pooled`]), provided the photo
+/// shows more than noise there (ε at least [`POOLED_GATE_NOISE`] times the noise floor). A
+/// small group's print (a staircase's wood) is certain on several caches before it is on one;
+/// but where ε is its noise, what a uniform model leaves on every cache is the caches' own
+/// correlated noise and misfit, which pooling would make look certain too.
+fn judged_detail(
+    this: Detail,
+    earlier: &[Detail],
+    error: f32,
+    noise_floor: f32,
+    threshold: f32,
+) -> Detail {
+    if this.is_texture(threshold) || earlier.is_empty() || error < POOLED_GATE_NOISE * noise_floor
+    {
+        return this;
+    }
+    let all: Vec<Detail> = earlier.iter().copied().chain([this]).collect();
+    match Detail::pooled(&all) {
+        Some(p) if p.is_texture(threshold) => p,
+        _ => this,
+    }
+}
+
 /// How far above its noise floor a group's ε must be for its texel-scale structure to be
-/// judged pooled over its caches ([`texture_gate`]).
+/// judged pooled over its caches ([`judged_detail`]).
 const POOLED_GATE_NOISE: f32 = 2.0;
 
 /// The [`Event::Smoothing`] of a texture whose fit chose its smoothness weight.
@@ -131,9 +146,6 @@ fn smoothing_event(t: &TextureState) -> Option<Event> {
         held_out: t.held_out.clone(),
     })
 }
-
-/// A confirmed group reopens for a texture on the structure of at least this many caches.
-const REOPEN_CACHES: usize = 2;
 
 /// A texture that does not earn its place is tried again from the same level, its evidence
 /// pooled with the earlier trials', up to this many trials in all.
@@ -401,14 +413,13 @@ impl GroupState {
     /// a texture explains analyses again, so that its next climb tries level 7: a group
     /// confirmed early (its ε under the threshold before its cache could show the structure)
     /// is not kept from its texture. Not from a level whose texture was already refused.
-    /// Decided on the structure pooled over at least [`REOPEN_CACHES`] caches at its level
-    /// ([`Detail::pooled`]): a confirmed decision is undone by evidence, not by one cache.
+    /// Decided as the gate decides ([`judged_detail`]: the latest cache's structure, or where
+    /// ε is more than noise, the structure pooled over its caches at this level), so that a
+    /// group the gate would turn away is not reopened again and again.
     fn reopen(&mut self, opts: &HierarchyOptions) -> Option<Event> {
-        let pool = self.detail_at(self.level);
-        if pool.len() < REOPEN_CACHES {
-            return None;
-        }
-        let d = Detail::pooled(&pool)?;
+        let (this, earlier) = self.detail_at(self.level).split_last().map(|(t, e)| (*t, e.to_vec()))?;
+        let thr = opts.thresholds.texture_detail;
+        let d = judged_detail(this, &earlier, self.error, self.noise_floor, thr);
         if self.status != Status::Confirmed
             || self.level == Level::Textured
             || self.texture_refused == Some(self.level)
