@@ -160,7 +160,9 @@ def test_ctrl_c_raises_keyboard_interrupt_and_keeps_the_checkpoint(photo, tmp_pa
     out = tmp_path / "interrupted"
     script = textwrap.dedent(
         f"""
-        import matfit
+        import signal, matfit
+        # A process started in the background inherits SIGINT ignored: restore Python's handler.
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         scene = matfit.Scene.load({str(FIGURE6)!r})
         try:
             matfit.recover(scene, {str(photo)!r}, output={str(out)!r}, progress=False,
@@ -194,7 +196,8 @@ def test_ctrl_c_stops_a_render_partway(tmp_path):
     """A render of minutes stops within a second of Ctrl-C, not when it would have ended."""
     script = textwrap.dedent(
         f"""
-        import time, matfit
+        import signal, time, matfit
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         scene = matfit.Scene.load({str(FIGURE6)!r})
         print("rendering", flush=True)
         t = time.perf_counter()
