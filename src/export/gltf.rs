@@ -467,15 +467,7 @@ pub fn material_spec(m: &Material, variant: WardVariant, warnings: &mut Vec<Stri
             distribution,
             ..
         } => {
-            // glTF's dielectric lobe is a GGX coat with Schlick's Fresnel from F0 = ρs.
-            let (r, aniso) = ward_roughness(*alpha, *alpha, 0.0, warnings);
-            if *distribution != crate::scene::Distribution::Ggx {
-                warnings.push(format!(
-                    "a {} plastic coat is exported as glTF's GGX coat of the same α (a narrower \
-                     core and a wider halo)",
-                    distribution.name()
-                ));
-            }
+            let (r, aniso) = coat_roughness(*alpha, *distribution, warnings);
             layered(*rho_d, *rho_s, r, aniso, warnings)
         }
         Material::Textured { scale, varnish, .. } => match varnish {
@@ -504,14 +496,7 @@ pub fn material_spec(m: &Material, variant: WardVariant, warnings: &mut Vec<Stri
             ..
         } => {
             // As a plastic, with the base's compensation in the texels as for a varnish.
-            let (r, aniso) = ward_roughness(*alpha, *alpha, 0.0, warnings);
-            if *distribution != crate::scene::Distribution::Ggx {
-                warnings.push(format!(
-                    "a {} plastic coat is exported as glTF's GGX coat of the same α (a narrower \
-                     core and a wider halo)",
-                    distribution.name()
-                ));
-            }
+            let (r, aniso) = coat_roughness(*alpha, *distribution, warnings);
             let mut s = layered(Rgb::ZERO, *rho_s, r, aniso, warnings);
             s.texture_factor = Some(*scale * base_compensation(*rho_s, warnings));
             s.base_color = Rgb::ONE;
@@ -532,6 +517,24 @@ fn base_compensation(rho_s: Rgb, warnings: &mut Vec<String>) -> f32 {
         return 1.0;
     }
     1.0 / keep
+}
+
+/// A plastic's coat as glTF's dielectric lobe, a GGX coat with Schlick's Fresnel from F0 = ρs:
+/// its roughness, and a warning when the coat's distribution is not GGX.
+fn coat_roughness(
+    alpha: f32,
+    distribution: crate::scene::Distribution,
+    warnings: &mut Vec<String>,
+) -> (f32, Option<(f32, f32)>) {
+    let roughness = ward_roughness(alpha, alpha, 0.0, warnings);
+    if distribution != crate::scene::Distribution::Ggx {
+        warnings.push(format!(
+            "a {} plastic coat is exported as glTF's GGX coat of the same α (a narrower core and \
+             a wider halo)",
+            distribution.name()
+        ));
+    }
+    roughness
 }
 
 /// Lambert ρd under a GGX lobe of F0 = ρs, the base compensated for glTF's 1 − max F0.

@@ -435,17 +435,45 @@ impl TextureFiles {
 /// matfit's lookup; repeating over mesh UVs, clamped in an atlas (whose charts must not bleed
 /// into each other across the texture's border).
 fn bitmap_diffuse(file: &str, mapping: &Mapping) -> String {
+    format!(
+        "<bsdf type=\"diffuse\">\n    {}\n</bsdf>\n",
+        bitmap_texture("reflectance", file, mapping)
+    )
+}
+
+/// A linear (`raw`) bitmap texture named `name`, filtered bilinearly, repeated over UVs or
+/// clamped over an atlas.
+fn bitmap_texture(name: &str, file: &str, mapping: &Mapping) -> String {
     let wrap = match mapping {
         Mapping::Uv => "repeat",
         Mapping::Atlas(_) => "clamp",
     };
     format!(
-        "<bsdf type=\"diffuse\">\n    <texture type=\"bitmap\" name=\"reflectance\">\n        \
+        "<texture type=\"bitmap\" name=\"{name}\">\n        \
          <string name=\"filename\" value=\"{}\"/>\n        \
          <boolean name=\"raw\" value=\"true\"/>\n        \
          <string name=\"filter_type\" value=\"bilinear\"/>\n        \
-         <string name=\"wrap_mode\" value=\"{wrap}\"/>\n    </texture>\n</bsdf>\n",
+         <string name=\"wrap_mode\" value=\"{wrap}\"/>\n    </texture>",
         escape(file)
+    )
+}
+
+/// Mitsuba's `roughplastic`, exactly matfit's plastic (`render::bsdf::plastic`): `diffuse` the
+/// base's `diffuse_reflectance` element, ρs the coat's F0 × `specular_reflectance`.
+fn rough_plastic(
+    distribution: crate::scene::Distribution,
+    alpha: f32,
+    eta: f32,
+    diffuse: &str,
+    rho_s: Rgb,
+) -> String {
+    let f0 = crate::render::bsdf::plastic::fresnel_dielectric(1.0, eta);
+    format!(
+        "<bsdf type=\"roughplastic\">\n    <string name=\"distribution\" value=\"{}\"/>\n    \
+         <float name=\"alpha\" value=\"{alpha}\"/>\n    <float name=\"int_ior\" value=\"{eta}\"/>\n    \
+         <float name=\"ext_ior\" value=\"1\"/>\n    {diffuse}\n    {}\n</bsdf>\n",
+        distribution.name(),
+        rgb("specular_reflectance", rho_s / f0)
     )
 }
 
@@ -625,15 +653,13 @@ fn bsdf_xml(
             eta,
             distribution,
         } => {
-            // Exact: `render::bsdf::plastic` is this plugin; ρs is its F0 × specular_reflectance.
-            let f0 = crate::render::bsdf::plastic::fresnel_dielectric(1.0, *eta);
-            format!(
-                "<bsdf type=\"roughplastic\">\n    <string name=\"distribution\" value=\"{}\"/>\n    \
-                 <float name=\"alpha\" value=\"{alpha}\"/>\n    <float name=\"int_ior\" value=\"{eta}\"/>\n    \
-                 <float name=\"ext_ior\" value=\"1\"/>\n    {}\n    {}\n</bsdf>\n",
-                distribution.name(),
-                rgb("diffuse_reflectance", *rho_d),
-                rgb("specular_reflectance", *rho_s / f0)
+            // Exact: `render::bsdf::plastic` is this plugin.
+            rough_plastic(
+                *distribution,
+                *alpha,
+                *eta,
+                &rgb("diffuse_reflectance", *rho_d),
+                *rho_s,
             )
         }
         Material::Textured {
@@ -688,24 +714,13 @@ fn bsdf_xml(
             distribution,
         } => {
             // Exact, as for a plastic; Mitsuba's bitmap has no scale: baked into the file.
-            let f0 = crate::render::bsdf::plastic::fresnel_dielectric(1.0, *eta);
             let file = textures.file(texture, *scale, false);
-            let wrap = match texture.mapping {
-                Mapping::Uv => "repeat",
-                Mapping::Atlas(_) => "clamp",
-            };
-            format!(
-                "<bsdf type=\"roughplastic\">\n    <string name=\"distribution\" value=\"{}\"/>\n    \
-                 <float name=\"alpha\" value=\"{alpha}\"/>\n    <float name=\"int_ior\" value=\"{eta}\"/>\n    \
-                 <float name=\"ext_ior\" value=\"1\"/>\n    \
-                 <texture type=\"bitmap\" name=\"diffuse_reflectance\">\n        \
-                 <string name=\"filename\" value=\"{}\"/>\n        \
-                 <boolean name=\"raw\" value=\"true\"/>\n        \
-                 <string name=\"filter_type\" value=\"bilinear\"/>\n        \
-                 <string name=\"wrap_mode\" value=\"{wrap}\"/>\n    </texture>\n    {}\n</bsdf>\n",
-                distribution.name(),
-                escape(&file),
-                rgb("specular_reflectance", *rho_s / f0)
+            rough_plastic(
+                *distribution,
+                *alpha,
+                *eta,
+                &bitmap_texture("diffuse_reflectance", &file, &texture.mapping),
+                *rho_s,
             )
         }
         Material::Black => diffuse(Rgb::ZERO),
