@@ -6,7 +6,7 @@
 //! of v over the 5×5 neighbourhood of cached pixels, which removes every smooth misfit: a wrong
 //! fall-off of n·l, of the view angle or of the indirect light. What remains and is not texture
 //! is sharp misfit that follows the model's own features, so HP(e) is regressed (least squares
-//! over the group) on
+//! in windows of 8×8 cached pixels, each fitted with a margin of 4 around it) on
 //!
 //!   HP(m), HP(∂ₓm), HP(∂ᵧm), HP(∂ₓₓm), HP(∂ᵧᵧm), HP(∂ₓᵧm), and the same of s
 //!
@@ -14,8 +14,13 @@
 //! e ≈ −δ·∇m, a highlight too strong or misplaced leaves e ≈ a·s + b·∇s, a lobe a little too
 //! rough or too sharp blurs or sharpens the reflections it holds (e ≈ c·∇²s, per axis for an
 //! anisotropic one), and none of them survives.
-//! A printed pattern is uncorrelated with all six and survives whole. The statistic is the
-//! covariance c₁ of neighbouring pixels' remaining residuals (horizontal and vertical pairs):
+//! The coefficients are the window's own because such misfit differs from place to place: a
+//! box whose top face the cache lights a little brighter than the photo does, and whose front
+//! face a little darker, leaves after the high pass a band of ± along the crease between them,
+//! which no single coefficient for the whole group removes. A printed pattern is uncorrelated
+//! with all six in every window and survives whole, whether it covers the group or only a
+//! part of it (a rug's border). The statistic is the covariance c₁ of neighbouring pixels'
+//! remaining residuals (horizontal and vertical pairs):
 //! independent per-pixel noise (the photo's, the cache's) contributes nothing to it (slightly
 //! less), while a texture's strokes span neighbouring pixels. It is taken over the pixels where
 //! the model's diffuse term is at least its specular one: a print is a diffuse reflectance,
@@ -146,7 +151,7 @@ pub fn detail(cache: &GroupCache, model: &[Rgb], spec: &[Rgb], width: usize) -> 
     if s.iter().any(|&v| v != 0.0) {
         features.extend(shapes(&s));
     }
-    let r = regress_out(&y, &features);
+    let r = regress_out_locally(&y, &features, &grid);
     let var = |v: &[f32]| v.iter().map(|&x| (x as f64).powi(2)).sum::<f64>();
     let explained = {
         let before = var(&y);
@@ -189,13 +194,67 @@ pub fn detail(cache: &GroupCache, model: &[Rgb], spec: &[Rgb], width: usize) -> 
     }
 }
 
-/// `y` minus its least-squares projection on `features` (a tiny ridge keeps a feature that is
-/// zero or repeats another from making the normal matrix singular).
-fn regress_out(y: &[f32], features: &[Vec<f32>]) -> Vec<f32> {
+/// Side of the square windows in which the misfit is regressed out on its own, and the margin
+/// of neighbours each window's fit reads too, in grid steps.
+const WINDOW: i64 = 8;
+const MARGIN: i64 = 4;
+
+/// A window's fit needs this many pixels per feature (fewer would take the print for misfit:
+/// a thin group's windows hold a few dozen pixels); a window with fewer takes the group's.
+const ROWS_PER_FEATURE: usize = 16;
+
+/// `y` minus its least-squares projection on `features`, fitted window by window (each
+/// [`WINDOW`]² core with its [`MARGIN`]): misfit that follows the model's features differently
+/// in different places is removed where it is. A window with too few pixels takes the
+/// coefficients of the whole group.
+fn regress_out_locally(y: &[f32], features: &[Vec<f32>], grid: &PixelGrid) -> Vec<f32> {
+    let n = y.len();
+    let all: Vec<usize> = (0..n).collect();
+    let group = least_squares(y, features, &all);
+    let mut windows: std::collections::BTreeMap<(i64, i64), Vec<usize>> = Default::default();
+    for k in 0..n {
+        let (x, v) = grid.position(k);
+        windows
+            .entry((x.div_euclid(WINDOW), v.div_euclid(WINDOW)))
+            .or_default()
+            .push(k);
+    }
+    let mut r = y.to_vec();
+    for (&(wx, wy), core) in &windows {
+        let (x0, y0) = (wx * WINDOW - MARGIN, wy * WINDOW - MARGIN);
+        let (x1, y1) = ((wx + 1) * WINDOW + MARGIN, (wy + 1) * WINDOW + MARGIN);
+        let support: Vec<usize> = (-1..=1)
+            .flat_map(|dy| (-1..=1).map(move |dx| (wx + dx, wy + dy)))
+            .filter_map(|w| windows.get(&w))
+            .flatten()
+            .copied()
+            .filter(|&k| {
+                let (x, v) = grid.position(k);
+                (x0..x1).contains(&x) && (y0..y1).contains(&v)
+            })
+            .collect();
+        let local = (support.len() >= ROWS_PER_FEATURE * features.len())
+            .then(|| least_squares(y, features, &support))
+            .flatten();
+        if let Some(beta) = local.as_ref().or(group.as_ref()) {
+            for &k in core {
+                r[k] = y[k]
+                    - (0..features.len())
+                        .map(|i| beta[i] * features[i][k] as f64)
+                        .sum::<f64>() as f32;
+            }
+        }
+    }
+    r
+}
+
+/// The least-squares coefficients of `y` on `features` over the pixels `rows` (a tiny ridge
+/// keeps a feature that is zero or repeats another from making the normal matrix singular).
+fn least_squares(y: &[f32], features: &[Vec<f32>], rows: &[usize]) -> Option<Vec<f64>> {
     let p = features.len();
     let mut a = vec![vec![0.0f64; p]; p];
     let mut b = vec![0.0f64; p];
-    for k in 0..y.len() {
+    for &k in rows {
         for i in 0..p {
             let fi = features[i][k] as f64;
             b[i] += fi * y[k] as f64;
@@ -208,15 +267,12 @@ fn regress_out(y: &[f32], features: &[Vec<f32>]) -> Vec<f32> {
     for (i, row) in a.iter_mut().enumerate() {
         row[i] += 1e-9 * trace;
     }
-    let Some(inv) = super::solve::invert(&a) else {
-        return y.to_vec();
-    };
-    let beta: Vec<f64> = (0..p)
-        .map(|i| (0..p).map(|j| inv[i][j] * b[j]).sum())
-        .collect();
-    (0..y.len())
-        .map(|k| y[k] - (0..p).map(|i| beta[i] * features[i][k] as f64).sum::<f64>() as f32)
-        .collect()
+    let inv = super::solve::invert(&a)?;
+    Some(
+        (0..p)
+            .map(|i| (0..p).map(|j| inv[i][j] * b[j]).sum())
+            .collect(),
+    )
 }
 
 #[cfg(test)]
@@ -279,6 +335,41 @@ mod tests {
         // The same shading with 3% noise alone: large but incoherent.
         let noisy = run(|x, y, i| shading(x, y).0 * (1.0 + 0.06 * noise(i, 2)));
         assert!(!noisy.is_texture(0.02), "{noisy:?}");
+    }
+
+    /// Three faces of a box, 16 rows each, one above the other: top, front and a side far
+    /// brighter. The photo's top face is 40% brighter than the model's, its side 25% darker and
+    /// its front exact, so the high-passed residual is a band of ± along each crease, of
+    /// opposite sign to the model's step at one and the same sign at the other: no one
+    /// coefficient of the model's features for the group fits both, a window's own does.
+    #[test]
+    fn a_misfit_that_differs_between_faces_is_not_texture() {
+        let (w, h) = (64, 48);
+        let face = |row: usize| [(0.3, 1.4), (0.2, 1.0), (0.7, 0.75)][row / 16];
+        let model: Vec<Rgb> = (0..w * h)
+            .map(|i| Rgb::splat(face(i / w).0 * (1.0 + 0.002 * (i % w) as f32)))
+            .collect();
+        let photo: Vec<f32> = (0..w * h)
+            .map(|i| model[i].x * face(i / w).1 + 0.003 * noise(i, 5))
+            .collect();
+        let d = detail(&cache_of(&photo, w), &model, &vec![Rgb::splat(0.0); w * h], w);
+        assert!(!d.is_texture(0.02), "{d:?}");
+    }
+
+    /// A print on a part of the group only, as a rug's border: a frame of ±30% two pixels wide
+    /// around a uniform field, on the smooth shading. Its strokes lie where the model is smooth.
+    #[test]
+    fn a_print_on_part_of_the_group_is_texture() {
+        let border = |x: f32, y: f32| {
+            let inside = |a: f32| (a - 32.0).abs() < 20.0;
+            let ring = |a: f32| ((a - 32.0).abs() - 16.0).abs() < 1.5;
+            (inside(x) && inside(y) && (ring(x) || ring(y))) as u8 as f32
+        };
+        let rug = run(|x, y, i| {
+            let (m, _) = shading(x, y);
+            m * (1.0 + 0.3 * border(x, y)) + 0.003 * noise(i, 6)
+        });
+        assert!(rug.is_texture(0.02), "{rug:?}");
     }
 
     #[test]

@@ -820,7 +820,13 @@ impl GroupState {
             self.texture_refused = Some(self.level);
             self.pending_texture = None;
         }
-        if best.level != self.level && !turn.may_move {
+        // A texture does not wait for the turn: the turn keeps two groups that light each other
+        // from changing their light at once, and a texture keeps its group's mean reflectance
+        // (its neighbours see nearly the same light), while the neighbours whose missing light
+        // it could take have been waited for already (`Turn::texture_waits_for`). Among many
+        // groups that light each other the turn came too rarely for a printed wall to get it.
+        let waits_for_turn = best.level != Level::Textured;
+        if best.level != self.level && !turn.may_move && waits_for_turn {
             self.waiting += 1;
             self.pending = Some(best.level);
             if texture.is_some() {

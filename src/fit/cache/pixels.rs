@@ -217,6 +217,12 @@ impl PixelGrid {
         }
     }
 
+    /// Cached pixel `k`'s position in grid steps (column, row).
+    pub fn position(&self, k: usize) -> (i64, i64) {
+        let p = self.pixel[k] as i64;
+        (p % self.width / self.stride, p / self.width / self.stride)
+    }
+
     /// The cached pixel `dx`, `dy` grid steps from cached pixel `k`, if there is one.
     pub fn neighbour(&self, k: usize, dx: i64, dy: i64) -> Option<usize> {
         let p = self.pixel[k] as i64;
