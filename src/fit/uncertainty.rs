@@ -288,6 +288,108 @@ pub fn with_scatter(sigma: &GroupParams, scatter: &GroupParams, n: u32) -> Group
     out
 }
 
+/// The relative 1σ of the light a group sends the others that comes from its own model's
+/// misfit: what its final ε exceeds its noise floor by (`error`, `noise`). A group whose
+/// model leaves 5% of its own pixels unexplained sends light that may be off by as much.
+pub fn model_misfit(error: f32, noise: f32) -> f32 {
+    (error - noise).max(0.0)
+}
+
+/// The relative 1σ of an unseen group's reflectance, and so of the light it sends: its
+/// photo's 1σ where the photo gave one, per channel the worst; where it did not (σ < 0, or
+/// at the cap of 1), that of a reflectance known only to lie in [0, 1], 1/√12.
+pub fn unseen_misfit(rho_d: [f32; 3], sigma: [f32; 3]) -> f32 {
+    let unknown = 1.0 / 12f32.sqrt();
+    (0..3)
+        .map(|c| {
+            let s = if (0.0..1.0).contains(&sigma[c]) {
+                sigma[c].min(unknown)
+            } else {
+                unknown
+            };
+            s / rho_d[c].max(0.05)
+        })
+        .fold(0.0, f32::max)
+}
+
+/// `sigma` widened by the light that reaches the group by way of the others, which is only
+/// as right as their models: with `lit_by[h]` the share of the group's cached light that came
+/// by way of group h and `misfit[h]` the relative 1σ of h's light ([`model_misfit`],
+/// [`unseen_misfit`]; 0 for a light or a group given), the group's light is uncertain by
+/// u = √(Σₕ (lit_byₕ misfitₕ)²) relative, and so are the reflectances fitted to it: ρ's 1σ
+/// gains ρ u in quadrature. The shape of a lobe (α, θ) does not scale with the light.
+/// The group's own share is left out: its misfit is in its own residuals already.
+pub fn with_neighbours(
+    sigma: &GroupParams,
+    params: &GroupParams,
+    group: usize,
+    lit_by: &[f32],
+    misfit: &[f32],
+) -> GroupParams {
+    let u = (lit_by.iter().zip(misfit).enumerate())
+        .filter(|&(h, _)| h != group)
+        .map(|(_, (&x, &m))| (x * m).powi(2))
+        .sum::<f32>()
+        .sqrt();
+    let mut out = *sigma;
+    let add = |s: f32, rho: f32| {
+        if s > 0.0 {
+            s.hypot(rho * u)
+        } else {
+            s
+        }
+    };
+    for c in 0..3 {
+        out.rho_d[c] = add(sigma.rho_d[c], params.rho_d[c]);
+        out.rho_s[c] = add(sigma.rho_s[c], params.rho_s[c]);
+    }
+    out
+}
+
+#[cfg(test)]
+mod neighbour_tests {
+    use super::*;
+
+    /// A wall lit 30% by way of a neighbour whose model misses its pixels by 5% beyond the
+    /// noise, and 4% by way of a ceiling nobody sees: its ρd's 1σ grows to hold both, its own
+    /// share and its α's do not count.
+    #[test]
+    fn light_from_misfit_or_unseen_neighbours_widens_the_reflectances_only() {
+        let params = GroupParams {
+            rho_d: Rgb::new(0.6, 0.5, 0.4),
+            alpha_x: 0.2,
+            ..GroupParams::default()
+        };
+        let sigma = GroupParams {
+            rho_d: Rgb::splat(0.002),
+            alpha_x: 0.01,
+            ..GroupParams::default()
+        };
+        let neighbour = model_misfit(0.08, 0.03);
+        assert!((neighbour - 0.05).abs() < 1e-6);
+        assert_eq!(model_misfit(0.02, 0.03), 0.0);
+        // The ceiling: no estimate from the photo, given ρd 0.4.
+        let ceiling = unseen_misfit([0.4; 3], [-1.0; 3]);
+        assert!((ceiling - 0.2887 / 0.4).abs() < 1e-3, "{ceiling}");
+        // Estimated to ±0.02 of 0.5: 4%.
+        assert!((unseen_misfit([0.5; 3], [0.02; 3]) - 0.04).abs() < 1e-6);
+        let lit_by = [0.5, 0.3, 0.04];
+        let misfit = [0.9, neighbour, ceiling];
+        let wide = with_neighbours(&sigma, &params, 0, &lit_by, &misfit);
+        let u = ((0.3f32 * 0.05).powi(2) + (0.04 * ceiling).powi(2)).sqrt();
+        for c in 0..3 {
+            let want = 0.002f32.hypot(params.rho_d[c] * u);
+            assert!((wide.rho_d[c] - want).abs() < 1e-6, "{c}: {wide:?}");
+        }
+        assert_eq!(wide.alpha_x, 0.01);
+        // Nothing free stays nothing (ρs of a diffuse fit).
+        assert_eq!(wide.rho_s, Rgb::splat(0.0));
+        // Neighbours at their noise floor and seen ceilings change nothing.
+        let same = with_neighbours(&sigma, &params, 0, &lit_by, &[0.9, 0.0, 0.0]);
+        assert_eq!(same.rho_d, sigma.rho_d);
+    }
+}
+
 #[cfg(test)]
 mod weak_lobe_tests {
     use super::*;

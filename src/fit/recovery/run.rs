@@ -571,7 +571,7 @@ impl<'a> RecoveryLoop<'a> {
         } else {
             (synthetic.clone(), a.clone(), b.clone())
         };
-        let final_error = self
+        let final_error: Vec<Option<(f32, f32)>> = self
             .mask
             .pixels_by_group(self.states.len())
             .iter()
@@ -600,6 +600,25 @@ impl<'a> RecoveryLoop<'a> {
         };
         let total_s = self.t0.elapsed().as_secs_f64();
         let mut states = self.states;
+        // How far the light each group sends the others can be trusted: a fitted group's
+        // model as far as its photo shows, an unseen one's reflectance as far as it is known.
+        use crate::fit::uncertainty::{model_misfit, unseen_misfit, with_neighbours};
+        let mut misfit: Vec<f32> = (states.iter().zip(&final_error))
+            .map(|(st, e)| match (st.is_fitted(), e) {
+                (true, Some((error, noise))) => model_misfit(*error, *noise),
+                _ => 0.0,
+            })
+            .collect();
+        for u in &self.unseen {
+            if let Some(m) = misfit.get_mut(u.group) {
+                *m = unseen_misfit(u.rho_d, u.sigma);
+            }
+        }
+        for (g, st) in states.iter_mut().enumerate() {
+            if let Some(sd) = st.sigma.as_mut() {
+                *sd = with_neighbours(sd, &st.params, g, &st.lit_by, &misfit);
+            }
+        }
         for st in states.iter_mut().filter(|s| s.is_fitted()) {
             let weak = st.sigma.as_ref().and_then(|sd| {
                 crate::fit::uncertainty::weak_lobe(st.params_level(), &st.params, sd)
