@@ -496,12 +496,14 @@ def main():
                 print(report(json.load(open(path)), a))
         return
     matfit = find_matfit(a.matfit)
-    import drjit as dr
-    import mitsuba as mi
-    mi.set_variant("llvm_ad_rgb")
-    mi.set_log_level(mi.LogLevel.Error)
-    if a.threads:
-        dr.set_thread_count(a.threads)
+    mi = None
+    if not a.rescore:  # a rescore renders with matfit only
+        import drjit as dr
+        import mitsuba as mi
+        mi.set_variant("llvm_ad_rgb")
+        mi.set_log_level(mi.LogLevel.Error)
+        if a.threads:
+            dr.set_thread_count(a.threads)
     load = open("/proc/loadavg").read().split()[:3]
     git = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
                          capture_output=True, text=True).stdout.strip()
