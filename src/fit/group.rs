@@ -315,17 +315,22 @@ impl GroupState {
     /// Records how far the group's parameters moved in this global iteration (largest ρ change,
     /// or relative α change at the Ward levels) and says whether that holds the scene back.
     /// A group is `Steady` once its move is below `settle`. One whose moves stopped shrinking
-    /// (three or more at its level, this one at least 0.7 of the smaller of the two before it,
-    /// or eight iterations at the level) is `Jittering`: it moves within its own noise (a lobe
-    /// the photo hardly determines) and waiting would not settle it, so it must not block the
-    /// other groups' climbs either. Otherwise it is still `Converging`.
+    /// (three or more at its level since it was last steady, this one not clearly below every
+    /// earlier one: at least 0.7 of the smallest; or eight iterations at the level) is
+    /// `Jittering`: it moves within its own noise (a lobe the photo hardly determines) and
+    /// waiting would not settle it, so it must not block the other groups' climbs either.
+    /// Otherwise it is still `Converging`. The smallest of all, not of the last two: noise
+    /// makes some moves smaller than the one before by chance, and a lobe whose α jumps about
+    /// at random would then count as converging every few iterations: a scene with several
+    /// such lobes settled only when their eight iterations ran out.
     pub fn record_move(&mut self, moved: f32, settle: f32) -> Motion {
-        let n = self.moves.len();
+        // Since it was last steady: a later disturbance (a neighbour's climb) starts anew.
+        let since = self.moves.iter().rposition(|&m| m < settle).map_or(0, |k| k + 1);
+        let n = self.moves.len() - since;
+        let least = self.moves[since..].iter().copied().fold(f32::INFINITY, f32::min);
         let motion = if moved < settle {
             Motion::Steady
-        } else if n >= 2 && moved >= 0.7 * self.moves[n - 1].min(self.moves[n - 2])
-            || self.iterations_at_level >= 8
-        {
+        } else if n >= 2 && moved >= 0.7 * least || self.iterations_at_level >= 8 {
             Motion::Jittering
         } else {
             Motion::Converging
@@ -356,6 +361,14 @@ mod tests {
             .map(|&x| st.record_move(x, 0.03))
             .collect();
         assert_eq!(m[..2], [Motion::Converging, Motion::Converging]);
+        assert!(m[2..].iter().all(|&x| x == Motion::Jittering), "{m:?}");
+        // A lobe whose α jumps by chance to a move smaller than the two before it, but not
+        // clearly below the smallest so far, still jitters.
+        let mut st = GroupState::new("door", Status::Analysing, GroupParams::default());
+        let m: Vec<Motion> = [0.125, 0.115, 0.316, 0.294, 0.103, 1.17]
+            .iter()
+            .map(|&x| st.record_move(x, 0.03))
+            .collect();
         assert!(m[2..].iter().all(|&x| x == Motion::Jittering), "{m:?}");
         let mut st = GroupState::new("wall", Status::Analysing, GroupParams::default());
         let m: Vec<Motion> = [0.4, 0.2, 0.1, 0.05, 0.02]
