@@ -808,10 +808,12 @@ fn rough_conductors_with_eta_and_k_import_as_microfacet_guesses() {
     assert!(close(&floats(&m["alpha"]), &[0.2], 1e-6), "{m}");
 }
 
-/// A smooth `nonlinear` plastic's diffuse part ρ/(1 − ρ·F_int) goes into the guess's ρd as
-/// ρ(1 − F_int)/(1 − ρ·F_int), F_int Mitsuba's fdr_int of the coat (here η = 1.5).
+/// A smooth `plastic` imports as matfit's plastic with the narrowest coat (GGX, the fitter's
+/// least α), ρs = F0; its diffuse part ρ/(1 − F_s), or ρ/(1 − ρ·F_s) when `nonlinear`, goes
+/// into ρd over the rough coat's 1/(1 − F_c): ρd = ρ(1 − F_c)/(1 − F_s) or
+/// ρ(1 − F_c)/(1 − ρ·F_s), F_s Mitsuba's fdr_int of the smooth coat (here η = 1.5).
 #[test]
-fn a_nonlinear_smooth_plastic_folds_its_diffuse_term_into_rho_d() {
+fn a_smooth_plastic_imports_under_the_narrowest_coat() {
     let dir = tempfile::tempdir().unwrap();
     let plastic = |id: &str, nonlinear: bool| {
         format!(
@@ -827,17 +829,127 @@ fn a_nonlinear_smooth_plastic_folds_its_diffuse_term_into_rho_d() {
     );
     let out = dir.path().join("out.toml");
     let warnings = import(&xml, &out);
-    assert!(warnings.contains("(`nonlinear`: each ρ as"), "{warnings}");
+    assert!(
+        warnings.contains("imported as plastic with a GGX coat of α = 0.005"),
+        "{warnings}"
+    );
     let f = toml_of(&out);
-    let f0 = 0.04;
+    for name in ["tub", "sink"] {
+        let m = &object(&f, name)["material"];
+        assert_eq!(m["type"].as_str(), Some("plastic"), "{m}");
+        assert!(close(&floats(&m["rho_s"]), &[0.04], 1e-6), "{m}");
+        assert!(close(&floats(&m["alpha"]), &[0.005], 1e-9), "{m}");
+        assert!(close(&floats(&m["eta"]), &[1.5], 1e-6), "{m}");
+    }
     // Egan and Hilgeman's fit at 1/η, as Mitsuba computes fdr_int.
     let e = 1.0 / 1.5f64;
-    let f_int = -1.4399 * e * e + 0.7099 * e + 0.6681 + 0.0636 / e;
-    let want = (1.0 - f0) * 0.6 * (1.0 - f_int) / (1.0 - 0.6 * f_int);
+    let f_s = -1.4399 * e * e + 0.7099 * e + 0.6681 + 0.0636 / e;
     let tub = floats(&object(&f, "tub")["material"]["rho_d"]);
-    assert!(close(&tub, &[want], 2e-3), "{tub:?} vs {want}");
     let sink = floats(&object(&f, "sink")["material"]["rho_d"]);
-    assert!(close(&sink, &[(1.0 - f0) * 0.6], 1e-6), "{sink:?}");
+    // The linear one gives F_c, which must be near the smooth coat's; the nonlinear one is
+    // the linear one times (1 − F_s)/(1 − ρ·F_s).
+    let f_c = 1.0 - sink[0] * (1.0 - f_s) / 0.6;
+    assert!((f_c - f_s).abs() < 0.02, "F_c {f_c} vs F_s {f_s}");
+    let want = sink[0] * (1.0 - f_s) / (1.0 - 0.6 * f_s);
+    assert!(close(&tub, &[want], 2e-3), "{tub:?} vs {want}");
+}
+
+/// A plastic whose ρd + ρs passes matfit's bound of 1 keeps its coat's ρs (set by η) and
+/// loses the excess from ρd, in the channels over the bound only.
+#[test]
+fn a_bright_plastic_keeps_its_coat_and_lowers_its_base() {
+    let dir = tempfile::tempdir().unwrap();
+    let xml = scene_with(
+        dir.path(),
+        "<shape type=\"rectangle\" id=\"ball\"><bsdf type=\"plastic\">\
+         <float name=\"int_ior\" value=\"1.9\"/><float name=\"ext_ior\" value=\"1\"/>\
+         <rgb name=\"diffuse_reflectance\" value=\"0.94, 0.271, 0.361\"/></bsdf></shape>",
+    );
+    let out = dir.path().join("out.toml");
+    let warnings = import(&xml, &out);
+    assert!(
+        warnings.contains("ρd lowered to 1 − ρs where over"),
+        "{warnings}"
+    );
+    let f = toml_of(&out);
+    let m = &object(&f, "ball")["material"];
+    let f0 = (0.9f64 / 2.9).powi(2);
+    let s = floats(&m["rho_s"]);
+    assert!(s.iter().all(|s| (s - f0).abs() < 1e-6), "{m}");
+    let d = floats(&m["rho_d"]);
+    assert!((d[0] - (1.0 - f0)).abs() < 1e-6, "{m}");
+    // The other channels as the smooth plastic's conversion gives them, above their ρ.
+    assert!(
+        d[1] > 0.271 && d[1] < 0.3 && d[2] > 0.361 && d[2] < 0.4,
+        "{m}"
+    );
+}
+
+/// A smooth `plastic` over a bitmap keeps the texture under the narrowest coat: a linear
+/// one's factor (1 − F_c)/(1 − F_s) as the texture's scale, a `nonlinear` one's texels each
+/// ρ(1 − F_c)/(1 − ρ·F_s) in a copy.
+#[test]
+fn a_textured_smooth_plastic_keeps_its_texture_under_the_coat() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut img = matfit::io::image::Image::new(2, 1);
+    img.set(0, 0, Rgb::splat(0.2));
+    img.set(1, 0, Rgb::new(0.8, 0.6, 0.4));
+    img.write(&d.join("tile.exr")).unwrap();
+    write(
+        d,
+        "tile.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n",
+    );
+    let plastic = |nonlinear: bool| {
+        format!(
+            "<shape type=\"obj\" id=\"tile{nonlinear}\">\
+             <string name=\"filename\" value=\"tile.obj\"/><bsdf type=\"plastic\">\
+             <float name=\"int_ior\" value=\"1.5\"/><float name=\"ext_ior\" value=\"1\"/>\
+             <boolean name=\"nonlinear\" value=\"{nonlinear}\"/>\
+             <texture type=\"bitmap\" name=\"diffuse_reflectance\">\
+             <string name=\"filename\" value=\"tile.exr\"/></texture></bsdf></shape>"
+        )
+    };
+    let xml = scene_with(d, &format!("{}\n{}", plastic(false), plastic(true)));
+    let out = d.join("out.toml");
+    let warnings = import(&xml, &out);
+    assert!(!warnings.contains("texels' mean"), "{warnings}");
+    let f = toml_of(&out);
+    for (name, texture) in [
+        ("tilefalse", "tile.exr"),
+        ("tiletrue", "textures/tile_linear.exr"),
+    ] {
+        let m = &object(&f, name)["material"];
+        assert_eq!(m["type"].as_str(), Some("textured"), "{m}");
+        assert_eq!(m["texture"].as_str(), Some(texture), "{m}");
+        assert!(close(&floats(&m["rho_s"]), &[0.04], 1e-4), "{m}");
+        assert!(close(&floats(&m["alpha"]), &[0.005], 1e-9), "{m}");
+        assert!(close(&floats(&m["eta"]), &[1.5], 1e-6), "{m}");
+    }
+    let e = 1.0 / 1.5f64;
+    let f_s = -1.4399 * e * e + 0.7099 * e + 0.6681 + 0.0636 / e;
+    // The nonlinear copy's first texel gives F_c; the second and the linear scale must agree.
+    let copy = matfit::io::image::read_linear(&d.join("textures/tile_linear.exr")).unwrap();
+    let r0 = copy.get(0, 0).x as f64;
+    let f_c = 1.0 - r0 * (1.0 - 0.2 * f_s) / 0.2;
+    assert!((f_c - f_s).abs() < 0.02, "F_c {f_c} vs F_s {f_s}");
+    let got = copy.get(1, 0);
+    for (g, rho) in [(got.x, 0.8), (got.y, 0.6), (got.z, 0.4)] {
+        let want = rho * (1.0 - f_c) / (1.0 - rho * f_s);
+        assert!((g as f64 - want).abs() < 2e-3, "{got} vs {want}");
+    }
+    let scale = floats(&object(&f, "tilefalse")["material"]["scale"]);
+    let want = (1.0 - f_c) / (1.0 - f_s);
+    assert!(
+        scale.iter().all(|s| (s - want).abs() < 2e-3),
+        "{scale:?} vs {want}"
+    );
+    let scene = load_scene(&out).unwrap();
+    assert!(scene
+        .objects
+        .iter()
+        .all(|o| matches!(o.material, Material::TexturedPlastic { .. })));
 }
 
 /// An XML scene around `body`, its camera 5 units up +z looking at the origin, written to

@@ -99,9 +99,11 @@
 //!   each), with ρs from Fresnel reflectance at normal incidence F0: conductors with eta/k (or a named metal, from a small
 //!   table) → mirror ρs = F0·specular_reflectance; `roughconductor` → microfacet of its
 //!   distribution (Ward for another) ρd 0, ρs as the conductor, α = alpha (αx, αy = alpha_u,
-//!   alpha_v; Beckmann's and Ward's α are the same slope width); `plastic` → diffuse_mirror with F0 = ((η−1)/(η+1))², η = int_ior/ext_ior,
-//!   ρs = F0·specular_reflectance, ρd = (1−F0)·diffuse_reflectance (a texture: its mean;
-//!   `nonlinear` folded in as for `roughplastic`, with the smooth coat's F_int);
+//!   alpha_v; Beckmann's and Ward's α are the same slope width); `plastic` → plastic with a
+//!   GGX coat of the fitter's least α for the smooth one (matfit's coats are rough), η and ρs
+//!   as for `roughplastic`, ρd = ρ(1 − F_c)/(1 − F_s) (F_s: ρ·F_s when `nonlinear`), F_c the
+//!   rough coat's internal reflectance, F_s the smooth one's; a bitmap stays a texture, under
+//!   the coat;
 //!   `principled` →
 //!   Ward α = roughness², F0 = 0.08·specular blended to base_color by metallic,
 //!   ρd = (1−metallic)(1−F0)·base_color. Anything else
@@ -240,9 +242,9 @@ struct Ctx<'a> {
     warned: HashSet<(usize, &'static str)>,
     /// Re-oriented copies of textures: (source path, orientation) → the copy's path.
     reoriented: HashMap<(String, Orient), String>,
-    /// A nonlinear plastic's texture, each texel ρ taken to ρ(1 − F_int)/(1 − ρ·F_int): by source
-    /// path and F_int's bits, the copy's path.
-    linearised: HashMap<(String, u64), String>,
+    /// A nonlinear plastic's texture, each texel ρ taken to ρ(1 − F_c)/(1 − ρ·F_s): by source
+    /// path and the two F's bits, the copy's path.
+    linearised: HashMap<(String, u64, u64), String>,
     /// The copies' images, to be written next to the scene file.
     textures: Vec<(String, crate::io::image::Image)>,
     /// Meshes the import made (serialized meshes, disks), to be written next to the scene file.
@@ -250,7 +252,7 @@ struct Ctx<'a> {
     /// Textures the import made, by the element (and what) they were made for: a texture or
     /// BSDF shared by many shapes is made once.
     made: HashMap<((usize, usize), &'static str), String>,
-    /// Textures' means, by path (and the nonlinear plastic's F_int they were taken with).
+    /// Textures' means, by path.
     means: HashMap<String, DVec3>,
     /// Property elements read, and the elements whose properties were read (by [`key`]): a
     /// property of a read element that nothing read is reported, never dropped in silence.
@@ -747,36 +749,30 @@ impl<'a> Ctx<'a> {
             .map_err(|e| self.err(n, format!("texture: {e}")))
     }
 
+    /// The mean of a texture's texels; kept, as shared BSDFs ask again.
     fn texture_mean(&mut self, n: N<'a>, path: &str) -> Result<DVec3, String> {
-        self.texture_mean_of(n, path, None)
-    }
-
-    /// The mean of a texture's texels, each first taken to ρ(1 − f)/(1 − ρ·f) when `f` is given
-    /// (a nonlinear plastic's diffuse part as the linear one's); kept, as shared BSDFs ask again.
-    fn texture_mean_of(&mut self, n: N<'a>, path: &str, f: Option<f64>) -> Result<DVec3, String> {
-        let cache = format!("{path}|{f:?}");
-        if let Some(m) = self.means.get(&cache) {
+        if let Some(m) = self.means.get(path) {
             return Ok(*m);
         }
         let i = self.texture_image(n, path)?;
-        let g = |r: f64| f.map_or(r, |f| r * (1.0 - f) / (1.0 - r * f));
         let sum = i.data.iter().fold(DVec3::ZERO, |a, c| {
-            a + DVec3::new(g(c.x as f64), g(c.y as f64), g(c.z as f64))
+            a + DVec3::new(c.x as f64, c.y as f64, c.z as f64)
         });
         let mean = sum / (i.data.len().max(1) as f64);
-        self.means.insert(cache, mean);
+        self.means.insert(path.to_string(), mean);
         Ok(mean)
     }
 
-    /// A copy of the texture at `path` with each texel ρ taken to ρ(1 − f)/(1 − ρ·f): a
-    /// nonlinear plastic's base as the linear one's, as a linear EXR in `textures/`.
-    fn linearised(&mut self, n: N<'a>, path: &str, f: f64) -> Result<String, String> {
-        let key = (path.to_string(), f.to_bits());
+    /// A copy of the texture at `path` with each texel ρ taken to ρ(1 − f_c)/(1 − ρ·f_s): a
+    /// nonlinear plastic's base as matfit's coat's (f_c its internal reflectance, f_s the
+    /// plastic's; the same for a `roughplastic`), as a linear EXR in `textures/`.
+    fn linearised(&mut self, n: N<'a>, path: &str, f_c: f64, f_s: f64) -> Result<String, String> {
+        let key = (path.to_string(), f_c.to_bits(), f_s.to_bits());
         if let Some(p) = self.linearised.get(&key) {
             return Ok(p.clone());
         }
         let mut image = self.texture_image(n, path)?;
-        let g = |r: f32| (r as f64 * (1.0 - f) / (1.0 - r as f64 * f)) as f32;
+        let g = |r: f32| (r as f64 * (1.0 - f_c) / (1.0 - r as f64 * f_s)) as f32;
         for t in image.data.iter_mut() {
             *t = crate::math::Rgb::new(g(t.x), g(t.y), g(t.z));
         }
@@ -1317,10 +1313,17 @@ impl<'a> Ctx<'a> {
             h = size(self, "height", h)?;
             match Self::children(f).find(|c| c.tag_name().name() == "rfilter") {
                 Some(r) if self.attr(r, "type")?.as_deref() == Some("box") => {}
-                Some(r) => self.warn(r, "pixel filter is not a box: matfit's is"),
+                // A wider filter blurs a sharp highlight or edge into the pixels beside it,
+                // which matfit's box keeps out: pixels there differ, and the image with them.
+                Some(r) => self.warn(
+                    r,
+                    "pixel filter is not a box: matfit's is (Mitsuba's spreads a sharp \
+                     highlight or edge into neighbouring pixels)",
+                ),
                 None => self.warn(
                     f,
-                    "no rfilter: Mitsuba's default is gaussian, matfit's pixel filter is a box",
+                    "no rfilter: Mitsuba's default is gaussian, matfit's pixel filter is a box \
+                     (Mitsuba's spreads a sharp highlight or edge into neighbouring pixels)",
                 ),
             }
             if self.prop(f, "crop_width")?.is_some() || self.prop(f, "crop_offset_x")?.is_some() {
@@ -2054,7 +2057,7 @@ impl<'a> Ctx<'a> {
                         // Exact: the texture (nonlinear folded into a copy, per texel) under
                         // matfit's coat.
                         let texture = if nonlinear {
-                            self.linearised(b, &texture, f_int)?
+                            self.linearised(b, &texture, f_int, f_int)?
                         } else {
                             texture
                         };
@@ -2090,66 +2093,57 @@ impl<'a> Ctx<'a> {
                 }
             }
             "plastic" => {
+                // matfit's coats are rough: the smooth one becomes the narrowest GGX coat the
+                // fitter reaches (α = ALPHA_MIN), which keeps the coat's Fresnel reflection,
+                // rising toward grazing, and the base's (1 − F) falloff at both ends. Mitsuba's
+                // diffuse part is ρ/(1 − F_s)·(1 − F(θi))(1 − F(θo))/(π η²), with ρ·F_s in
+                // place of F_s when `nonlinear`, F_s the smooth coat's fdr_int; matfit's is
+                // ρd/(1 − F_c)·t(θi) t(θo)/(π η²), F_c its own coat's, t ≈ 1 − F. So
+                // ρd = ρ(1 − F_c)/(1 − F_s), or ρ(1 − F_c)/(1 − ρ·F_s).
                 let eta = self.ior_ratio(b)?;
-                let f0 = ((eta - 1.0) / (eta + 1.0)).powi(2);
-                // A nonlinear plastic's diffuse part ρ/(1 − ρ·F_int) is the linear one's with
-                // ρ' = ρ (1 − F_int)/(1 − ρ·F_int), as for `roughplastic`.
+                let alpha = crate::fit::params::ALPHA_MIN;
+                let coat = crate::render::bsdf::Coat::get(alpha, eta as f32, Distribution::Ggx);
+                let f0 = coat.f0 as f64;
                 let nonlinear = self.boolean(b, "nonlinear")?;
-                let f_int = smooth_internal_reflectance(eta);
+                let f_s = smooth_internal_reflectance(eta);
+                let f_c = coat_internal_reflectance(coat);
                 let linear = |rho: f64| {
-                    if nonlinear {
-                        rho * (1.0 - f_int) / (1.0 - rho * f_int)
-                    } else {
-                        rho
-                    }
+                    rho * (1.0 - f_c) / (1.0 - if nonlinear { rho * f_s } else { f_s })
                 };
                 guess(
                     self,
                     &format!(
-                        "diffuse_mirror with F0 = ((η−1)/(η+1))² = {f0:.4}, ρs = F0 × \
-                         specular_reflectance, ρd = (1 − F0) × diffuse_reflectance{}",
-                        if nonlinear {
-                            format!(
-                                " (`nonlinear`: each ρ as ρ(1 − F_int)/(1 − ρ·F_int), F_int = \
-                                 {f_int:.4})"
-                            )
-                        } else {
-                            String::new()
-                        }
+                        "plastic with a GGX coat of α = {alpha} for its smooth one (matfit's \
+                         coats are rough; the reflection is that wide, and dims a little \
+                         toward grazing), ρs = F0 × specular_reflectance, F0 = {f0:.4}, \
+                         ρd = ρ(1 − F_c)/(1 − {}F_s), F_c = {f_c:.4} the rough coat's internal \
+                         reflectance, F_s = {f_s:.4} the smooth one's",
+                        if nonlinear { "ρ·" } else { "" }
                     ),
                 );
                 let s = self.rgb(b, "specular_reflectance", 1.0)? * f0;
+                let lobes = |d: DVec3, texture: Option<String>| Lobes {
+                    d,
+                    s,
+                    alpha: Some((alpha as f64, alpha as f64)),
+                    texture,
+                    plastic: Some((eta, Distribution::Ggx)),
+                    ..Default::default()
+                };
                 match self.color(b, "diffuse_reflectance")? {
-                    Some(Err(texture)) => {
-                        let mean = self.texture_mean_of(b, &texture, nonlinear.then_some(f_int))?;
-                        self.warn(
-                            b,
-                            format!(
-                                "{} with a textured diffuse_reflectance ({texture}): ρd from the \
-                                 texels' mean ({:.4}, {:.4}, {:.4}); the texture's variation is \
-                                 lost",
-                                self.describe(b),
-                                mean.x,
-                                mean.y,
-                                mean.z
-                            ),
-                        );
-                        Lobes {
-                            d: mean * (1.0 - f0),
-                            s,
-                            ..Default::default()
-                        }
+                    // The texture under the coat: a nonlinear one's texels go into a copy, a
+                    // linear one's factor is the texture's scale.
+                    Some(Err(texture)) if nonlinear => {
+                        let texture = self.linearised(b, &texture, f_c, f_s)?;
+                        lobes(DVec3::ONE, Some(texture))
                     }
+                    Some(Err(texture)) => lobes(DVec3::splat(linear(1.0)), Some(texture)),
                     d => {
                         let d = match d {
                             Some(Ok(c)) => c,
                             _ => DVec3::splat(0.5),
                         };
-                        Lobes {
-                            d: DVec3::new(linear(d.x), linear(d.y), linear(d.z)) * (1.0 - f0),
-                            s,
-                            ..Default::default()
-                        }
+                        lobes(DVec3::new(linear(d.x), linear(d.y), linear(d.z)), None)
                     }
                 }
             }
@@ -2361,7 +2355,18 @@ impl<'a> Ctx<'a> {
         let mut s = l.s.max(DVec3::ZERO);
         let sum = (d + s).max_element();
         // (A texture's d is a factor on its texels, not a reflectance.)
-        if sum > 1.0 + 1e-6 && l.texture.is_none() {
+        if sum > 1.0 + 1e-6 && l.texture.is_none() && l.plastic.is_some() {
+            // A plastic's ρs is its coat's Fresnel reflection, set by η, and its base may
+            // reflect up to 1 under it; matfit's bound ρd + ρs ≤ 1 is met by lowering ρd alone.
+            self.warn(
+                b,
+                format!(
+                    "ρd + ρs reaches {sum:.4} > 1, matfit's bound (a plastic's base under its \
+                     coat may reach it): ρd lowered to 1 − ρs where over, ρs kept"
+                ),
+            );
+            d = d.min(DVec3::ONE - s);
+        } else if sum > 1.0 + 1e-6 && l.texture.is_none() {
             self.warn(
                 b,
                 format!("ρd + ρs reaches {sum:.4} > 1 (more light out than in): scaled to 1"),
@@ -2620,6 +2625,27 @@ mod tests {
             let fit = -1.4399 * e * e + 0.7099 * e + 0.6681 + 0.0636 / e;
             let got = smooth_internal_reflectance(eta);
             assert!((got / fit - 1.0).abs() < 1.5e-3, "η {eta}: {got} vs {fit}");
+        }
+    }
+
+    /// The rough coat a smooth `plastic` imports as lets through what the smooth coat does,
+    /// 1 − F(μ), away from grazing, and reflects back from inside about as much: so its ρd
+    /// (which divides out the two internal reflectances) gives Mitsuba's diffuse part.
+    #[test]
+    fn the_narrowest_coat_stands_in_for_a_smooth_one() {
+        for eta in [1.33f32, 1.5] {
+            let alpha = crate::fit::params::ALPHA_MIN;
+            let coat = crate::render::bsdf::Coat::get(alpha, eta, Distribution::Ggx);
+            for mu in [0.2f32, 0.4, 0.6, 0.8, 1.0] {
+                let smooth = 1.0 - crate::render::bsdf::plastic::fresnel_dielectric(mu, eta);
+                let t = coat.transmittance(mu);
+                assert!((t / smooth - 1.0).abs() < 5e-3, "η {eta}, μ {mu}: {t} vs {smooth}");
+            }
+            let (f_c, f_s) = (
+                coat_internal_reflectance(coat),
+                smooth_internal_reflectance(eta as f64),
+            );
+            assert!((f_c - f_s).abs() < 0.02, "η {eta}: {f_c} vs {f_s}");
         }
     }
 
