@@ -188,7 +188,12 @@ impl TexelRows {
 /// pixels away, `stride` the smallest step between cached pixels of a row (1 for a cache of
 /// whole blocks, `build::choose_pixels`).
 pub struct PixelGrid {
-    at: std::collections::HashMap<u32, usize>,
+    /// Per image pixel from `first` on (up to the last cached one), the index of the cached
+    /// pixel there plus one, 0 where none is: a lookup is one load, where a hash map of the
+    /// cached pixels hashed every neighbour asked for (the texture test and the irradiance
+    /// smoothing ask for 8 to 24 per pixel, for every cache with texel rows).
+    at: Vec<u32>,
+    first: u32,
     pixel: Vec<u32>,
     width: i64,
     /// Image pixels between neighbouring cached pixels.
@@ -205,12 +210,16 @@ impl PixelGrid {
             .min()
             .unwrap_or(1)
             .max(1);
+        let first = pixels.iter().map(|p| p.pixel).min().unwrap_or(0);
+        let last = pixels.iter().map(|p| p.pixel).max().unwrap_or(0);
+        let mut at = vec![0u32; if pixels.is_empty() { 0 } else { (last - first) as usize + 1 }];
+        // A pixel listed twice is found at its last index, as a map built in this order finds it.
+        for (k, p) in pixels.iter().enumerate() {
+            at[(p.pixel - first) as usize] = k as u32 + 1;
+        }
         PixelGrid {
-            at: pixels
-                .iter()
-                .enumerate()
-                .map(|(k, p)| (p.pixel, k))
-                .collect(),
+            at,
+            first,
             pixel: pixels.iter().map(|p| p.pixel).collect(),
             width: width.max(1) as i64,
             stride,
@@ -233,7 +242,12 @@ impl PixelGrid {
         if x < 0 || y < 0 || x >= self.width {
             return None;
         }
-        self.at.get(&((y * self.width + x) as u32)).copied()
+        let q = (y * self.width + x) as u32;
+        let slot = q.checked_sub(self.first)? as usize;
+        match self.at.get(slot) {
+            Some(&k) if k > 0 => Some(k as usize - 1),
+            _ => None,
+        }
     }
 }
 
@@ -451,4 +465,64 @@ pub(crate) fn synthetic_cache(
     }
     cache.samples = samples.into();
     cache
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The neighbours as a hash map of the cached pixels finds them (the grid's former form).
+    fn neighbour_by_map(pixels: &[CachePixel], grid: &PixelGrid, k: usize, dx: i64, dy: i64) -> Option<usize> {
+        let at: std::collections::HashMap<u32, usize> =
+            pixels.iter().enumerate().map(|(k, p)| (p.pixel, k)).collect();
+        let p = pixels[k].pixel as i64;
+        let (x, y) = (p % grid.width + dx * grid.stride, p / grid.width + dy * grid.stride);
+        if x < 0 || y < 0 || x >= grid.width {
+            return None;
+        }
+        at.get(&((y * grid.width + x) as u32)).copied()
+    }
+
+    #[test]
+    fn the_grid_finds_the_neighbours_a_map_of_the_pixels_finds() {
+        let width = 37usize;
+        // Whole blocks, a strided lattice, and scattered pixels near the image's edges.
+        let sets: Vec<Vec<u32>> = vec![
+            (0..width as u32 * 20).filter(|p| (p % 37) % 8 < 5 && (p / 37) % 8 < 5).collect(),
+            (0..width as u32 * 30).filter(|p| (p % 37) % 3 == 1 && (p / 37) % 3 == 2).collect(),
+            vec![0, 1, 36, 37, 38, 73, 74, 500, 501, 1100],
+            vec![400],
+            Vec::new(),
+        ];
+        for set in sets {
+            let pixels: Vec<CachePixel> = set
+                .iter()
+                .map(|&p| CachePixel {
+                    pixel: p,
+                    photo: Rgb::ZERO,
+                    d: Rgb::ZERO,
+                    d_half: [Rgb::ZERO; 2],
+                    mirror: Rgb::ZERO,
+                    mirror_half: [Rgb::ZERO; 2],
+                    start: 0,
+                    mid: 0,
+                    end: 0,
+                    tile: 0,
+                })
+                .collect();
+            let grid = PixelGrid::new(&pixels, width);
+            for k in 0..pixels.len() {
+                for dy in -3..=3 {
+                    for dx in -3..=3 {
+                        assert_eq!(
+                            grid.neighbour(k, dx, dy),
+                            neighbour_by_map(&pixels, &grid, k, dx, dy),
+                            "pixel {} step ({dx}, {dy})",
+                            pixels[k].pixel
+                        );
+                    }
+                }
+            }
+        }
+    }
 }
