@@ -892,45 +892,10 @@ fn a_bright_plastic_keeps_its_coat_and_lowers_its_base() {
 fn a_textured_smooth_plastic_keeps_its_texture_under_the_coat() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let mut img = matfit::io::image::Image::new(2, 1);
-    img.set(0, 0, Rgb::splat(0.2));
-    img.set(1, 0, Rgb::new(0.8, 0.6, 0.4));
-    img.write(&d.join("tile.exr")).unwrap();
-    write(
-        d,
-        "tile.obj",
-        "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n",
-    );
-    let plastic = |nonlinear: bool| {
-        format!(
-            "<shape type=\"obj\" id=\"tile{nonlinear}\">\
-             <string name=\"filename\" value=\"tile.obj\"/><bsdf type=\"plastic\">\
-             <float name=\"int_ior\" value=\"1.5\"/><float name=\"ext_ior\" value=\"1\"/>\
-             <boolean name=\"nonlinear\" value=\"{nonlinear}\"/>\
-             <texture type=\"bitmap\" name=\"diffuse_reflectance\">\
-             <string name=\"filename\" value=\"tile.exr\"/></texture></bsdf></shape>"
-        )
-    };
-    let xml = scene_with(d, &format!("{}\n{}", plastic(false), plastic(true)));
-    let out = d.join("out.toml");
-    let warnings = import(&xml, &out);
-    assert!(!warnings.contains("texels' mean"), "{warnings}");
-    let f = toml_of(&out);
-    for (name, texture) in [
-        ("tilefalse", "tile.exr"),
-        ("tiletrue", "textures/tile_linear.exr"),
-    ] {
-        let m = &object(&f, name)["material"];
-        assert_eq!(m["type"].as_str(), Some("textured"), "{m}");
-        assert_eq!(m["texture"].as_str(), Some(texture), "{m}");
-        assert!(close(&floats(&m["rho_s"]), &[0.04], 1e-4), "{m}");
-        assert!(close(&floats(&m["alpha"]), &[0.005], 1e-9), "{m}");
-        assert!(close(&floats(&m["eta"]), &[1.5], 1e-6), "{m}");
-    }
+    let (f, copy) = textured_plastic_pair(d, "tile", "<bsdf type=\"plastic\">", (0.005, 1e-9));
     let e = 1.0 / 1.5f64;
     let f_s = -1.4399 * e * e + 0.7099 * e + 0.6681 + 0.0636 / e;
     // The nonlinear copy's first texel gives F_c; the second and the linear scale must agree.
-    let copy = matfit::io::image::read_linear(&d.join("textures/tile_linear.exr")).unwrap();
     let r0 = copy.get(0, 0).x as f64;
     let f_c = 1.0 - r0 * (1.0 - 0.2 * f_s) / 0.2;
     assert!((f_c - f_s).abs() < 0.02, "F_c {f_c} vs F_s {f_s}");
@@ -945,11 +910,62 @@ fn a_textured_smooth_plastic_keeps_its_texture_under_the_coat() {
         scale.iter().all(|s| (s - want).abs() < 2e-3),
         "{scale:?} vs {want}"
     );
+}
+
+/// Two shapes over the 2×1 texture `NAME.exr` (texels ρ 0.2 and (0.8, 0.6, 0.4)) under the
+/// plastic `bsdf` (its opening tag and properties), one linear, one `nonlinear`, imported. Each
+/// must come out textured (the linear one over the image itself, the nonlinear one over a
+/// converted copy) with ρs 0.04, the coat's α (`alpha`: value, tolerance) and η 1.5, without
+/// falling back to the texels' mean, and the scene must load as textured plastics. Returns the
+/// imported file and the nonlinear one's copy.
+fn textured_plastic_pair(
+    d: &Path,
+    name: &str,
+    bsdf: &str,
+    alpha: (f64, f64),
+) -> (toml::Value, matfit::io::image::Image) {
+    let mut img = matfit::io::image::Image::new(2, 1);
+    img.set(0, 0, Rgb::splat(0.2));
+    img.set(1, 0, Rgb::new(0.8, 0.6, 0.4));
+    img.write(&d.join(format!("{name}.exr"))).unwrap();
+    write(
+        d,
+        &format!("{name}.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n",
+    );
+    let shape = |nonlinear: bool| {
+        format!(
+            "<shape type=\"obj\" id=\"{name}{nonlinear}\">\
+             <string name=\"filename\" value=\"{name}.obj\"/>{bsdf}\
+             <float name=\"int_ior\" value=\"1.5\"/><float name=\"ext_ior\" value=\"1\"/>\
+             <boolean name=\"nonlinear\" value=\"{nonlinear}\"/>\
+             <texture type=\"bitmap\" name=\"diffuse_reflectance\">\
+             <string name=\"filename\" value=\"{name}.exr\"/></texture></bsdf></shape>"
+        )
+    };
+    let xml = scene_with(d, &format!("{}\n{}", shape(false), shape(true)));
+    let out = d.join("out.toml");
+    let warnings = import(&xml, &out);
+    assert!(!warnings.contains("texels' mean"), "{warnings}");
+    let f = toml_of(&out);
+    let copy = format!("textures/{name}_linear.exr");
+    for (id, texture) in [
+        (format!("{name}false"), format!("{name}.exr")),
+        (format!("{name}true"), copy.clone()),
+    ] {
+        let m = &object(&f, &id)["material"];
+        assert_eq!(m["type"].as_str(), Some("textured"), "{m}");
+        assert_eq!(m["texture"].as_str(), Some(texture.as_str()), "{m}");
+        assert!(close(&floats(&m["rho_s"]), &[0.04], 1e-4), "{m}");
+        assert!(close(&floats(&m["alpha"]), &[alpha.0], alpha.1), "{m}");
+        assert!(close(&floats(&m["eta"]), &[1.5], 1e-6), "{m}");
+    }
     let scene = load_scene(&out).unwrap();
     assert!(scene
         .objects
         .iter()
         .all(|o| matches!(o.material, Material::TexturedPlastic { .. })));
+    (f, matfit::io::image::read_linear(&d.join(copy)).unwrap())
 }
 
 /// An XML scene around `body`, its camera 5 units up +z looking at the origin, written to
@@ -1405,46 +1421,14 @@ fn checkerboards_import_as_textures_drawn_as_mitsuba_evaluates_them() {
 #[test]
 fn textured_rough_plastics_import_as_the_texture_under_the_coat() {
     let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let mut img = matfit::io::image::Image::new(2, 1);
-    img.set(0, 0, Rgb::splat(0.2));
-    img.set(1, 0, Rgb::new(0.8, 0.6, 0.4));
-    img.write(&d.join("wood.exr")).unwrap();
-    let plastic = |nonlinear: bool| {
-        format!(
-            "<shape type=\"obj\" id=\"floor{nonlinear}\">\
-             <string name=\"filename\" value=\"floor.obj\"/>\
-             <bsdf type=\"roughplastic\"><float name=\"alpha\" value=\"0.1\"/>\
-             <string name=\"distribution\" value=\"ggx\"/>\
-             <float name=\"int_ior\" value=\"1.5\"/><float name=\"ext_ior\" value=\"1\"/>\
-             <boolean name=\"nonlinear\" value=\"{nonlinear}\"/>\
-             <texture type=\"bitmap\" name=\"diffuse_reflectance\">\
-             <string name=\"filename\" value=\"wood.exr\"/></texture></bsdf></shape>"
-        )
-    };
-    write(
-        d,
-        "floor.obj",
-        "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n",
+    let (_, copy) = textured_plastic_pair(
+        dir.path(),
+        "wood",
+        "<bsdf type=\"roughplastic\"><float name=\"alpha\" value=\"0.1\"/>\
+         <string name=\"distribution\" value=\"ggx\"/>",
+        (0.1, 1e-6),
     );
-    let xml = scene_with(d, &format!("{}\n{}", plastic(false), plastic(true)));
-    let out = d.join("out.toml");
-    let warnings = import(&xml, &out);
-    assert!(!warnings.contains("texels' mean"), "{warnings}");
-    let f = toml_of(&out);
-    for (name, texture) in [
-        ("floorfalse", "wood.exr"),
-        ("floortrue", "textures/wood_linear.exr"),
-    ] {
-        let m = &object(&f, name)["material"];
-        assert_eq!(m["type"].as_str(), Some("textured"), "{m}");
-        assert_eq!(m["texture"].as_str(), Some(texture), "{m}");
-        assert!(close(&floats(&m["rho_s"]), &[0.04], 1e-4), "{m}");
-        assert!(close(&floats(&m["alpha"]), &[0.1], 1e-6), "{m}");
-        assert!(close(&floats(&m["eta"]), &[1.5], 1e-6), "{m}");
-    }
     // Nonlinear: every texel ρ(1 − F)/(1 − ρF) with one F (the coat's), found from the first.
-    let copy = matfit::io::image::read_linear(&d.join("textures/wood_linear.exr")).unwrap();
     let r0 = copy.get(0, 0).x as f64;
     let f_int = (0.2 - r0) / (0.2 * (1.0 - r0));
     assert!(f_int > 0.3 && f_int < 0.8, "{f_int}");
@@ -1453,12 +1437,6 @@ fn textured_rough_plastics_import_as_the_texture_under_the_coat() {
         let want = rho * (1.0 - f_int) / (1.0 - rho * f_int);
         assert!((g as f64 - want).abs() < 1e-5, "{got} vs {want}");
     }
-    // The scene loads, and the floor is a plastic over the texture.
-    let scene = load_scene(&out).unwrap();
-    assert!(scene
-        .objects
-        .iter()
-        .all(|o| matches!(o.material, Material::TexturedPlastic { .. })));
 }
 
 /// A plastic over a uniform texture renders as the plastic of that ρd: the same image, same

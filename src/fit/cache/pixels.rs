@@ -495,21 +495,8 @@ mod tests {
             Vec::new(),
         ];
         for set in sets {
-            let pixels: Vec<CachePixel> = set
-                .iter()
-                .map(|&p| CachePixel {
-                    pixel: p,
-                    photo: Rgb::ZERO,
-                    d: Rgb::ZERO,
-                    d_half: [Rgb::ZERO; 2],
-                    mirror: Rgb::ZERO,
-                    mirror_half: [Rgb::ZERO; 2],
-                    start: 0,
-                    mid: 0,
-                    end: 0,
-                    tile: 0,
-                })
-                .collect();
+            let pixels: Vec<CachePixel> =
+                set.iter().map(|&p| CachePixel::bare(p, Rgb::ZERO)).collect();
             let grid = PixelGrid::new(&pixels, width);
             for k in 0..pixels.len() {
                 for dy in -3..=3 {
