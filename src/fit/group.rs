@@ -321,8 +321,8 @@ impl GroupState {
     /// waiting would not settle it, so it must not block the other groups' climbs either.
     /// Otherwise it is still `Converging`. The smallest of all, not of the last two: noise
     /// makes some moves smaller than the one before by chance, and a lobe whose α jumps about
-    /// at random would then count as converging every few iterations: a scene with several
-    /// such lobes settled only when their eight iterations ran out.
+    /// at random would then count as converging every few iterations, holding the scene back
+    /// until its eight iterations ran out.
     pub fn record_move(&mut self, moved: f32, settle: f32) -> Motion {
         // Since it was last steady: a later disturbance (a neighbour's climb) starts anew.
         let since = self.moves.iter().rposition(|&m| m < settle).map_or(0, |k| k + 1);
