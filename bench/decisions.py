@@ -36,7 +36,12 @@ Per scene:
   * (d) ±2σ coverage: over every parameter channel with a truth value (truth.json; for the
     bundled scenes the scene file's materials), the share with |estimate − truth| ≤ 2σ (σ from
     results.json); σ null ("not determined") and parameters the recovered model lacks are
-    counted apart and left out of the share;
+    counted apart and left out of the share. That compares a diffuse fit's ρd with a
+    plastic's base as if they were the same quantity; two more columns do not: "truth's
+    level" scores only the groups recovered at their truth's level, and "albedo" scores every
+    uniform group's directional albedo at 0° and 60° (results.json's `albedo`, with its 1σ)
+    against the true BSDF's (truth.json, from Mitsuba: `generate.py --albedos-only DIR` adds
+    it to an older folder) -- the quantity every model has, matfit's or not;
   * (e) the recovery's wall time (and results.json's timing).
 Prints a markdown table per scene and writes it to --md (default OUT/DECISIONS.md).
 """
@@ -250,13 +255,17 @@ def psnr(a, b):
 # ---- (d) coverage
 
 
-def coverage(truth_groups, res_groups):
-    """(covered, scored, not determined, absent, per-group notes)."""
+def coverage(truth_groups, res_groups, same_level=False):
+    """(covered, scored, not determined, absent, per-group notes). With `same_level`, only
+    the groups recovered at their truth's own level (truth.json's `level`), whose parameters
+    mean what the truth's do."""
     cov = scored = undet = absent = 0
     rows = {}
     for g, t in truth_groups.items():
         r = res_groups.get(g)
         if r is None:
+            continue
+        if same_level and (t.get("level") is None or t.get("level") != r.get("level_number")):
             continue
         params, sigma = r.get("params") or {}, r.get("sigma") or {}
         pairs = []
@@ -290,6 +299,34 @@ def coverage(truth_groups, res_groups):
         cov, scored, undet, absent = cov + c, scored + s, undet + u, absent + a
         rows[g] = (c, s, u, a)
     return cov, scored, undet, absent, rows
+
+
+def albedo_coverage(truth_groups, res_groups):
+    """±2σ coverage of the directional albedo at 0° and 60° per channel (results.json's
+    `albedo` against truth.json's `albedo_0deg` / `albedo_60deg`, which Mitsuba computes from
+    the true BSDF), over every uniform fitted group whatever its level: (covered, scored, not
+    determined, per-group (covered, scored, not determined))."""
+    cov = scored = undet = 0
+    rows = {}
+    for g, t in truth_groups.items():
+        r = res_groups.get(g)
+        if (r is None or t.get("texture") or "textured" in str(t.get("model", ""))
+                or r.get("status") in ("light", "fixed") or not r.get("albedo")
+                or t.get("albedo_0deg") is None or t.get("albedo_60deg") is None):
+            continue
+        ra = r["albedo"]
+        c = s = u = 0
+        for tv, ev, sv in zip(t["albedo_0deg"] + t["albedo_60deg"],
+                              ra["normal"] + ra["at_60deg"],
+                              ra["sigma_normal"] + ra["sigma_60deg"]):
+            if sv is None:
+                u += 1
+            else:
+                s += 1
+                c += abs(ev - tv) <= 2 * sv
+        cov, scored, undet = cov + c, scored + s, undet + u
+        rows[g] = (c, s, u)
+    return cov, scored, undet, rows
 
 
 # ---- one scene
@@ -371,7 +408,9 @@ def score_seed(matfit, work, s, wall, truth, names, ids, true_albedo, nov1, a):
     return {"seed": s, "wall": wall, "timing": res.get("timing"), "novel": novel_l1,
             "levels": {g: groups[g].get("level") for g in groups},
             "status": {g: groups[g].get("status") for g in groups},
-            "tex": tex, "coverage": coverage(truth["groups"], groups)}
+            "tex": tex, "coverage": coverage(truth["groups"], groups),
+            "coverage_same": coverage(truth["groups"], groups, same_level=True),
+            "coverage_albedo": albedo_coverage(truth["groups"], groups)}
 
 
 def rescore(name, a, matfit):
@@ -419,21 +458,26 @@ def report(r, a):
              f"scene total {r['total_s'] / 60:.1f} min.")
     L.append("")
     L.append("| seed | recover (s) | novel L1 | noise floor | ±2σ coverage | not determined | "
-             "absent |")
-    L.append("|---|---|---|---|---|---|---|")
+             "absent | ±2σ, truth's level | ±2σ albedo |")
+    L.append("|---|---|---|---|---|---|---|---|---|")
+
+    def share(c):
+        return (f"{100 * c[0] / c[1]:.0f}% ({c[0]}/{c[1]})" if c[1] else "–") + (
+            f" +{c[2]}u" if len(c) > 2 and c[2] else "")
     for s in seeds:
         c = s["coverage"]
-        share = f"{100 * c[0] / c[1]:.0f}% ({c[0]}/{c[1]})" if c[1] else "–"
+        same = share(s["coverage_same"][:3]) if s.get("coverage_same") else "–"
+        alb = share(s["coverage_albedo"][:3]) if s.get("coverage_albedo") else "–"
         L.append(f"| {s['seed']} | {s['wall']:.0f} | {s['novel']:.2f}% | {r['floor']:.2f}% | "
-                 f"{share} | {c[2]} | {c[3]} |")
+                 f"{share(c[:2])} | {c[2]} | {c[3]} | {same} | {alb} |")
     L.append("")
     # (c) levels
     groups = sorted({g for s in seeds for g in s["levels"]},
                     key=lambda g: list(r["truth"]["groups"]).index(g)
                     if g in r["truth"]["groups"] else 999)
     L.append("| group | truth | " + " | ".join(f"seed {s['seed']}" for s in seeds)
-             + " | agree | 2σ hits |")
-    L.append("|---|---|" + "---|" * n + "---|---|")
+             + " | agree | 2σ hits | albedo 2σ hits |")
+    L.append("|---|---|" + "---|" * n + "---|---|---|")
     for g in groups:
         if all(s["status"].get(g) == "light" for s in seeds):
             continue
@@ -447,10 +491,15 @@ def report(r, a):
             hits.append("–" if not c or not (c[1] + c[2] + c[3]) else
                         f"{c[0]}/{c[1]}" + (f"+{c[2]}u" if c[2] else "")
                         + (f"+{c[3]}a" if c[3] else ""))
+        ahits = []
+        for s in seeds:
+            c = (s.get("coverage_albedo") or [None] * 4)[3]
+            c = c.get(g) if c else None
+            ahits.append("–" if not c else f"{c[0]}/{c[1]}" + (f"+{c[2]}u" if c[2] else ""))
         model = t.get("model", "?")
         L.append(f"| {g} | {model} | " + " | ".join(
             f"{l} ({s['status'].get(g, '')})" for l, s in zip(lv, seeds))
-            + f" | {agree} | {' '.join(hits)} |")
+            + f" | {agree} | {' '.join(hits)} | {' '.join(ahits)} |")
     L.append("")
     tex_groups = sorted({g for s in seeds for g in s["tex"]})
     if tex_groups:

@@ -754,10 +754,12 @@ def build_measured(out, seed):
 # Mitsuba: matfit's export of the scene with every group's BSDF replaced by the true one
 
 
-def mitsuba_albedos(scene_dir, n=1 << 16):
-    """For the groups whose truth is not a matfit material: the directional-hemispherical
-    albedo of the true Mitsuba BSDF (the mean of its sampling weight, n samples, one-sided) at
-    incidences 0 and 60 degrees, written into truth.json as `albedo_0deg`, `albedo_60deg`.
+def mitsuba_albedos(scene_dir, n=1 << 15):
+    """For every uniform group (no texture): the directional-hemispherical albedo of its true
+    Mitsuba BSDF (the mean of its sampling weight, n samples, one-sided, the incident
+    direction's azimuth cycling through 8 as matfit's `albedo` averages them) at incidences 0
+    and 60 degrees, written into truth.json as `albedo_0deg`, `albedo_60deg`: the truth a
+    recovery's albedo (results.json) is compared with when its model is not the truth's.
     Needs Mitsuba (bench/setup_mitsuba.sh); skipped without it."""
     try:
         import mitsuba as mi
@@ -769,20 +771,22 @@ def mitsuba_albedos(scene_dir, n=1 << 16):
     rng = np.random.default_rng(0)
     u = rng.random((n, 3))
     for g, t in truth["groups"].items():
-        if t.get("exact_in_matfit", True):
+        if t.get("texture") or not t.get("mitsuba"):
             continue
         bsdf = mi.load_string(t["mitsuba"].replace("@DIR@", os.path.abspath(scene_dir))
                               .replace("<bsdf ", '<bsdf version="3.0.0" ', 1))
+        ctx = mi.BSDFContext()
         for deg in (0, 60):
             th = np.radians(deg)
-            si = mi.SurfaceInteraction3f()
-            si.n = si.sh_frame.n = mi.Vector3f(0, 0, 1)
-            si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
-            si.wi = mi.Vector3f(np.sin(th), 0, np.cos(th))
-            si.uv = mi.Point2f(0.5, 0.5)
             acc = np.zeros(3)
-            ctx = mi.BSDFContext()
             for k in range(n):
+                phi = 2 * np.pi * ((k % 8) + 0.5) / 8
+                si = mi.SurfaceInteraction3f()
+                si.n = mi.Vector3f(0, 0, 1)
+                si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
+                si.wi = mi.Vector3f(np.sin(th) * np.cos(phi), np.sin(th) * np.sin(phi),
+                                    np.cos(th))
+                si.uv = mi.Point2f(0.5, 0.5)
                 _, w = bsdf.sample(ctx, si, float(u[k, 0]), mi.Point2f(u[k, 1], u[k, 2]))
                 acc += np.array([w[0], w[1], w[2]])
             t[f"albedo_{deg}deg"] = (acc / n).round(4).tolist()
@@ -855,7 +859,14 @@ def main():
                     help="the low-contrast wallpaper's diamonds: ±C around its paper (0.10)")
     ap.add_argument("--matfit", help="matfit binary for the Mitsuba XML (default: found in "
                                      "$CARGO_TARGET_DIR or target/; none: skip the XML)")
+    ap.add_argument("--albedos-only", metavar="DIR",
+                    help="only (re)compute the true albedos in DIR's truth.json (a folder this "
+                         "script wrote before) and stop")
     a = ap.parse_args()
+    if a.albedos_only:
+        if not mitsuba_albedos(a.albedos_only):
+            sys.exit("no Mitsuba: run bench/setup_mitsuba.sh and source bench/mitsuba_env.sh")
+        return
     out = a.output or os.path.join("/tmp/matfit-scenes", a.scene)
     if os.path.isdir(out):
         for sub in ("meshes", "textures", "mitsuba"):
@@ -866,7 +877,7 @@ def main():
     else:
         truth = build_measured(out, a.seed)
     if not mitsuba_albedos(out):
-        print("  no Mitsuba: the albedos of the non-matfit groups are not in truth.json",
+        print("  no Mitsuba: the groups' true albedos are not in truth.json",
               file=sys.stderr)
     print(f"{a.scene}: {truth['triangles']} triangles, {len(truth['groups'])} groups -> {out}")
     matfit = a.matfit or find_matfit()

@@ -121,6 +121,11 @@ pub struct GroupState {
     /// the sum of their gains' noise variances, and their count (`hierarchy.rs`, `climb`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub texture_evidence: Option<(f32, f32, u32)>,
+    /// The fits of its last climb at levels above the one it kept that did not earn their
+    /// place: models its photo could not tell from its own. Its albedo's 1σ holds their spread
+    /// (`uncertainty::albedo`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub alternatives: Vec<(Level, GroupParams)>,
     /// Levels 8–10: the evidence between the two microfacet distributions pooled over the
     /// caches at the current level, as the sum of ε(GGX) − ε(Beckmann), its sum of squares and
     /// the count (`hierarchy.rs`, `fit_current`).
@@ -165,6 +170,7 @@ impl GroupState {
             texture_refused: None,
             pending_texture: None,
             texture_evidence: None,
+            alternatives: Vec::new(),
             distribution_evidence: None,
             detail: None,
             detail_pool: Vec::new(),

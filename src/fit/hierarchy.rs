@@ -166,6 +166,8 @@ struct Climb {
     texture_refused: bool,
     /// The texture trials' pooled evidence, this one included (None: no trial).
     texture_evidence: Option<(f32, f32, u32)>,
+    /// The uniform levels above `best` tried and not kept ([`GroupState::alternatives`]).
+    alternatives: Vec<(Level, GroupParams)>,
 }
 
 impl GroupState {
@@ -782,6 +784,10 @@ impl GroupState {
         // 10's unbiased cost, the held-out tiles) is a near miss, which a later climb on a
         // settled cache may pass.
         let near_miss = rejected < (1.0 - opts.margin) * best.error;
+        let alternatives = (tried.iter())
+            .filter(|f| f.level.number() > best.level.number() && f.level != Level::Textured)
+            .map(|f| (f.level, f.params))
+            .collect();
         Climb {
             best,
             texture,
@@ -790,6 +796,7 @@ impl GroupState {
             texture_waits,
             texture_refused,
             texture_evidence,
+            alternatives,
         }
     }
 
@@ -811,7 +818,9 @@ impl GroupState {
             texture_waits,
             texture_refused,
             texture_evidence,
+            alternatives,
         } = climb;
+        self.alternatives = alternatives;
         self.texture_waiting = texture_waits;
         if texture_evidence.is_some() {
             self.texture_evidence = texture_evidence;

@@ -346,6 +346,153 @@ pub fn with_neighbours(
     out
 }
 
+/// The directional-hemispherical albedo (`render::bsdf::albedo`) of a group's material at
+/// normal incidence and at 60°, per channel, with its 1σ: the one quantity every level's model
+/// has, so a group's reflectance can be compared across levels and with a truth that is none
+/// of matfit's models.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Albedo {
+    /// At incidence 0° and 60°.
+    pub value: [Rgb; 2],
+    /// Per incidence and channel; None where a parameter it depends on is not determined.
+    pub sigma: [[Option<f32>; 3]; 2],
+}
+
+/// Cosines of the incidences [`Albedo`] is given at: 0° and 60°.
+pub const ALBEDO_COSINES: [f32; 2] = [1.0, 0.5];
+
+/// The albedo of `params` at `level` and its 1σ from `sigma` (the parameters' own 1σ; None:
+/// not computed). The albedo is linear in the reflectances it has free, a = ρd D + ρs S with D
+/// and S the albedos of the model's two parts at unit reflectance, so ∂a/∂ρd = D and ∂a/∂ρs = S; the
+/// lobe's widths enter through D and S (a central difference at ±5%). The parameters' 1σ add
+/// in quadrature (their covariances are left out). None for a model with no uniform BSDF.
+///
+/// The model is uncertain too: `alternatives` are fits at levels the photo could not tell
+/// from this one ([`GroupState::alternatives`](super::GroupState::alternatives)). Where
+/// their albedo differs from this level's by Δ, the truth may lie at either, and the 1σ gains
+/// Δ/2 (a two-point spread) in quadrature: a diffuse fit of a metal whose glossy fit did not
+/// earn its place, say, reports the albedo of neither with confidence.
+pub fn albedo(
+    level: Level,
+    params: &GroupParams,
+    sigma: Option<&GroupParams>,
+    alternatives: &[(Level, GroupParams)],
+    variant: WardVariant,
+) -> Option<Albedo> {
+    use crate::render::integrator::uniform_bsdf;
+    // D and S at each incidence for a lobe of widths (αx, αy).
+    let parts = |ax: f32, ay: f32| -> Option<[[f32; 2]; 2]> {
+        let unit = |d: f32, s: f32| {
+            let p = GroupParams {
+                rho_d: Rgb::splat(d),
+                rho_s: Rgb::splat(s),
+                alpha_x: ax,
+                alpha_y: ay,
+                ..*params
+            };
+            let b = uniform_bsdf(&p.material(level), variant)?;
+            Some(ALBEDO_COSINES.map(|mu| b.albedo(mu).x))
+        };
+        Some([unit(1.0, 0.0)?, unit(0.0, 1.0)?])
+    };
+    let bsdf = uniform_bsdf(&params.material(level), variant)?;
+    let value = ALBEDO_COSINES.map(|mu| bsdf.albedo(mu));
+    let [d, s] = parts(params.alpha_x, params.alpha_y)?;
+    let free = |name: &str| {
+        super::params::REGISTRY
+            .iter()
+            .any(|r| r.name == name && r.free_at(level))
+    };
+    // ∂(D, S)/∂α per free width, by central differences.
+    let mut widths = Vec::new();
+    for (name, x) in [("alpha_x", params.alpha_x), ("alpha_y", params.alpha_y)] {
+        if !free(name) {
+            continue;
+        }
+        let h = 0.05 * x;
+        let at = |v: f32| {
+            if name == "alpha_x" {
+                parts(v, params.alpha_y)
+            } else {
+                parts(params.alpha_x, v)
+            }
+        };
+        let (Some(hi), Some(lo)) = (at(x + h), at(x - h)) else {
+            continue;
+        };
+        let deriv = |i: usize, k: usize| (hi[i][k] - lo[i][k]) / (2.0 * h);
+        widths.push((name, [[deriv(0, 0), deriv(0, 1)], [deriv(1, 0), deriv(1, 1)]]));
+    }
+    let sigma = match sigma {
+        None => [[None; 3]; 2],
+        Some(sd) => [0, 1].map(|k| {
+            std::array::from_fn(|c| {
+                // A free parameter with no 1σ (zero: not constrained; or not finite) that the
+                // albedo depends on leaves it undetermined too.
+                // A reflectance's 1σ of 1 spans its whole range: not determined either.
+                let term = |free: bool, deriv: f32, s: f32, reflectance: bool| -> Option<f32> {
+                    if !free || deriv == 0.0 {
+                        Some(0.0)
+                    } else if s > 0.0 && s.is_finite() && (s < 1.0 || !reflectance) {
+                        Some(deriv * s)
+                    } else {
+                        None
+                    }
+                };
+                let mut sum = 0.0;
+                let rho = [
+                    term(free("rho_d"), d[k], sd.rho_d[c], true)?,
+                    term(free("rho_s"), s[k], sd.rho_s[c], true)?,
+                ];
+                sum += rho[0] * rho[0] + rho[1] * rho[1];
+                for (name, dd) in &widths {
+                    let deriv = params.rho_d[c] * dd[0][k] + params.rho_s[c] * dd[1][k];
+                    let s = if *name == "alpha_x" { sd.alpha_x } else { sd.alpha_y };
+                    let t = term(true, deriv, s, false)?;
+                    sum += t * t;
+                }
+                Some(sum.sqrt())
+            })
+        }),
+    };
+    let mut spread = [Rgb::ZERO; 2];
+    for (alt_level, alt) in alternatives {
+        let Some(b) = uniform_bsdf(&alt.material(*alt_level), variant) else {
+            continue;
+        };
+        for (k, mu) in ALBEDO_COSINES.into_iter().enumerate() {
+            spread[k] = spread[k].max((b.albedo(mu) - value[k]).abs());
+        }
+    }
+    let sigma = [0, 1].map(|k| {
+        std::array::from_fn(|c| sigma[k][c].map(|s: f32| s.hypot(spread[k][c] / 2.0)))
+    });
+    Some(Albedo { value, sigma })
+}
+
+/// `sigma` widened by the group's own misfit `misfit` ([`model_misfit`] of its final ε):
+/// where its model leaves its pixels off by m (relative, beyond the noise), a reflectance
+/// fitted to them is known no better than that. A least-squares ρ is a weighted mean of
+/// per-pixel ratios, and a misfit that does not average out over the group (a shading the
+/// model lacks, a neighbour's error in the light it sends, a crease) moves that mean by up to
+/// m; the sandwich holds the misfit's scatter, not this shift. ρ's 1σ gains ρ m in quadrature;
+/// the lobe's shape does not scale with it.
+pub fn with_own_misfit(sigma: &GroupParams, params: &GroupParams, misfit: f32) -> GroupParams {
+    let mut out = *sigma;
+    let add = |s: f32, rho: f32| {
+        if s > 0.0 {
+            s.hypot(rho * misfit)
+        } else {
+            s
+        }
+    };
+    for c in 0..3 {
+        out.rho_d[c] = add(sigma.rho_d[c], params.rho_d[c]);
+        out.rho_s[c] = add(sigma.rho_s[c], params.rho_s[c]);
+    }
+    out
+}
+
 #[cfg(test)]
 mod neighbour_tests {
     use super::*;
@@ -387,6 +534,105 @@ mod neighbour_tests {
         // Neighbours at their noise floor and seen ceilings change nothing.
         let same = with_neighbours(&sigma, &params, 0, &lit_by, &[0.9, 0.0, 0.0]);
         assert_eq!(same.rho_d, sigma.rho_d);
+    }
+}
+
+#[cfg(test)]
+mod albedo_tests {
+    use super::*;
+
+    /// A group's own misfit widens its reflectances by ρ m and leaves its lobe's shape.
+    #[test]
+    fn own_misfit_widens_the_reflectances_by_its_share() {
+        let params = GroupParams {
+            rho_d: Rgb::new(0.6, 0.5, 0.4),
+            rho_s: Rgb::splat(0.1),
+            alpha_x: 0.2,
+            ..GroupParams::default()
+        };
+        let sigma = GroupParams {
+            rho_d: Rgb::splat(0.003),
+            rho_s: Rgb::splat(0.01),
+            alpha_x: 0.02,
+            ..GroupParams::default()
+        };
+        let m = model_misfit(0.035, 0.02);
+        let wide = with_own_misfit(&sigma, &params, m);
+        for c in 0..3 {
+            assert!((wide.rho_d[c] - 0.003f32.hypot(params.rho_d[c] * m)).abs() < 1e-7);
+            assert!((wide.rho_s[c] - 0.01f32.hypot(0.1 * m)).abs() < 1e-7);
+        }
+        assert_eq!(wide.alpha_x, 0.02);
+        assert_eq!(with_own_misfit(&sigma, &params, 0.0), sigma);
+    }
+
+    /// A diffuse group's albedo is its ρd at every incidence, with ρd's 1σ; a glossy one's
+    /// is the BSDF's, and its 1σ holds the lobe's width too, unless a parameter it depends on
+    /// is not determined.
+    #[test]
+    fn albedo_and_its_sigma_follow_the_parameters() {
+        let params = GroupParams {
+            rho_d: Rgb::new(0.6, 0.5, 0.4),
+            rho_s: Rgb::splat(0.3),
+            alpha_x: 0.3,
+            ..GroupParams::default()
+        };
+        let sigma = GroupParams {
+            rho_d: Rgb::splat(0.01),
+            rho_s: Rgb::splat(0.02),
+            alpha_x: 0.05,
+            ..GroupParams::default()
+        };
+        let v = WardVariant::Balanced;
+        let d = albedo(Level::Diffuse, &params, Some(&sigma), &[], v).unwrap();
+        for k in 0..2 {
+            assert!((d.value[k] - params.rho_d).abs().max_element() < 1e-3, "{d:?}");
+            for c in 0..3 {
+                assert!((d.sigma[k][c].unwrap() - 0.01).abs() < 1e-4, "{d:?}");
+            }
+        }
+        let m = albedo(Level::Microfacet, &params, Some(&sigma), &[], v).unwrap();
+        let bsdf = crate::render::integrator::uniform_bsdf(&params.material(Level::Microfacet), v)
+            .unwrap();
+        assert_eq!(m.value[1], bsdf.albedo(0.5));
+        // A GGX lobe of α 0.3 loses some light to masking, more with α: its width adds to
+        // the 1σ what ρd's and ρs's do not.
+        let lobe_only = GroupParams {
+            rho_d: Rgb::ZERO,
+            rho_s: Rgb::ONE,
+            ..params
+        };
+        let s0 = crate::render::integrator::uniform_bsdf(&lobe_only.material(Level::Microfacet), v)
+            .unwrap()
+            .albedo(1.0)
+            .x;
+        let rho_only = 0.01f32.hypot(0.02 * s0);
+        assert!(m.sigma[0][0].unwrap() > 1.05 * rho_only, "{m:?} {rho_only}");
+        let no_alpha = GroupParams {
+            alpha_x: 0.0,
+            ..sigma
+        };
+        let u = albedo(Level::Microfacet, &params, Some(&no_alpha), &[], v).unwrap();
+        assert_eq!(u.sigma, [[None; 3]; 2]);
+        // Without σ at all (a group given): the value alone.
+        let g = albedo(Level::Microfacet, &params, None, &[], v).unwrap();
+        assert_eq!((g.value, g.sigma), (m.value, [[None; 3]; 2]));
+        // A diffuse fit whose glossy alternative (ρd 0.3, ρs 0.5) the photo could not tell
+        // apart: its albedo's 1σ holds half their difference.
+        let glossy = GroupParams {
+            rho_d: Rgb::splat(0.3),
+            rho_s: Rgb::splat(0.5),
+            ..params
+        };
+        let alt = [(Level::Microfacet, glossy)];
+        let w = albedo(Level::Diffuse, &params, Some(&sigma), &alt, v).unwrap();
+        let a_alt = crate::render::integrator::uniform_bsdf(&glossy.material(Level::Microfacet), v)
+            .unwrap()
+            .albedo(1.0);
+        for c in 0..3 {
+            let half = (a_alt[c] - params.rho_d[c]).abs() / 2.0;
+            assert!((w.sigma[0][c].unwrap() - 0.01f32.hypot(half)).abs() < 1e-4, "{w:?}");
+        }
     }
 }
 

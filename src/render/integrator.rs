@@ -15,71 +15,9 @@ use crate::scene::{Material, Object, Scene, SurfaceHit, WardVariant};
 #[inline]
 pub fn bsdf_at(material: &Material, hit: &SurfaceHit, variant: WardVariant) -> (Bsdf, Frame) {
     match material {
-        Material::Diffuse { rho_d } => (Bsdf::Diffuse { rho_d: *rho_d }, hit.frame),
-        Material::Mirror { rho_s } => (
-            Bsdf::DiffuseMirror {
-                rho_d: Rgb::ZERO,
-                rho_s: *rho_s,
-            },
-            hit.frame,
-        ),
-        Material::DiffuseMirror { rho_d, rho_s } => (
-            Bsdf::DiffuseMirror {
-                rho_d: *rho_d,
-                rho_s: *rho_s,
-            },
-            hit.frame,
-        ),
-        Material::Ward {
-            rho_d,
-            rho_s,
-            alpha_x,
-            alpha_y,
-            theta,
-        } => (
-            Bsdf::Ward {
-                rho_d: *rho_d,
-                rho_s: *rho_s,
-                lobe: WardLobe {
-                    alpha_x: *alpha_x,
-                    alpha_y: *alpha_y,
-                    variant,
-                },
-            },
+        Material::Ward { theta, .. } | Material::Microfacet { theta, .. } => (
+            uniform_bsdf(material, variant).unwrap_or(Bsdf::Black),
             hit.frame.rotated(*theta),
-        ),
-        Material::Microfacet {
-            rho_d,
-            rho_s,
-            alpha_x,
-            alpha_y,
-            theta,
-            distribution,
-        } => (
-            Bsdf::Microfacet {
-                rho_d: *rho_d,
-                rho_s: *rho_s,
-                lobe: MicrofacetLobe {
-                    alpha_x: *alpha_x,
-                    alpha_y: *alpha_y,
-                    distribution: *distribution,
-                },
-            },
-            hit.frame.rotated(*theta),
-        ),
-        Material::Plastic {
-            rho_d,
-            rho_s,
-            alpha,
-            eta,
-            distribution,
-        } => (
-            Bsdf::Plastic {
-                rho_d: *rho_d,
-                rho_s: *rho_s,
-                coat: super::bsdf::Coat::get(*alpha, *eta, *distribution),
-            },
-            hit.frame,
         ),
         Material::Textured {
             texture,
@@ -121,8 +59,72 @@ pub fn bsdf_at(material: &Material, hit: &SurfaceHit, variant: WardVariant) -> (
             },
             hit.frame,
         ),
-        Material::Black => (Bsdf::Black, hit.frame),
+        _ => (
+            uniform_bsdf(material, variant).unwrap_or(Bsdf::Black),
+            hit.frame,
+        ),
     }
+}
+
+/// The BSDF of a material that is the same everywhere, in its lobe's own frame (a Ward or
+/// microfacet lobe's rotation θ is the frame's, left to the caller); None for a textured one.
+#[inline]
+pub fn uniform_bsdf(material: &Material, variant: WardVariant) -> Option<Bsdf> {
+    Some(match material {
+        Material::Diffuse { rho_d } => Bsdf::Diffuse { rho_d: *rho_d },
+        Material::Mirror { rho_s } => Bsdf::DiffuseMirror {
+            rho_d: Rgb::ZERO,
+            rho_s: *rho_s,
+        },
+        Material::DiffuseMirror { rho_d, rho_s } => Bsdf::DiffuseMirror {
+            rho_d: *rho_d,
+            rho_s: *rho_s,
+        },
+        Material::Ward {
+            rho_d,
+            rho_s,
+            alpha_x,
+            alpha_y,
+            ..
+        } => Bsdf::Ward {
+            rho_d: *rho_d,
+            rho_s: *rho_s,
+            lobe: WardLobe {
+                alpha_x: *alpha_x,
+                alpha_y: *alpha_y,
+                variant,
+            },
+        },
+        Material::Microfacet {
+            rho_d,
+            rho_s,
+            alpha_x,
+            alpha_y,
+            distribution,
+            ..
+        } => Bsdf::Microfacet {
+            rho_d: *rho_d,
+            rho_s: *rho_s,
+            lobe: MicrofacetLobe {
+                alpha_x: *alpha_x,
+                alpha_y: *alpha_y,
+                distribution: *distribution,
+            },
+        },
+        Material::Plastic {
+            rho_d,
+            rho_s,
+            alpha,
+            eta,
+            distribution,
+        } => Bsdf::Plastic {
+            rho_d: *rho_d,
+            rho_s: *rho_s,
+            coat: super::bsdf::Coat::get(*alpha, *eta, *distribution),
+        },
+        Material::Black => Bsdf::Black,
+        Material::Textured { .. } | Material::TexturedPlastic { .. } => return None,
+    })
 }
 
 /// The ray an ideal mirror at `hit` reflects `ray` into (about the shading normal, on the

@@ -97,9 +97,18 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
                 None => format!("{k} = {}", value(v)),
             })
             .collect();
+        let albedo = g.albedo.as_ref().map_or("–".to_string(), |a| {
+            format!(
+                "0°: {} ± {}; 60°: {} ± {}",
+                value(&Value::Rgb(a.normal)),
+                sigma(&super::Sigma::Rgb(a.sigma_normal)),
+                value(&Value::Rgb(a.at_60deg)),
+                sigma(&super::Sigma::Rgb(a.sigma_60deg))
+            )
+        });
         let pct = |x: Option<f32>| x.map_or("–".to_string(), |e| format!("{:.2}%", 100.0 * e));
         rows += &format!(
-            "<tr><td>{}</td><td>{} ({})</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
+            "<tr><td>{}</td><td>{} ({})</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
             esc(&g.name),
             g.level,
             g.level_number,
@@ -108,6 +117,7 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
             pct(g.noise_floor),
             g.usable_pixels,
             esc(&params.join(", ")),
+            esc(&albedo),
             esc(g.note.as_deref().unwrap_or(""))
         );
     }
@@ -254,7 +264,7 @@ table{{border-collapse:collapse}} td,th{{border:1px solid #ccc;padding:4px 8px;f
 <p>The synthetic image over the photo: left of the edge the synthetic image, right of it the photo; drag the slider.</p>
 <div id="compare"><img class="under" src="{photo}" alt="photo"><div id="over"><img src="{synthetic}" alt="synthetic"></div></div>
 <input id="slider" type="range" min="0" max="100" value="50" aria-label="photo / synthetic">
-<table><tr><th>group</th><th>level</th><th>status</th><th>ε</th><th>noise floor</th><th>usable px</th><th>parameters</th><th>note</th></tr>
+<table><tr><th>group</th><th>level</th><th>status</th><th>ε</th><th>noise floor</th><th>usable px</th><th>parameters</th><th>albedo</th><th>note</th></tr>
 {rows}</table>
 {views}
 {convergence}

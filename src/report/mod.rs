@@ -51,6 +51,12 @@ pub struct GroupResult {
     /// constrain a parameter or its 1σ spans its whole range ([`Sigma::of`]).
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub sigma: BTreeMap<&'static str, Sigma>,
+    /// The material's directional-hemispherical albedo at incidence 0° and 60°, with its 1σ
+    /// from `sigma` (`fit::uncertainty::albedo`): the reflectance every level's model has, to
+    /// compare groups fitted at different levels, or with another system's albedo. A textured
+    /// group's is its mean texel's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub albedo: Option<AlbedoResult>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub note: Option<String>,
     /// For a group with no usable pixels: which rule gave its ρd, its 1σ and the remedy.
@@ -59,6 +65,28 @@ pub struct GroupResult {
     /// For a textured group (level 7): its texture files and how much of it the photo saw.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub texture: Option<TextureResult>,
+}
+
+#[derive(Serialize)]
+pub struct AlbedoResult {
+    /// Per channel, light arriving along the normal, and at 60° (averaged over the azimuth).
+    pub normal: [f32; 3],
+    pub at_60deg: [f32; 3],
+    /// Their 1σ; null where a parameter they depend on is not determined (or for a group
+    /// given, not fitted).
+    pub sigma_normal: [Option<f32>; 3],
+    pub sigma_60deg: [Option<f32>; 3],
+}
+
+impl From<crate::fit::uncertainty::Albedo> for AlbedoResult {
+    fn from(a: crate::fit::uncertainty::Albedo) -> Self {
+        AlbedoResult {
+            normal: a.value[0].to_array(),
+            at_60deg: a.value[1].to_array(),
+            sigma_normal: a.sigma[0],
+            sigma_60deg: a.sigma[1],
+        }
+    }
 }
 
 #[derive(Serialize)]
@@ -343,6 +371,7 @@ pub fn results(rec: &Recovery) -> Results {
                         .collect(),
                     _ => BTreeMap::new(),
                 },
+                albedo: group_albedo(rec, s, named_at, &params, unseen),
                 note: s.note.clone(),
                 unseen: unseen.map(UnseenResult::from),
                 texture,
@@ -367,6 +396,32 @@ pub fn results(rec: &Recovery) -> Results {
         stray_light: rec.stray_light.as_ref().map(StrayResult::from),
         verdict: None,
     }
+}
+
+/// [`GroupResult::albedo`]: with the fit's 1σ for a fitted group, the estimate's for an
+/// unseen one (its reflectance only), none for a group given.
+fn group_albedo(
+    rec: &Recovery,
+    s: &crate::fit::GroupState,
+    level: Level,
+    params: &GroupParams,
+    unseen: Option<&crate::fit::unseen::UnseenEstimate>,
+) -> Option<AlbedoResult> {
+    let sigma = match (s.status, &s.sigma, unseen) {
+        (Status::Analysing | Status::Confirmed, Some(sd), _) => Some(*sd),
+        (_, _, Some(u)) => Some(GroupParams {
+            rho_d: Rgb::from_array(u.sigma),
+            ..GroupParams::default()
+        }),
+        _ => None,
+    };
+    let variant = rec.scene.render.ward_variant;
+    let alternatives = match s.status {
+        Status::Analysing | Status::Confirmed => &s.alternatives[..],
+        _ => &[],
+    };
+    let a = crate::fit::uncertainty::albedo(level, params, sigma.as_ref(), alternatives, variant)?;
+    Some(a.into())
 }
 
 /// The texture outputs of group `g`, if it ended at level 7.

@@ -600,9 +600,12 @@ impl<'a> RecoveryLoop<'a> {
         };
         let total_s = self.t0.elapsed().as_secs_f64();
         let mut states = self.states;
-        // How far the light each group sends the others can be trusted: a fitted group's
-        // model as far as its photo shows, an unseen one's reflectance as far as it is known.
-        use crate::fit::uncertainty::{model_misfit, unseen_misfit, with_neighbours};
+        // How far the light each group sends the others, and its own reflectances, can be
+        // trusted: a fitted group's model as far as its photo shows, an unseen one's
+        // reflectance as far as it is known.
+        use crate::fit::uncertainty::{
+            model_misfit, unseen_misfit, with_neighbours, with_own_misfit,
+        };
         let mut misfit: Vec<f32> = (states.iter().zip(&final_error))
             .map(|(st, e)| match (st.is_fitted(), e) {
                 (true, Some((error, noise))) => model_misfit(*error, *noise),
@@ -615,8 +618,10 @@ impl<'a> RecoveryLoop<'a> {
             }
         }
         for (g, st) in states.iter_mut().enumerate() {
+            let own = if st.is_fitted() { misfit[g] } else { 0.0 };
             if let Some(sd) = st.sigma.as_mut() {
-                *sd = with_neighbours(sd, &st.params, g, &st.lit_by, &misfit);
+                let wide = with_neighbours(sd, &st.params, g, &st.lit_by, &misfit);
+                *sd = with_own_misfit(&wide, &st.params, own);
             }
         }
         for st in states.iter_mut().filter(|s| s.is_fitted()) {

@@ -4,6 +4,7 @@
 //!
 //! A BSDF is a plain enum (no trait objects): the shapes of reflection of the hierarchy.
 
+pub mod albedo;
 pub mod lambert;
 pub mod microfacet;
 pub mod mirror;
