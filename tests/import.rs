@@ -854,35 +854,51 @@ fn a_smooth_plastic_imports_under_the_narrowest_coat() {
     assert!(close(&tub, &[want], 2e-3), "{tub:?} vs {want}");
 }
 
-/// A plastic whose ρd + ρs passes matfit's bound of 1 keeps its coat's ρs (set by η) and
-/// loses the excess from ρd, in the channels over the bound only.
+/// A plastic's bound is ρd ≤ 1 and ρs ≤ 1 apart (its coat's transmission scales the base):
+/// matpreview's, whose ρd + ρs passes 1 in red, keeps its conversion and loads; one whose base
+/// would pass 1 keeps its coat's ρs (set by η) and lowers ρd to 1, in that channel only.
 #[test]
-fn a_bright_plastic_keeps_its_coat_and_lowers_its_base() {
-    let dir = tempfile::tempdir().unwrap();
-    let xml = scene_with(
-        dir.path(),
-        "<shape type=\"rectangle\" id=\"ball\"><bsdf type=\"plastic\">\
-         <float name=\"int_ior\" value=\"1.9\"/><float name=\"ext_ior\" value=\"1\"/>\
-         <rgb name=\"diffuse_reflectance\" value=\"0.94, 0.271, 0.361\"/></bsdf></shape>",
-    );
-    let out = dir.path().join("out.toml");
-    let warnings = import(&xml, &out);
-    assert!(
-        warnings.contains("ρd lowered to 1 − ρs where over"),
-        "{warnings}"
-    );
-    let f = toml_of(&out);
-    let m = &object(&f, "ball")["material"];
+fn a_bright_plastic_keeps_its_coat_and_its_base_up_to_one() {
     let f0 = (0.9f64 / 2.9).powi(2);
-    let s = floats(&m["rho_s"]);
-    assert!(s.iter().all(|s| (s - f0).abs() < 1e-6), "{m}");
-    let d = floats(&m["rho_d"]);
-    assert!((d[0] - (1.0 - f0)).abs() < 1e-6, "{m}");
-    // The other channels as the smooth plastic's conversion gives them, above their ρ.
-    assert!(
-        d[1] > 0.271 && d[1] < 0.3 && d[2] > 0.361 && d[2] < 0.4,
-        "{m}"
-    );
+    for (red, lowered) in [(0.94, false), (1.0, true)] {
+        let dir = tempfile::tempdir().unwrap();
+        let xml = scene_with(
+            dir.path(),
+            &format!(
+                "<shape type=\"rectangle\" id=\"ball\"><bsdf type=\"plastic\">\
+                 <float name=\"int_ior\" value=\"1.9\"/><float name=\"ext_ior\" value=\"1\"/>\
+                 <rgb name=\"diffuse_reflectance\" value=\"{red}, 0.271, 0.361\"/></bsdf></shape>"
+            ),
+        );
+        let out = dir.path().join("out.toml");
+        let warnings = import(&xml, &out);
+        assert_eq!(
+            warnings.contains("lowered to 1 where over"),
+            lowered,
+            "{red}: {warnings}"
+        );
+        let f = toml_of(&out);
+        let m = &object(&f, "ball")["material"];
+        let s = floats(&m["rho_s"]);
+        assert!(s.iter().all(|s| (s - f0).abs() < 1e-6), "{m}");
+        let d = floats(&m["rho_d"]);
+        if lowered {
+            assert!((d[0] - 1.0).abs() < 1e-6, "{m}");
+        } else {
+            // The smooth plastic's conversion raises ρ, here past 1 − ρs.
+            assert!(d[0] > 1.0 - f0 && d[0] > 0.94 && d[0] < 1.0, "{m}");
+        }
+        // The other channels as the smooth plastic's conversion gives them, above their ρ.
+        assert!(
+            d[1] > 0.271 && d[1] < 0.3 && d[2] > 0.361 && d[2] < 0.4,
+            "{m}"
+        );
+        let sc = load_scene(&out).unwrap();
+        assert!(sc
+            .objects
+            .iter()
+            .any(|o| matches!(o.material, Material::Plastic { .. })));
+    }
 }
 
 /// A smooth `plastic` over a bitmap keeps the texture under the narrowest coat: a linear

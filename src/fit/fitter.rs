@@ -9,7 +9,7 @@ use super::objective::{error, moments, pixel_specs, pooled, PixelSpec, Spec};
 use super::params::{param, GroupParams};
 use super::solve::{levenberg_marquardt, solve_rho, Free, Linearisation};
 use crate::math::Rgb;
-use crate::scene::{Distribution, WardVariant};
+use crate::scene::{Distribution, RhoBound, WardVariant};
 
 /// The outcome of fitting one level.
 #[derive(Clone, Debug, PartialEq)]
@@ -187,6 +187,7 @@ impl<const N: usize> Gram<N> {
                 subtract(det / self.ss, &b);
             }
             Movable::Both | Movable::Specular => subtract(self.ss, &self.sg),
+            Movable::Diffuse => subtract(self.dd, &self.dg),
             Movable::Face => {
                 // The column D − S: ρd = t, ρs = 1 − t.
                 let b: [f64; N] = std::array::from_fn(|a| self.dg[a] - self.sg[a]);
@@ -203,30 +204,45 @@ impl<const N: usize> Gram<N> {
 }
 
 /// What the re-solved ρd, ρs of a channel can move along at their optimum (`solve::solve_rho`):
-/// both, ρs alone (ρd at 0 or held there), only the edge ρd + ρs = 1 (both on it), or neither
-/// (a corner). A reflectance held at a bound cannot take back a change of the lobe, so its
-/// column must stay in the curvature.
+/// both, ρs alone (ρd at 0, at 1 under a coat, or held), ρd alone (ρs at 1 under a coat), only
+/// the edge ρd + ρs = 1 (both on it), or neither (a corner). A reflectance held at a bound
+/// cannot take back a change of the lobe, so its column must stay in the curvature.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Movable {
     Both,
     Specular,
+    Diffuse,
     Face,
     Neither,
 }
 
 impl Movable {
     fn at(free: Free, rd: f64, rs: f64) -> Movable {
-        // ρ in f32 on the edge sums to 1 within a few ulps.
-        let on_edge = rd + rs >= 1.0 - 1e-6;
+        // ρ in f32 on a bound of 1 reaches it within a few ulps.
+        let at_one = |v: f64| v >= 1.0 - 1e-6;
         match free {
-            Free::Both if rd > 0.0 && rs > 0.0 => {
-                if on_edge {
+            Free::Both(RhoBound::Sum) if rd > 0.0 && rs > 0.0 => {
+                if at_one(rd + rs) {
                     Movable::Face
                 } else {
                     Movable::Both
                 }
             }
-            Free::Both | Free::Specular if rd == 0.0 && rs > 0.0 && !on_edge => Movable::Specular,
+            Free::Both(RhoBound::Each) if rs > 0.0 && !at_one(rs) => {
+                if rd > 0.0 && !at_one(rd) {
+                    Movable::Both
+                } else {
+                    Movable::Specular
+                }
+            }
+            Free::Both(RhoBound::Each) if rd > 0.0 && !at_one(rd) && at_one(rs) => {
+                Movable::Diffuse
+            }
+            Free::Both(RhoBound::Sum) | Free::Specular
+                if rd == 0.0 && rs > 0.0 && !at_one(rd + rs) =>
+            {
+                Movable::Specular
+            }
             _ => Movable::Neither,
         }
     }
@@ -283,9 +299,9 @@ fn finish(
         params.distribution = distribution.unwrap_or(params.distribution);
     }
     let params = if matches!(level, Level::Anisotropic | Level::AnisotropicMicrofacet) {
-        params.clamped().canonical()
+        params.clamped(level).canonical()
     } else {
-        params.clamped()
+        params.clamped(level)
     };
     assess_with(cache, level, &params, &specs, evals + 1)
 }
@@ -381,7 +397,7 @@ pub fn embed(lower: Level, p: &GroupParams, higher: Level) -> Option<GroupParams
         },
         _ => return None,
     };
-    Some(q.clamped())
+    Some(q.clamped(higher))
 }
 
 /// [`fit_level`] for a climb, where the lower levels' fits on the same cache are known: a
@@ -428,7 +444,7 @@ pub fn fit_on_tiles(
             variant,
             &DISTRIBUTIONS,
             false,
-            Free::Both,
+            Free::Both(level.rho_bound()),
             true,
         )
     })
@@ -600,7 +616,7 @@ fn fit_level_from(
         variant,
         distributions,
         warm,
-        Free::Both,
+        Free::Both(level.rho_bound()),
         false,
     );
     if !level.is_microfacet() || fit.params.rho_d == Rgb::ZERO {
@@ -697,7 +713,7 @@ fn fit_shape(
             0,
         ),
         Level::DiffuseSpecular => {
-            finish(cache, level, Spec::Mirror, Free::Both, *start, variant, 0)
+            finish(cache, level, Spec::Mirror, Free::Both(level.rho_bound()), *start, variant, 0)
         }
         Level::Isotropic | Level::Microfacet => {
             // One roughness: a coarse scan of α (plus the warm start), then LM in ln α. The
@@ -777,14 +793,14 @@ fn fit_shape(
                 };
                 let (x, n) = scan_then_brent(|ln_a| {
                     let specs = pixel_specs(cache, coat(ln_a), variant, false);
-                    project_rho(cache, &specs, Free::Both).2
+                    project_rho(cache, &specs, Free::Both(level.rho_bound())).2
                 });
                 evals += n;
                 let f = finish(
                     cache,
                     level,
                     coat(x),
-                    Free::Both,
+                    Free::Both(level.rho_bound()),
                     *start,
                     variant,
                     evals + 1,
@@ -1177,6 +1193,30 @@ mod tests {
         // ρs 0.42).
         let both = fit_level(&cache, Level::Plastic, &GroupParams::default(), v);
         assert_eq!(both.params.distribution, Distribution::Beckmann, "{both:?}");
+    }
+
+    /// A plastic whose base reflects more than 1 − ρs (ρd 0.9 in red under a coat of ρs 0.3) is
+    /// fitted at level 9 to its own reflectances: its bound is ρd ≤ 1 and ρs ≤ 1 apart, not
+    /// their sum (which would hold red's ρd at 0.7).
+    #[test]
+    fn a_plastic_base_brighter_than_one_less_its_coat_is_reached() {
+        use crate::render::bsdf::plastic::{Coat, DEFAULT_ETA};
+        let (rd, rs, a) = (Rgb::new(0.9, 0.5, 0.2), Rgb::splat(0.3), 0.3f32);
+        let coat = Coat::get(a, DEFAULT_ETA, Distribution::Beckmann);
+        // Four times the directions of the test above: beside so bright a base the faint lobe
+        // needs them, or a narrow coat's per-pixel cost wins (`objective::pooled`).
+        let cache = synthetic_cache(1200, 1024, 100, 9, |_p, s| {
+            s.iter().fold(Rgb::ZERO, |sum, &(wo, wi, c)| {
+                sum + c * (rs * coat.specular(wo, wi) + rd * coat.diffuse(wo.z, wi.z))
+            })
+        });
+        let v = WardVariant::Ward1992;
+        let only = [Distribution::Beckmann];
+        let m = fit_level_among(&cache, Level::Plastic, &GroupParams::default(), v, &only);
+        assert!((m.params.alpha_x / a - 1.0).abs() < 0.1, "{m:?}");
+        assert!((m.params.rho_d - rd).abs().max_element() < 0.02, "{m:?}");
+        assert!((m.params.rho_s - rs).abs().max_element() < 0.01, "{m:?}");
+        assert!(m.params.in_bounds(Level::Plastic), "{m:?}");
     }
 
     /// An anisotropic GGX photo (a brushed metal turned by 20°) is fitted at level 10 to its

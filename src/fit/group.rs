@@ -199,11 +199,11 @@ impl GroupState {
             .get_or_insert((GroupParams::zero_sums(), 0, 0.0));
         *n += 1;
         *total += weight;
-        self.params = p.add_to_mean(sums, weight, *total);
+        self.params = p.add_to_mean(sums, weight, *total, self.level);
         p.add_squares(&mut squares.0, weight);
         if let (Some(a), Some(r)) = (&self.average, &self.runner_up) {
             if r.2 > a.2 {
-                self.params = r.0.mean_of_sums(r.2);
+                self.params = r.0.mean_of_sums(r.2, self.level);
                 std::mem::swap(&mut self.average, &mut self.runner_up);
                 std::mem::swap(&mut squares.0, &mut squares.1);
             }

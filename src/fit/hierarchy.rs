@@ -191,7 +191,7 @@ impl GroupState {
             };
             fix(&mut self.params.rho_d, old.rho_d, step.0, pd);
             fix(&mut self.params.rho_s, old.rho_s, step.1, ps);
-            self.params = self.params.clamped();
+            self.params = self.params.clamped(self.level);
         }
         self.last_step = Some((self.params.rho_d - old.rho_d, self.params.rho_s - old.rho_s));
     }

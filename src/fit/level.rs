@@ -1,6 +1,7 @@
 //! The hierarchy of reflectance models (docs/DESIGN.md, "The hierarchy"): every group starts
 //! at level 1 and climbs while its error stays above the level's threshold.
 
+use crate::scene::RhoBound;
 use serde::{Deserialize, Serialize};
 
 /// Levels compare in the order the hierarchy climbs them ([`Level::FITTED`]), which for
@@ -131,6 +132,11 @@ impl Level {
     /// Whether the level's lobe has a microfacet distribution to choose (8, 9 and 10).
     pub fn has_distribution(self) -> bool {
         self.is_microfacet() || self == Level::Plastic
+    }
+
+    /// The bound on the level's ρd and ρs ([`RhoBound`]): the coated level 9's each alone.
+    pub fn rho_bound(self) -> RhoBound {
+        RhoBound::of(self == Level::Plastic)
     }
 }
 

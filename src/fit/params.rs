@@ -260,8 +260,15 @@ impl GroupParams {
 
     /// Adds these parameters, with weight `weight`, to the weighted running `sums` (each
     /// parameter on its scale: roughness in the log domain, as it is fitted), and returns the
-    /// mean of the sums over the total weight `total` (this weight included), clamped.
-    pub fn add_to_mean(&self, sums: &mut GroupParams, weight: f32, total: f32) -> GroupParams {
+    /// mean of the sums over the total weight `total` (this weight included), clamped at
+    /// `level`.
+    pub fn add_to_mean(
+        &self,
+        sums: &mut GroupParams,
+        weight: f32,
+        total: f32,
+        level: Level,
+    ) -> GroupParams {
         sums.distribution = self.distribution;
         for row in &REGISTRY {
             let sum = (row.get_mut)(sums);
@@ -272,7 +279,7 @@ impl GroupParams {
                 };
             }
         }
-        sums.mean_of_sums(total)
+        sums.mean_of_sums(total, level)
     }
 
     /// Adds the squares of these parameters (on the scales of [`GroupParams::add_to_mean`]),
@@ -310,8 +317,8 @@ impl GroupParams {
     }
 
     /// The mean of these running sums ([`GroupParams::add_to_mean`]) of total weight `total`,
-    /// clamped.
-    pub fn mean_of_sums(&self, total: f32) -> GroupParams {
+    /// clamped at `level`.
+    pub fn mean_of_sums(&self, total: f32, level: Level) -> GroupParams {
         let mut mean = *self;
         for row in &REGISTRY {
             for (m, &s) in (row.get_mut)(&mut mean).iter_mut().zip((row.get)(self)) {
@@ -321,7 +328,7 @@ impl GroupParams {
                 };
             }
         }
-        mean.clamped()
+        mean.clamped(level)
     }
 
     /// The parameters equivalent to a scene material (θ in radians; α left at the default where
@@ -438,31 +445,31 @@ impl GroupParams {
         }
     }
 
-    /// Brings the parameters inside their physical bounds: every channel inside its registry
-    /// row's bounds (a non-finite one to the row's fallback), then ρd + ρs ≤ 1 per channel.
-    pub fn clamped(mut self) -> GroupParams {
+    /// Brings the parameters inside their physical bounds at `level`: every channel inside its
+    /// registry row's bounds (a non-finite one to the row's fallback), then the level's bound on
+    /// ρd and ρs per channel ([`Level::rho_bound`]).
+    pub fn clamped(mut self, level: Level) -> GroupParams {
         for row in &REGISTRY {
             for v in (row.get_mut)(&mut self) {
                 *v = row.clamp(*v);
             }
         }
         for c in 0..3 {
-            let sum = self.rho_d[c] + self.rho_s[c];
-            if sum > 1.0 {
-                self.rho_d[c] /= sum;
-                self.rho_s[c] /= sum;
-            }
+            (self.rho_d[c], self.rho_s[c]) = level.rho_bound().clamp(self.rho_d[c], self.rho_s[c]);
         }
         self
     }
 
-    /// Whether the parameters are inside the bounds [`GroupParams::clamped`] enforces (with a
-    /// rounding slack of 1e-5 on ρd + ρs ≤ 1), all finite.
-    pub fn in_bounds(&self) -> bool {
+    /// Whether the parameters are inside the bounds [`GroupParams::clamped`] enforces at `level`
+    /// (with a rounding slack of 1e-5 on the bound on ρd and ρs), all finite.
+    pub fn in_bounds(&self, level: Level) -> bool {
         REGISTRY
             .iter()
             .all(|row| (row.get)(self).iter().all(|&v| row.contains(v)))
-            && (0..3).all(|c| self.rho_d[c] + self.rho_s[c] <= 1.0 + 1e-5)
+            && (0..3).all(|c| {
+                let reach = level.rho_bound().reach(self.rho_d[c] as f64, self.rho_s[c] as f64);
+                reach <= 1.0 + 1e-5
+            })
     }
 
     /// The canonical form of an anisotropic lobe: (αx, αy, θ) and (αy, αx, θ + 90°) are the
@@ -496,25 +503,26 @@ mod tests {
             theta: f32::NAN,
             distribution: Distribution::Ggx,
         }
-        .clamped();
+        .clamped(Level::Isotropic);
         for c in 0..3 {
             assert!(
                 p.rho_d[c] >= 0.0 && p.rho_s[c] >= 0.0 && p.rho_d[c] + p.rho_s[c] <= 1.0 + 1e-6
             );
         }
         assert!(p.alpha_x >= ALPHA_MIN && p.alpha_y <= ALPHA_MAX && p.theta == 0.0);
-        assert!(p.in_bounds() && GroupParams::default().in_bounds());
+        let l = Level::Isotropic;
+        assert!(p.in_bounds(l) && GroupParams::default().in_bounds(l));
         let over = GroupParams {
             rho_d: Rgb::new(0.7, 0.1, 0.1),
             rho_s: Rgb::new(0.4, 0.1, 0.1),
             ..Default::default()
         };
-        assert!(!over.in_bounds() && over.clamped().in_bounds());
+        assert!(!over.in_bounds(l) && over.clamped(l).in_bounds(l));
         assert!(!GroupParams {
             alpha_x: 0.0,
             ..Default::default()
         }
-        .in_bounds());
+        .in_bounds(l));
         let q = GroupParams {
             alpha_x: 0.11,
             alpha_y: 0.07,
@@ -528,6 +536,32 @@ mod tests {
             "{}",
             q.theta.to_degrees()
         );
+    }
+
+    /// A plastic's base under its coat is bounded alone (ρd 0.9 under ρs 0.3 is a plastic, and
+    /// stays as it is), where a lobe beside a diffuse term shares the light with it.
+    #[test]
+    fn a_plastic_is_bounded_by_each_reflectance_and_the_others_by_their_sum() {
+        let p = GroupParams {
+            rho_d: Rgb::new(0.9, 0.5, 0.2),
+            rho_s: Rgb::splat(0.3),
+            ..Default::default()
+        };
+        assert!(p.in_bounds(Level::Plastic));
+        assert_eq!(p.clamped(Level::Plastic), p);
+        assert!(!p.in_bounds(Level::Microfacet));
+        let q = p.clamped(Level::Microfacet);
+        assert!((q.rho_d.x - 0.75).abs() < 1e-6 && (q.rho_s.x - 0.25).abs() < 1e-6, "{q:?}");
+        let over = GroupParams {
+            rho_d: Rgb::splat(1.2),
+            ..p
+        };
+        assert!(!over.in_bounds(Level::Plastic));
+        assert_eq!(over.clamped(Level::Plastic).rho_d, Rgb::ONE);
+        // The mean of plastics' fits is clamped as a plastic.
+        let mut sums = GroupParams::zero_sums();
+        let m = p.add_to_mean(&mut sums, 1.0, 1.0, Level::Plastic);
+        assert!((m.rho_d - p.rho_d).abs().max_element() < 1e-6, "{m:?}");
     }
 
     #[test]
@@ -548,8 +582,8 @@ mod tests {
         };
         // Equal weights: ρ and θ arithmetic means, α the geometric mean.
         let mut sums = GroupParams::zero_sums();
-        a.add_to_mean(&mut sums, 2.0, 2.0);
-        let m = b.add_to_mean(&mut sums, 2.0, 4.0);
+        a.add_to_mean(&mut sums, 2.0, 2.0, Level::Isotropic);
+        let m = b.add_to_mean(&mut sums, 2.0, 4.0, Level::Isotropic);
         assert!((m.rho_d - Rgb::new(0.3, 0.4, 0.4)).abs().max_element() < 1e-6);
         assert!((m.alpha_x - 0.08).abs() < 1e-6 && (m.alpha_y - 0.1).abs() < 1e-6);
         assert!((m.theta - 0.2).abs() < 1e-6);

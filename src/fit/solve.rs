@@ -2,6 +2,8 @@
 //! lobe shape (variable projection, docs/DESIGN.md, "Making it fast" 2), and a small
 //! Levenberg–Marquardt loop for the lobe shape itself.
 
+use crate::scene::RhoBound;
+
 /// Sufficient statistics of one channel's least-squares problem
 /// min Σ (ρd d + ρs s − p)² over the pixels, where d and s are Monte Carlo estimates.
 ///
@@ -72,13 +74,14 @@ pub enum Free {
     Diffuse,
     /// ρs only (ρd = 0).
     Specular,
-    /// Both, with ρd + ρs ≤ 1.
-    Both,
+    /// Both, within the model's bound on them: the triangle ρd + ρs ≤ 1, or the square
+    /// ρd, ρs ≤ 1.
+    Both(RhoBound),
 }
 
-/// The (ρd, ρs) minimising the channel's cost within 0 ≤ ρd, ρs and ρd + ρs ≤ 1. The problem is
+/// The (ρd, ρs) minimising the channel's cost within 0 ≤ ρd, ρs and the bound. The problem is
 /// a convex quadratic in two variables: the optimum is the unconstrained one if feasible, else
-/// the best of the optima on the three edges of the feasible triangle.
+/// the best of the optima on the edges of the feasible triangle (or square).
 pub fn solve_rho(m: &Moments, free: Free) -> (f64, f64) {
     let ss = m.ss_eff();
     let edge_d = || {
@@ -98,27 +101,48 @@ pub fn solve_rho(m: &Moments, free: Free) -> (f64, f64) {
     match free {
         Free::Diffuse => (edge_d(), 0.0),
         Free::Specular => (0.0, edge_s()),
-        Free::Both => {
+        Free::Both(bound) => {
             let det = m.dd * ss - m.ds * m.ds;
             if det > 1e-12 * (m.dd * ss).max(1e-300) {
                 let rd = (m.dp * ss - m.sp * m.ds) / det;
                 let rs = (m.sp * m.dd - m.dp * m.ds) / det;
-                if rd >= 0.0 && rs >= 0.0 && rd + rs <= 1.0 {
+                if rd >= 0.0 && rs >= 0.0 && bound.reach(rd, rs) <= 1.0 {
                     return (rd, rs);
                 }
             }
-            // Edges: ρs = 0, ρd = 0, ρd + ρs = 1 (ρd = t, ρs = 1 − t).
+            // Edges: ρs = 0, ρd = 0, then the bound's.
             let a = (edge_d(), 0.0);
             let b = (0.0, edge_s());
-            let den = m.dd - 2.0 * m.ds + ss;
-            let t = if den > 0.0 {
-                ((m.dp - m.sp - m.ds + ss) / den).clamp(0.0, 1.0)
-            } else {
-                0.0
+            let bound_edges = match bound {
+                RhoBound::Sum => {
+                    // ρd + ρs = 1: ρd = t, ρs = 1 − t.
+                    let den = m.dd - 2.0 * m.ds + ss;
+                    let t = if den > 0.0 {
+                        ((m.dp - m.sp - m.ds + ss) / den).clamp(0.0, 1.0)
+                    } else {
+                        0.0
+                    };
+                    [Some((t, 1.0 - t)), None]
+                }
+                RhoBound::Each => {
+                    // ρd = 1 (ρs free), ρs = 1 (ρd free).
+                    let rs = if ss > 0.0 {
+                        ((m.sp - m.ds) / ss).clamp(0.0, 1.0)
+                    } else {
+                        0.0
+                    };
+                    let rd = if m.dd > 0.0 {
+                        ((m.dp - m.ds) / m.dd).clamp(0.0, 1.0)
+                    } else {
+                        0.0
+                    };
+                    [Some((1.0, rs)), Some((rd, 1.0))]
+                }
             };
-            let c = (t, 1.0 - t);
-            [a, b, c]
+            [Some(a), Some(b)]
                 .into_iter()
+                .chain(bound_edges)
+                .flatten()
                 .min_by(|x, y| m.cost(x.0, x.1).total_cmp(&m.cost(y.0, y.1)))
                 .unwrap()
         }
@@ -260,7 +284,7 @@ mod tests {
             let s = (i as f32 * 0.11).cos().abs() * 3.0;
             m.add_exact(d, s, 0.3 * d + 0.6 * s);
         }
-        let (rd, rs) = solve_rho(&m, Free::Both);
+        let (rd, rs) = solve_rho(&m, Free::Both(RhoBound::Sum));
         assert!(
             (rd - 0.3).abs() < 1e-6 && (rs - 0.6).abs() < 1e-6,
             "{rd} {rs}"
@@ -272,11 +296,32 @@ mod tests {
             let s = (i as f32 * 0.11).cos().abs();
             m.add_exact(d, s, 0.9 * d + 0.9 * s);
         }
-        let (rd, rs) = solve_rho(&m, Free::Both);
+        let (rd, rs) = solve_rho(&m, Free::Both(RhoBound::Sum));
         assert!(
             rd >= 0.0 && rs >= 0.0 && (rd + rs - 1.0).abs() < 1e-9,
             "{rd} {rs}"
         );
+    }
+
+    /// A coated model's square ρd, ρs ≤ 1 holds a truth the triangle cuts off, and meets one
+    /// outside it on its edge ρd = 1 with ρs still fitted.
+    #[test]
+    fn the_square_bound_reaches_a_plastics_reflectances() {
+        let moments = |rd: f32, rs: f32| {
+            let mut m = Moments::default();
+            for i in 0..100 {
+                let d = 1.0 + (i as f32 * 0.37).sin();
+                let s = (i as f32 * 0.11).cos().abs();
+                m.add_exact(d, s, rd * d + rs * s);
+            }
+            m
+        };
+        let (rd, rs) = solve_rho(&moments(0.9, 0.3), Free::Both(RhoBound::Each));
+        assert!((rd - 0.9).abs() < 1e-5 && (rs - 0.3).abs() < 1e-5, "{rd} {rs}");
+        let (rd, rs) = solve_rho(&moments(0.9, 0.3), Free::Both(RhoBound::Sum));
+        assert!((rd + rs - 1.0).abs() < 1e-9, "{rd} {rs}");
+        let (rd, rs) = solve_rho(&moments(1.2, 0.3), Free::Both(RhoBound::Each));
+        assert!(rd == 1.0 && rs > 0.3 && rs < 1.0, "{rd} {rs}");
     }
 
     #[test]

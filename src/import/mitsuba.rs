@@ -108,8 +108,8 @@
 //!   Ward α = roughness², F0 = 0.08·specular blended to base_color by metallic,
 //!   ρd = (1−metallic)(1−F0)·base_color. Anything else
 //!   (dielectrics, …) → diffuse 0.5 with a warning. A shape with no BSDF gets Mitsuba's default,
-//!   diffuse 0.5; a zero reflectance is written `black`. ρd + ρs over 1 is scaled down (a
-//!   warning).
+//!   diffuse 0.5; a zero reflectance is written `black`. ρd + ρs over 1 is scaled down, a
+//!   plastic's ρd over 1 (its bound, `RhoBound`) lowered to 1 (a warning).
 //! - **Spectra.** A sampled spectrum (wavelength:value pairs) becomes linear sRGB as Mitsuba's
 //!   RGB variants convert it ([`super::spectrum`]); a warning, since a spectral render differs.
 //!   A constant spectrum is grey, except on an emitter, where Mitsuba takes it as equal-energy
@@ -121,7 +121,7 @@ use crate::scene::schema::{
     ProjectionKind, RenderSpec, SceneFile, ShapeKind, StrayLightSpec, TransformSpec,
 };
 use crate::scene::write::relative;
-use crate::scene::Distribution;
+use crate::scene::{Distribution, RhoBound};
 use glam::{DMat3, DMat4, DQuat, DVec3, DVec4, EulerRot};
 use roxmltree::{Document, Node};
 use std::cell::RefCell;
@@ -2353,26 +2353,35 @@ impl<'a> Ctx<'a> {
         let c = |v: DVec3| Color(v.as_vec3().to_array());
         let mut d = l.d.max(DVec3::ZERO);
         let mut s = l.s.max(DVec3::ZERO);
-        let sum = (d + s).max_element();
+        let bound = RhoBound::of(l.plastic.is_some() && l.alpha.is_some());
+        let reach = (0..3).map(|k| bound.reach(d[k], s[k])).fold(0.0, f64::max);
         // (A texture's d is a factor on its texels, not a reflectance.)
-        if sum > 1.0 + 1e-6 && l.texture.is_none() && l.plastic.is_some() {
-            // A plastic's ρs is its coat's Fresnel reflection, set by η, and its base may
-            // reflect up to 1 under it; matfit's bound ρd + ρs ≤ 1 is met by lowering ρd alone.
-            self.warn(
-                b,
-                format!(
-                    "ρd + ρs reaches {sum:.4} > 1, matfit's bound (a plastic's base under its \
-                     coat may reach it): ρd lowered to 1 − ρs where over, ρs kept"
-                ),
-            );
-            d = d.min(DVec3::ONE - s);
-        } else if sum > 1.0 + 1e-6 && l.texture.is_none() {
-            self.warn(
-                b,
-                format!("ρd + ρs reaches {sum:.4} > 1 (more light out than in): scaled to 1"),
-            );
-            d /= sum;
-            s /= sum;
+        if reach > 1.0 + 1e-6 && l.texture.is_none() {
+            match bound {
+                RhoBound::Each => {
+                    // A plastic's ρs is its coat's Fresnel reflection, set by η, below 1: only
+                    // its base can pass the bound.
+                    self.warn(
+                        b,
+                        format!(
+                            "a plastic's ρd reaches {reach:.4} > 1 (more light out than in): \
+                             lowered to 1 where over, ρs kept"
+                        ),
+                    );
+                    d = d.min(DVec3::ONE);
+                    s = s.min(DVec3::ONE);
+                }
+                RhoBound::Sum => {
+                    self.warn(
+                        b,
+                        format!(
+                            "ρd + ρs reaches {reach:.4} > 1 (more light out than in): scaled to 1"
+                        ),
+                    );
+                    d /= reach;
+                    s /= reach;
+                }
+            }
         }
         let (alpha, alpha_x, alpha_y) = match l.alpha {
             Some((ax, ay)) if ax == ay => (Some(ax as f32), None, None),

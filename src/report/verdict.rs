@@ -133,7 +133,10 @@ fn likely_causes(rec: &Recovery, photo: &Photo, bad: &[usize], clipped_share: f3
     let at_bound: Vec<&str> = bad
         .iter()
         .map(|&g| &rec.groups[g])
-        .filter(|s| (s.params.rho_d + s.params.rho_s).max_element() >= 0.985)
+        .filter(|s| {
+            let (rd, rs) = (s.params.rho_d, s.params.rho_s);
+            (0..3).any(|c| s.level.rho_bound().reach(rd[c] as f64, rs[c] as f64) >= 0.985)
+        })
         .map(|s| s.name.as_str())
         .collect();
     let ratio = {

@@ -65,6 +65,57 @@ pub struct Varnish {
     pub theta: f32,
 }
 
+/// What keeps a material's reflectances from sending out more light than it receives, per
+/// channel. A lobe beside a diffuse term shares the incident light with it: ρd + ρs ≤ 1. A
+/// diffuse base under a dielectric coat does not: the coat reflects ρs (at most 1) and the base
+/// is lit only by what the coat transmits, so its albedo, about F0 + (1 − F0)·ρd, is at most 1
+/// for any ρd ≤ 1.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RhoBound {
+    /// ρd + ρs ≤ 1.
+    Sum,
+    /// ρd ≤ 1 and ρs ≤ 1.
+    Each,
+}
+
+impl RhoBound {
+    /// The bound of a model whose diffuse term is a base under a dielectric coat (`coated`), or
+    /// beside its lobe.
+    pub fn of(coated: bool) -> RhoBound {
+        if coated {
+            RhoBound::Each
+        } else {
+            RhoBound::Sum
+        }
+    }
+
+    /// What the bound holds at most 1, for one channel's non-negative ρd and ρs.
+    pub fn reach(self, rho_d: f64, rho_s: f64) -> f64 {
+        match self {
+            RhoBound::Sum => rho_d + rho_s,
+            RhoBound::Each => rho_d.max(rho_s),
+        }
+    }
+
+    /// One channel's ρd and ρs, each already in [0, 1], brought within the bound: over a sum of
+    /// 1 both are scaled down by it (their ratio, the look of the highlight, is kept).
+    pub fn clamp(self, rho_d: f32, rho_s: f32) -> (f32, f32) {
+        let sum = rho_d + rho_s;
+        match self {
+            RhoBound::Sum if sum > 1.0 => (rho_d / sum, rho_s / sum),
+            _ => (rho_d, rho_s),
+        }
+    }
+
+    /// The bound as the messages write it.
+    pub fn name(self) -> &'static str {
+        match self {
+            RhoBound::Sum => "ρd + ρs ≤ 1",
+            RhoBound::Each => "ρd ≤ 1 and ρs ≤ 1",
+        }
+    }
+}
+
 /// The coat's relative index of refraction when none is given: Mitsuba's default for
 /// `roughplastic` (polypropylene, 1.49, in air).
 pub const DEFAULT_ETA: f32 = 1.49;
@@ -128,6 +179,14 @@ pub enum Material {
 }
 
 impl Material {
+    /// The bound on its ρd and ρs: each alone under a plastic's coat, their sum otherwise.
+    pub fn rho_bound(&self) -> RhoBound {
+        RhoBound::of(matches!(
+            self,
+            Material::Plastic { .. } | Material::TexturedPlastic { .. }
+        ))
+    }
+
     /// The diffuse albedo where it is uniform; a texture's mean over its texels (what a table
     /// that has one number per group shows).
     pub fn rho_d(&self) -> Rgb {

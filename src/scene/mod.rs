@@ -22,7 +22,7 @@ pub use camera::Camera;
 pub use error::SceneError;
 pub use light::{Punctual, PunctualLight};
 pub use load::load_scene;
-pub use material::{Distribution, Material, Varnish, WardVariant};
+pub use material::{Distribution, Material, RhoBound, Varnish, WardVariant};
 pub use view::View;
 
 use crate::geometry::packet::{Packet, LANES};

@@ -46,7 +46,7 @@ impl Checkpoint {
     pub fn implausible_group(&self) -> Option<&GroupState> {
         self.states
             .iter()
-            .find(|s| s.is_fitted() && (!s.params.in_bounds() || !s.error.is_finite()))
+            .find(|s| s.is_fitted() && (!s.params.in_bounds(s.level) || !s.error.is_finite()))
     }
 }
 
