@@ -288,11 +288,19 @@ pub fn with_scatter(sigma: &GroupParams, scatter: &GroupParams, n: u32) -> Group
     out
 }
 
-/// The relative 1σ of the light a group sends the others that comes from its own model's
-/// misfit: what its final ε exceeds its noise floor by (`error`, `noise`). A group whose
-/// model leaves 5% of its own pixels unexplained sends light that may be off by as much.
+/// How far a final ε may exceed its noise floor and still be noise: the floor is itself an
+/// estimate (from the final render's two halves), and on the bundled scenes fitted at their
+/// own models ε / floor spans 0.84–1.21 (figure6 at 64 spp 1.05–1.09, glossy at 4 spp
+/// 0.84–1.21). Counting that excess as misfit widened their error bars 2.5-fold
+/// (`tests/uncertainty.rs`).
+pub const NOISE_TOLERANCE: f32 = 1.25;
+
+/// The relative 1σ of a group's light, and of its reflectances, that comes from its own
+/// model's misfit: what its final ε exceeds its noise floor by (`error`, `noise`), beyond
+/// the floor's own tolerance ([`NOISE_TOLERANCE`]). A group whose model leaves 5% of its own
+/// pixels unexplained sends light that may be off by as much.
 pub fn model_misfit(error: f32, noise: f32) -> f32 {
-    (error - noise).max(0.0)
+    (error - NOISE_TOLERANCE * noise).max(0.0)
 }
 
 /// The relative 1σ of an unseen group's reflectance, and so of the light it sends: its
@@ -512,9 +520,11 @@ mod neighbour_tests {
             alpha_x: 0.01,
             ..GroupParams::default()
         };
-        let neighbour = model_misfit(0.08, 0.03);
+        let neighbour = model_misfit(0.0875, 0.03);
         assert!((neighbour - 0.05).abs() < 1e-6);
         assert_eq!(model_misfit(0.02, 0.03), 0.0);
+        // Within the floor's own tolerance: noise, not misfit.
+        assert_eq!(model_misfit(0.036, 0.03), 0.0);
         // The ceiling: no estimate from the photo, given ρd 0.4.
         let ceiling = unseen_misfit([0.4; 3], [-1.0; 3]);
         assert!((ceiling - 0.2887 / 0.4).abs() < 1e-3, "{ceiling}");
@@ -556,7 +566,8 @@ mod albedo_tests {
             alpha_x: 0.02,
             ..GroupParams::default()
         };
-        let m = model_misfit(0.035, 0.02);
+        let m = model_misfit(0.04, 0.02);
+        assert!((m - 0.015).abs() < 1e-6);
         let wide = with_own_misfit(&sigma, &params, m);
         for c in 0..3 {
             assert!((wide.rho_d[c] - 0.003f32.hypot(params.rho_d[c] * m)).abs() < 1e-7);
