@@ -166,7 +166,8 @@ struct Climb {
     texture_refused: bool,
     /// The texture trials' pooled evidence, this one included (None: no trial).
     texture_evidence: Option<(f32, f32, u32)>,
-    /// The uniform levels above `best` tried and not kept ([`GroupState::alternatives`]).
+    /// The uniform levels above `best` tried and not kept that fitted the cache at least as
+    /// well ([`GroupState::alternatives`]).
     alternatives: Vec<(Level, GroupParams)>,
 }
 
@@ -786,6 +787,7 @@ impl GroupState {
         let near_miss = rejected < (1.0 - opts.margin) * best.error;
         let alternatives = (tried.iter())
             .filter(|f| f.level.number() > best.level.number() && f.level != Level::Textured)
+            .filter(|f| f.error <= best.error)
             .map(|f| (f.level, f.params))
             .collect();
         Climb {
