@@ -400,6 +400,24 @@ pub fn embed(lower: Level, p: &GroupParams, higher: Level) -> Option<GroupParams
     Some(q.clamped(higher))
 }
 
+/// `params` at `level` with its shape kept (the lobe's widths and turn, the distribution) and
+/// its reflectances refitted on `cache` by the level's linear least squares; a bare metal
+/// (ρd = 0 at a lobe level) stays one.
+pub fn refit_reflectances(
+    cache: &GroupCache,
+    level: Level,
+    params: &GroupParams,
+    variant: WardVariant,
+) -> LevelFit {
+    let free = match level {
+        Level::Diffuse | Level::Textured => Free::Diffuse,
+        Level::PerfectSpecular | Level::Specular => Free::Specular,
+        _ if level.has_lobe() && params.rho_d == Rgb::ZERO => Free::Specular,
+        _ => Free::Both(level.rho_bound()),
+    };
+    finish(cache, level, spec_of(level, params), free, *params, variant, 0)
+}
+
 /// [`fit_level`] for a climb, where the lower levels' fits on the same cache are known: a
 /// level that contains one of them can never come out worse than it (its search may end in a
 /// worse local optimum than the embedded lower optimum; then the embedded one is the fit).
