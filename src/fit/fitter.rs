@@ -968,6 +968,48 @@ mod tests {
         )
     }
 
+    /// `refit_reflectances` solves the reflectances at the shape it is given and leaves the
+    /// shape alone: at the true width it finds the true ρd and ρs from a wrong start, and a
+    /// bare metal (ρd 0) stays one.
+    #[test]
+    fn refit_reflectances_keeps_the_shape_and_finds_the_reflectances() {
+        let v = WardVariant::Ward1992;
+        let lobe = crate::render::bsdf::WardLobe {
+            alpha_x: 0.2,
+            alpha_y: 0.2,
+            variant: v,
+        };
+        let cache = synthetic_cache(400, 48, 24, 3, |_p: &CachePixel, s: &[(Vec3, Vec3, Rgb)]| {
+            let spec: Rgb = s
+                .iter()
+                .map(|&(wo, wi, c)| c * lobe.eval(wo, wi))
+                .fold(Rgb::ZERO, |a, b| a + b);
+            Rgb::new(0.35, 0.25, 0.15) * diffuse(s) + 0.2 * spec
+        });
+        let start = GroupParams {
+            rho_d: Rgb::splat(0.5),
+            rho_s: Rgb::splat(0.05),
+            alpha_x: 0.2,
+            alpha_y: 0.2,
+            ..GroupParams::default()
+        };
+        let f = refit_reflectances(&cache, Level::Isotropic, &start, v);
+        assert_eq!((f.params.alpha_x, f.params.alpha_y), (0.2, 0.2));
+        // To the cache's noise: its least squares pairs the two halves' samples, whose
+        // scatter trades ρd against ρs by about 0.02 on 400 pixels.
+        for (c, want) in [0.35, 0.25, 0.15].into_iter().enumerate() {
+            assert!((f.params.rho_d[c] - want).abs() < 0.025, "{:?}", f.params);
+            assert!((f.params.rho_s[c] - 0.2).abs() < 0.025, "{:?}", f.params);
+        }
+        let metal = GroupParams {
+            rho_d: Rgb::ZERO,
+            ..start
+        };
+        let m = refit_reflectances(&cache, Level::Isotropic, &metal, v);
+        assert_eq!(m.params.rho_d, Rgb::ZERO);
+        assert!(m.error > f.error, "{} {}", m.error, f.error);
+    }
+
     /// Brent's search finds the minimum of a smooth cost between grid points, and of one at
     /// the grid's end, to its tolerance, in fewer evaluations than golden sections would take
     /// (the grid's 9 and about 10 more).
