@@ -339,6 +339,13 @@ pub fn with_neighbours(
         .map(|(_, (&x, &m))| (x * m).powi(2))
         .sum::<f32>()
         .sqrt();
+    with_relative(sigma, params, u)
+}
+
+/// `sigma` with ρ u added in quadrature to every reflectance's 1σ that is free (non-zero): a
+/// relative uncertainty u of the light, or of the model, that scales the reflectances and not
+/// the lobe's shape.
+fn with_relative(sigma: &GroupParams, params: &GroupParams, u: f32) -> GroupParams {
     let mut out = *sigma;
     let add = |s: f32, rho: f32| {
         if s > 0.0 {
@@ -406,11 +413,7 @@ pub fn albedo(
     let bsdf = uniform_bsdf(&params.material(level), variant)?;
     let value = ALBEDO_COSINES.map(|mu| bsdf.albedo(mu));
     let [d, s] = parts(params.alpha_x, params.alpha_y)?;
-    let free = |name: &str| {
-        super::params::REGISTRY
-            .iter()
-            .any(|r| r.name == name && r.free_at(level))
-    };
+    let free = |name: &str| super::params::param(name).free_at(level);
     // ∂(D, S)/∂α per free width, by central differences.
     let mut widths = Vec::new();
     for (name, x) in [("alpha_x", params.alpha_x), ("alpha_y", params.alpha_y)] {
@@ -486,19 +489,7 @@ pub fn albedo(
 /// m; the sandwich holds the misfit's scatter, not this shift. ρ's 1σ gains ρ m in quadrature;
 /// the lobe's shape does not scale with it.
 pub fn with_own_misfit(sigma: &GroupParams, params: &GroupParams, misfit: f32) -> GroupParams {
-    let mut out = *sigma;
-    let add = |s: f32, rho: f32| {
-        if s > 0.0 {
-            s.hypot(rho * misfit)
-        } else {
-            s
-        }
-    };
-    for c in 0..3 {
-        out.rho_d[c] = add(sigma.rho_d[c], params.rho_d[c]);
-        out.rho_s[c] = add(sigma.rho_s[c], params.rho_s[c]);
-    }
-    out
+    with_relative(sigma, params, misfit)
 }
 
 #[cfg(test)]

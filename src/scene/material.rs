@@ -106,14 +106,6 @@ impl RhoBound {
             _ => (rho_d, rho_s),
         }
     }
-
-    /// The bound as the messages write it.
-    pub fn name(self) -> &'static str {
-        match self {
-            RhoBound::Sum => "ρd + ρs ≤ 1",
-            RhoBound::Each => "ρd ≤ 1 and ρs ≤ 1",
-        }
-    }
 }
 
 /// The coat's relative index of refraction when none is given: Mitsuba's default for
