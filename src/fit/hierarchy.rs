@@ -264,10 +264,9 @@ impl GroupState {
     ///
     /// The lobes keep the shape the whole cache gave them: a narrow highlight on a small curved
     /// object covers a tile or two, and a half without it has nothing to place a lobe's width
-    /// by, so a width searched there predicted the other half worse than a mirror did (a gold
-    /// ball, ε 0.085 on the whole cache, held out 0.77 against the mirror's 0.23). A lobe that
-    /// only absorbs an error on a few tiles still fails: the half without them gives it no
-    /// amplitude.
+    /// by, so a width searched there can predict the other half worse than a mirror does. A
+    /// lobe that only absorbs an error on a few tiles still fails: the half without them gives
+    /// it no amplitude.
     fn predicts(
         cache: &GroupCache,
         base: &LevelFit,

@@ -290,9 +290,7 @@ pub fn with_scatter(sigma: &GroupParams, scatter: &GroupParams, n: u32) -> Group
 
 /// How far a final ε may exceed its noise floor and still be noise: the floor is itself an
 /// estimate (from the final render's two halves), and on the bundled scenes fitted at their
-/// own models ε / floor spans 0.84–1.21 (figure6 at 64 spp 1.05–1.09, glossy at 4 spp
-/// 0.84–1.21). Counting that excess as misfit widened their error bars 2.5-fold
-/// (`tests/uncertainty.rs`).
+/// own models ε / floor reaches 1.21.
 pub const NOISE_TOLERANCE: f32 = 1.25;
 
 /// The relative 1σ of a group's light, and of its reflectances, that comes from its own
