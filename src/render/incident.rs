@@ -122,10 +122,13 @@ radiance = [{stray}, {stray}, {stray}]
                 );
                 let r = (1.0 - z * z).sqrt();
                 let ray = Ray::new(o, Vec3::new(r * phi.cos(), z, r * phi.sin()));
+                // Sample 0 of stream i: a sampler's values are set by `start_sample`.
+                let mut sampler = Sampler::new(11, i);
+                sampler.start_sample(0);
                 IndirectRay {
                     hit: scene.intersect_hit(&ray, f32::INFINITY),
                     ray,
-                    sampler: Sampler::new(11, i),
+                    sampler,
                 }
             })
             .collect()

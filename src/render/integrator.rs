@@ -14,10 +14,23 @@ use crate::scene::{Material, Object, Scene, SurfaceHit, WardVariant};
 /// The BSDF of `material` at a hit, with the shading frame it is expressed in.
 #[inline]
 pub fn bsdf_at(material: &Material, hit: &SurfaceHit, variant: WardVariant) -> (Bsdf, Frame) {
+    let (bsdf, theta) = material_bsdf(material, |t| t.at(hit), variant);
+    (bsdf, hit.frame.rotated(theta))
+}
+
+/// The BSDF of `material` where its textures read `texel` (a texture's value at the point),
+/// and the angle its lobe's frame is turned by about the shading normal (θ of a Ward or
+/// microfacet lobe, or of a textured group's varnish; 0 for the rest).
+#[inline]
+pub fn material_bsdf(
+    material: &Material,
+    texel: impl Fn(&crate::scene::texture::Texture) -> Rgb,
+    variant: WardVariant,
+) -> (Bsdf, f32) {
     match material {
         Material::Ward { theta, .. } | Material::Microfacet { theta, .. } => (
             uniform_bsdf(material, variant).unwrap_or(Bsdf::Black),
-            hit.frame.rotated(*theta),
+            *theta,
         ),
         Material::Textured {
             texture,
@@ -25,24 +38,27 @@ pub fn bsdf_at(material: &Material, hit: &SurfaceHit, variant: WardVariant) -> (
             varnish: None,
         } => (
             Bsdf::Diffuse {
-                rho_d: *scale * texture.at(hit),
+                rho_d: *scale * texel(texture),
             },
-            hit.frame,
+            0.0,
         ),
         Material::Textured {
             texture,
             scale,
             varnish: Some(v),
-        } => bsdf_at(
-            &Material::Ward {
-                rho_d: *scale * texture.at(hit),
-                rho_s: v.rho_s,
-                alpha_x: v.alpha_x,
-                alpha_y: v.alpha_y,
-                theta: v.theta,
-            },
-            hit,
-            variant,
+        } => (
+            uniform_bsdf(
+                &Material::Ward {
+                    rho_d: *scale * texel(texture),
+                    rho_s: v.rho_s,
+                    alpha_x: v.alpha_x,
+                    alpha_y: v.alpha_y,
+                    theta: v.theta,
+                },
+                variant,
+            )
+            .unwrap_or(Bsdf::Black),
+            v.theta,
         ),
         Material::TexturedPlastic {
             texture,
@@ -53,16 +69,13 @@ pub fn bsdf_at(material: &Material, hit: &SurfaceHit, variant: WardVariant) -> (
             distribution,
         } => (
             Bsdf::Plastic {
-                rho_d: *scale * texture.at(hit),
+                rho_d: *scale * texel(texture),
                 rho_s: *rho_s,
                 coat: super::bsdf::Coat::get(*alpha, *eta, *distribution),
             },
-            hit.frame,
+            0.0,
         ),
-        _ => (
-            uniform_bsdf(material, variant).unwrap_or(Bsdf::Black),
-            hit.frame,
-        ),
+        _ => (uniform_bsdf(material, variant).unwrap_or(Bsdf::Black), 0.0),
     }
 }
 
@@ -260,6 +273,43 @@ impl PathState {
     }
 }
 
+/// What a path met on its way, told as the path tracer goes (`PathTracer::trace_recorded`),
+/// so that the path can be weighed again under other materials (`render::replay`): everything
+/// it found that does not depend on the materials of its vertices (emission and light samples,
+/// with their MIS weights, the densities its directions were drawn with, Russian roulette's
+/// survival factors), and where each vertex's BSDF is to be read. `()` records nothing, which
+/// the compiler removes.
+pub trait Record {
+    /// Emission (or the environment's radiance) found where the path arrived, times its MIS
+    /// weight: the path's radiance gains it times the throughput so far.
+    #[inline(always)]
+    fn found(&mut self, _le: Rgb) {}
+    /// A vertex at `hit`, its shading frame turned to the viewer's side (`flipped`: turned
+    /// over), ωo in that frame (after the lobe's rotation), and the BSDF it scatters by.
+    #[inline(always)]
+    fn vertex(&mut self, _hit: &SurfaceHit, _flipped: bool, _wo: Vec3, _bsdf: &Bsdf) {}
+    /// The path ends at a black surface.
+    #[inline(always)]
+    fn black(&mut self, _hit: &SurfaceHit) {}
+    /// A light sample at the current vertex: ωi in its frame, and the light's radiance times
+    /// cos θi × MIS weight / density (the radiance gains it times f(ωo, ωi) and the throughput).
+    #[inline(always)]
+    fn light(&mut self, _wi: Vec3, _term: Rgb) {}
+    /// Whether light samples the BSDF does not reflect (f = 0, whose shadow rays the path
+    /// tracer skips) are to be traced and told too: under other materials they may count.
+    #[inline(always)]
+    fn every_light(&self) -> bool {
+        false
+    }
+    /// The path goes on from the current vertex along ωi (in its frame), drawn with density
+    /// `pdf` (for a delta lobe, the probability of choosing it), its throughput then divided
+    /// by Russian roulette's survival probability (`rr`: 1 / that, or 1).
+    #[inline(always)]
+    fn scattered(&mut self, _wi: Vec3, _pdf: f32, _delta: bool, _rr: f32) {}
+}
+
+impl Record for () {}
+
 /// A surface point to scatter from: the BSDF in its shading frame, both turned to the side the
 /// path arrives from, and the outgoing direction in that frame.
 #[derive(Clone, Copy, Debug)]
@@ -326,13 +376,26 @@ impl<'a> PathTracer<'a> {
         depth: u32,
         count_emission: bool,
     ) -> PathState {
+        self.trace_recorded(ray, first_hit, sampler, depth, count_emission, &mut ())
+    }
+
+    /// [`PathTracer::trace_path`], telling `rec` what the path met on its way (`Record`).
+    pub fn trace_recorded(
+        &self,
+        ray: Ray,
+        first_hit: Option<Hit>,
+        sampler: &mut Sampler,
+        depth: u32,
+        count_emission: bool,
+        rec: &mut impl Record,
+    ) -> PathState {
         let mut st = PathState::new(ray, depth, count_emission);
         let mut hit = first_hit;
-        while let Some(obj) = self.arrive(&mut st, hit.as_ref()) {
-            let Some(v) = hit.and_then(|h| self.vertex(&st, &h, obj)) else {
+        while let Some(obj) = self.arrive_with(&mut st, hit.as_ref(), rec) {
+            let Some(v) = hit.and_then(|h| self.vertex_with(&st, &h, obj, rec)) else {
                 break;
             };
-            if !self.scatter(&mut st, &v, sampler) {
+            if !self.scatter_with(&mut st, &v, sampler, rec) {
                 break;
             }
             hit = self.scene.intersect_hit(&st.ray, f32::INFINITY);
@@ -346,6 +409,17 @@ impl<'a> PathTracer<'a> {
     /// BVH's hit: the rest of the hit record waits for `vertex`.
     #[inline(always)]
     pub(super) fn arrive(&self, st: &mut PathState, hit: Option<&Hit>) -> Option<&'a Object> {
+        self.arrive_with(st, hit, &mut ())
+    }
+
+    /// [`PathTracer::arrive`], telling `rec` the emission found.
+    #[inline(always)]
+    fn arrive_with(
+        &self,
+        st: &mut PathState,
+        hit: Option<&Hit>,
+        rec: &mut impl Record,
+    ) -> Option<&'a Object> {
         st.segments += 1;
         let Some(hit) = hit else {
             // A first segment whose emission does not count finds no stray light either.
@@ -358,6 +432,7 @@ impl<'a> PathTracer<'a> {
                     Some(pb) => power_heuristic(pb, pl),
                 };
                 st.l += st.beta * le * w;
+                rec.found(le * w);
             });
             return None;
         };
@@ -383,6 +458,7 @@ impl<'a> PathTracer<'a> {
                     }
                 };
                 st.l += st.beta * obj.emission * w;
+                rec.found(obj.emission * w);
             }
         }
         st.first = false;
@@ -396,18 +472,32 @@ impl<'a> PathTracer<'a> {
     /// None on a black surface.
     #[inline(always)]
     pub(super) fn vertex(&self, st: &PathState, hit: &Hit, obj: &Object) -> Option<Vertex> {
+        self.vertex_with(st, hit, obj, &mut ())
+    }
+
+    /// [`PathTracer::vertex`], telling `rec` where it is.
+    #[inline(always)]
+    fn vertex_with(
+        &self,
+        st: &PathState,
+        hit: &Hit,
+        obj: &Object,
+        rec: &mut impl Record,
+    ) -> Option<Vertex> {
         let sh = self.scene.surface_hit(&st.ray, hit);
         let (bsdf, frame) = bsdf_at(&obj.material, &sh, self.scene.render.ward_variant);
         if matches!(bsdf, Bsdf::Black) {
+            rec.black(&sh);
             return None;
         }
         let wo_world = -st.ray.d;
-        let (frame, ng) = facing(frame, sh.ng, wo_world);
-        let wo = frame.to_local(wo_world);
+        let (faced, ng) = facing(frame, sh.ng, wo_world);
+        let wo = faced.to_local(wo_world);
+        rec.vertex(&sh, faced.n.dot(frame.n) < 0.0, wo, &bsdf);
         Some(Vertex {
             p: sh.p,
             bsdf,
-            frame,
+            frame: faced,
             ng,
             wo,
         })
@@ -419,6 +509,18 @@ impl<'a> PathTracer<'a> {
     /// roulette) in that order; `batch.rs` relies on it.
     #[inline(always)]
     pub(super) fn scatter(&self, st: &mut PathState, v: &Vertex, sampler: &mut Sampler) -> bool {
+        self.scatter_with(st, v, sampler, &mut ())
+    }
+
+    /// [`PathTracer::scatter`], telling `rec` the light samples and the direction drawn.
+    #[inline(always)]
+    fn scatter_with(
+        &self,
+        st: &mut PathState,
+        v: &Vertex,
+        sampler: &mut Sampler,
+        rec: &mut impl Record,
+    ) -> bool {
         let (bsdf, frame, ng, wo) = (&v.bsdf, &v.frame, v.ng, v.wo);
         // Next-event estimation: one point on an area light, one direction to the environment
         // and to each disc light, and every punctual light.
@@ -433,7 +535,8 @@ impl<'a> PathTracer<'a> {
                 let cos_g = ng.dot(ls.wi);
                 if wi.z > 0.0 && cos_g > 0.0 {
                     let f = bsdf.eval(wo, wi);
-                    if f.max_element() > 0.0 {
+                    let reflects = f.max_element() > 0.0;
+                    if reflects || rec.every_light() {
                         let origin = offset_origin(v.p, ng, ls.wi);
                         if self.lights.visible(self.scene, origin, &ls) {
                             let w = if ls.delta {
@@ -441,7 +544,10 @@ impl<'a> PathTracer<'a> {
                             } else {
                                 power_heuristic(ls.pdf, bsdf.pdf(wo, wi))
                             };
-                            st.l += st.beta * f * ls.radiance * (wi.z * w / ls.pdf);
+                            if reflects {
+                                st.l += st.beta * f * ls.radiance * (wi.z * w / ls.pdf);
+                            }
+                            rec.light(wi, ls.radiance * (wi.z * w / ls.pdf));
                         }
                     }
                 }
@@ -474,6 +580,9 @@ impl<'a> PathTracer<'a> {
                 return false;
             }
             st.beta /= 1.0 - q;
+            rec.scattered(bs.wi, bs.pdf, bs.delta, 1.0 / (1.0 - q));
+        } else {
+            rec.scattered(bs.wi, bs.pdf, bs.delta, 1.0);
         }
         st.ray = Ray::new(offset_origin(v.p, ng, wi_world), wi_world);
         true

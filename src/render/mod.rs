@@ -8,5 +8,6 @@ pub mod film;
 pub mod incident;
 pub mod integrator;
 pub mod lights;
+pub mod replay;
 
 pub use integrator::PathTracer;

@@ -3,7 +3,7 @@
 
 use super::atlas::Atlas;
 use super::SurfaceHit;
-use crate::math::{Rgb, Vec2};
+use crate::math::{Rgb, Vec2, Vec3};
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -31,9 +31,16 @@ impl Texture {
     /// The texture's value at a hit point.
     #[inline]
     pub fn at(&self, hit: &SurfaceHit) -> Rgb {
+        self.at_point(hit.object, hit.uv, hit.p, hit.ng)
+    }
+
+    /// The texture's value at a point of `object` (its UV, position and geometric normal: what
+    /// the two mappings read of a hit).
+    #[inline]
+    pub fn at_point(&self, object: u32, uv: Vec2, p: Vec3, ng: Vec3) -> Rgb {
         match &self.mapping {
-            Mapping::Uv => self.lookup(hit.uv),
-            Mapping::Atlas(a) => a.lookup(&self.texels, hit.object, hit.p, hit.ng),
+            Mapping::Uv => self.lookup(uv),
+            Mapping::Atlas(a) => a.lookup(&self.texels, object, p, ng),
         }
     }
 

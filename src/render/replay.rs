@@ -1,0 +1,681 @@
+//! Paths kept to be weighed again under other materials, without tracing a ray.
+//!
+//! A path's radiance depends on the materials of the surfaces it meets only through the BSDF
+//! values at its vertices. With what the path found kept (`integrator::Record`: the emission
+//! and light samples with their MIS weights, the density each direction was drawn with, Russian
+//! roulette's survival factors), its radiance under new materials is
+//!
+//!   L' = Σ_k β'_k (E_k + Σ_l f'_k(ωo, ωl) T_kl),   β'_{k+1} = β'_k f'_k(ωo, ωi) cos θi / p_k · r_k
+//!
+//! with E_k the emission found on arriving at vertex k, T_kl its light samples' radiance × cos ×
+//! MIS weight / density, p_k the density its direction ωi was drawn with under the old
+//! materials and r_k = 1 / (roulette's survival probability). This is importance sampling with
+//! the old materials' densities (the weights of multiple importance sampling need only sum to
+//! one over the techniques, which the old ones do), so L' is an unbiased estimate of the new
+//! scene's radiance wherever the old densities cover the new BSDFs (Veach 1997, §9.2; the reuse
+//! of paths across parameter changes is that of Bitterli et al. 2020, "Spatiotemporal reservoir
+//! resampling", and of path re-weighting in inverse rendering, Nimier-David et al. 2020,
+//! "Radiative backpropagation", §4). A vertex whose BSDF changed kind — gained or lost a smooth
+//! part (light sampling was done or not), or a mirror lobe (a direction only a delta draws) —
+//! cannot be weighed so: such a path is not replayed (`replay` gives None) and is traced again.
+//! Nor is a path that ended on a black surface that is black no more.
+//!
+//! Directions are kept in the vertex's shading frame as it was turned for the lobe's rotation θ
+//! then; a new θ turns them about the normal by the difference (the other way where the frame
+//! was turned over to face the viewer).
+
+use super::bsdf::Bsdf;
+use super::incident::IndirectRay;
+use super::integrator::{material_bsdf, PathTracer, Record, Touched};
+use crate::math::{Rgb, Vec2, Vec3};
+use crate::scene::{Material, Scene, SurfaceHit};
+
+/// One vertex of a kept path.
+#[derive(Clone, Copy, Debug)]
+struct KeptVertex {
+    object: u32,
+    /// Emission found on arriving here, MIS-weighted.
+    found: Rgb,
+    /// ωo in the shading frame as turned when traced (lobe rotation `theta`, `flipped`).
+    wo: Vec3,
+    theta: f32,
+    flipped: bool,
+    /// The BSDF's kind when traced: a smooth part (light samples drawn), a mirror lobe; or
+    /// black (the path ended here).
+    smooth: bool,
+    mirror: bool,
+    black: bool,
+    /// Its light samples: `lights[first_light..first_light + n_lights]`.
+    first_light: u32,
+    n_lights: u32,
+    /// Where its texture is read (`points`), or `u32::MAX` for a material without one.
+    point: u32,
+    /// The direction the path went on along, its density (a delta lobe's: the probability of
+    /// choosing it), and roulette's factor; `pdf` 0: the path ended here.
+    wi: Vec3,
+    pdf: f32,
+    delta: bool,
+    rr: f32,
+}
+
+/// Where a textured vertex's texture is read (`Texture::at_point`).
+#[derive(Clone, Copy, Debug)]
+struct TexPoint {
+    uv: Vec2,
+    p: Vec3,
+    ng: Vec3,
+}
+
+/// One kept path: its vertices, and what it found after the last of them.
+#[derive(Clone, Copy, Debug)]
+struct KeptPath {
+    first: u32,
+    count: u32,
+    tail: Rgb,
+}
+
+/// Paths kept by [`record`], in order.
+#[derive(Default, Debug)]
+pub struct PathBank {
+    paths: Vec<KeptPath>,
+    vertices: Vec<KeptVertex>,
+    lights: Vec<(Vec3, Rgb)>,
+    points: Vec<TexPoint>,
+}
+
+impl PathBank {
+    pub fn len(&self) -> usize {
+        self.paths.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.paths.is_empty()
+    }
+
+    /// Bytes held, for a caller that budgets memory.
+    pub fn bytes(&self) -> usize {
+        self.paths.len() * std::mem::size_of::<KeptPath>()
+            + self.vertices.len() * std::mem::size_of::<KeptVertex>()
+            + self.lights.len() * std::mem::size_of::<(Vec3, Rgb)>()
+            + self.points.len() * std::mem::size_of::<TexPoint>()
+    }
+}
+
+/// Whether a material's BSDF depends on where it is hit.
+fn reads_texture(material: &Material) -> bool {
+    matches!(
+        material,
+        Material::Textured { .. } | Material::TexturedPlastic { .. }
+    )
+}
+
+/// Whether a BSDF has a mirror lobe a path can be drawn along.
+fn has_mirror(bsdf: &Bsdf) -> bool {
+    matches!(bsdf, Bsdf::DiffuseMirror { rho_s, .. } if rho_s.max_element() > 0.0)
+}
+
+/// The `Record` that appends one path at a time to a bank.
+struct Recorder<'a, 'b> {
+    bank: &'a mut PathBank,
+    scene: &'b Scene,
+    /// Emission found since the last vertex.
+    pending: Rgb,
+}
+
+impl Recorder<'_, '_> {
+    fn start(&mut self) {
+        let first = self.bank.vertices.len() as u32;
+        self.bank.paths.push(KeptPath {
+            first,
+            count: 0,
+            tail: Rgb::ZERO,
+        });
+        self.pending = Rgb::ZERO;
+    }
+
+    fn finish(&mut self) {
+        let n = self.bank.vertices.len() as u32;
+        let path = self.bank.paths.last_mut().expect("a started path");
+        path.count = n - path.first;
+        path.tail = self.pending;
+    }
+
+    fn push_vertex(&mut self, hit: &SurfaceHit, flipped: bool, wo: Vec3, bsdf: Option<&Bsdf>) {
+        let material = &self.scene.objects[hit.object as usize].material;
+        let (_, theta) = material_bsdf(material, |_| Rgb::ZERO, self.scene.render.ward_variant);
+        let point = if reads_texture(material) {
+            self.bank.points.push(TexPoint {
+                uv: hit.uv,
+                p: hit.p,
+                ng: hit.ng,
+            });
+            self.bank.points.len() as u32 - 1
+        } else {
+            u32::MAX
+        };
+        self.bank.vertices.push(KeptVertex {
+            object: hit.object,
+            found: std::mem::replace(&mut self.pending, Rgb::ZERO),
+            wo,
+            theta,
+            flipped,
+            smooth: bsdf.is_some_and(Bsdf::has_smooth_part),
+            mirror: bsdf.is_some_and(has_mirror),
+            black: bsdf.is_none(),
+            first_light: self.bank.lights.len() as u32,
+            n_lights: 0,
+            point,
+            wi: Vec3::Z,
+            pdf: 0.0,
+            delta: false,
+            rr: 1.0,
+        });
+    }
+}
+
+impl Record for Recorder<'_, '_> {
+    fn found(&mut self, le: Rgb) {
+        self.pending += le;
+    }
+
+    fn vertex(&mut self, hit: &SurfaceHit, flipped: bool, wo: Vec3, bsdf: &Bsdf) {
+        self.push_vertex(hit, flipped, wo, Some(bsdf));
+    }
+
+    fn black(&mut self, hit: &SurfaceHit) {
+        self.push_vertex(hit, false, Vec3::Z, None);
+    }
+
+    fn every_light(&self) -> bool {
+        true
+    }
+
+    fn light(&mut self, wi: Vec3, term: Rgb) {
+        self.bank.lights.push((wi, term));
+        if let Some(v) = self.bank.vertices.last_mut() {
+            v.n_lights += 1;
+        }
+    }
+
+    fn scattered(&mut self, wi: Vec3, pdf: f32, delta: bool, rr: f32) {
+        if let Some(v) = self.bank.vertices.last_mut() {
+            (v.wi, v.pdf, v.delta, v.rr) = (wi, pdf, delta, rr);
+        }
+    }
+}
+
+/// What `render::incident::indirect_radiance` gives for the same rays, to the bit (traced one
+/// at a time, by the scalar route the eight-lane one repeats), with the paths kept to be
+/// weighed again (`Replay`).
+pub fn record(pt: &PathTracer, rays: Vec<IndirectRay>) -> (Vec<(Rgb, Touched)>, PathBank) {
+    let mut bank = PathBank::default();
+    let mut rec = Recorder {
+        bank: &mut bank,
+        scene: pt.scene,
+        pending: Rgb::ZERO,
+    };
+    let radiance = rays
+        .into_iter()
+        .map(|mut r| {
+            rec.start();
+            let st = pt.trace_recorded(r.ray, r.hit, &mut r.sampler, 1, false, &mut rec);
+            rec.finish();
+            (st.l, st.touched)
+        })
+        .collect();
+    (radiance, bank)
+}
+
+/// The materials kept paths are weighed under: a scene's, with each uniform material's BSDF
+/// and lobe rotation worked out once.
+pub struct Replay<'a> {
+    scene: &'a Scene,
+    /// Per object: its BSDF and θ, or None where a texture is read per point.
+    uniform: Vec<Option<(Bsdf, f32)>>,
+}
+
+impl<'a> Replay<'a> {
+    pub fn new(scene: &'a Scene) -> Replay<'a> {
+        let variant = scene.render.ward_variant;
+        let uniform = scene
+            .objects
+            .iter()
+            .map(|o| {
+                (!reads_texture(&o.material))
+                    .then(|| material_bsdf(&o.material, |_| Rgb::ZERO, variant))
+            })
+            .collect();
+        Replay { scene, uniform }
+    }
+
+    /// Path `i` of `bank`'s radiance under these materials, or None where one of its vertices'
+    /// BSDFs changed kind (module comment).
+    pub fn radiance(&self, bank: &PathBank, i: usize) -> Option<Rgb> {
+        let path = &bank.paths[i];
+        let (mut beta, mut l) = (Rgb::ONE, Rgb::ZERO);
+        for v in &bank.vertices[path.first as usize..(path.first + path.count) as usize] {
+            l += beta * v.found;
+            let (bsdf, theta) = self.bsdf(bank, v);
+            let black = matches!(bsdf, Bsdf::Black);
+            if v.black || black {
+                return (v.black && black).then_some(l);
+            }
+            if bsdf.has_smooth_part() != v.smooth || has_mirror(&bsdf) != v.mirror {
+                return None;
+            }
+            let turn = Turn::new(if v.flipped {
+                v.theta - theta
+            } else {
+                theta - v.theta
+            });
+            let wo = turn.apply(v.wo);
+            let lights = v.first_light as usize..(v.first_light + v.n_lights) as usize;
+            for &(wi, term) in &bank.lights[lights] {
+                l += beta * bsdf.eval(wo, turn.apply(wi)) * term;
+            }
+            if v.pdf <= 0.0 {
+                return Some(l);
+            }
+            if v.delta {
+                let Bsdf::DiffuseMirror { rho_s, .. } = bsdf else {
+                    return None;
+                };
+                beta *= rho_s * (v.rr / v.pdf);
+            } else {
+                let wi = turn.apply(v.wi);
+                beta *= bsdf.eval(wo, wi) * (wi.z * v.rr / v.pdf);
+            }
+        }
+        Some(l + beta * path.tail)
+    }
+
+    /// A kept vertex's BSDF under these materials, and its lobe's rotation.
+    fn bsdf(&self, bank: &PathBank, v: &KeptVertex) -> (Bsdf, f32) {
+        if let Some(b) = self.uniform[v.object as usize] {
+            return b;
+        }
+        let material = &self.scene.objects[v.object as usize].material;
+        let at = bank.points[v.point as usize];
+        material_bsdf(
+            material,
+            |t| t.at_point(v.object, at.uv, at.p, at.ng),
+            self.scene.render.ward_variant,
+        )
+    }
+}
+
+/// A turn by an angle about the shading normal, applied to a direction in the shading frame:
+/// its coordinates in the frame turned by that angle (`Frame::rotated`).
+#[derive(Clone, Copy)]
+struct Turn {
+    cos: f32,
+    sin: f32,
+}
+
+impl Turn {
+    fn new(angle: f32) -> Turn {
+        let (sin, cos) = if angle == 0.0 {
+            (0.0, 1.0)
+        } else {
+            angle.sin_cos()
+        };
+        Turn { cos, sin }
+    }
+
+    #[inline]
+    fn apply(&self, v: Vec3) -> Vec3 {
+        if self.sin == 0.0 {
+            return v;
+        }
+        Vec3::new(
+            self.cos * v.x + self.sin * v.y,
+            -self.sin * v.x + self.cos * v.y,
+            v.z,
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Ray;
+    use crate::math::{Frame, Sampler};
+    use crate::render::incident::indirect_radiance;
+    use crate::render::integrator::facing;
+    use crate::scene::load::parse_scene;
+
+    /// A floor, a back wall and an anisotropic Ward side wall, open above and in front, lit by
+    /// the sun, an area light and a stray light; `{..}` are the materials that move.
+    const ROOM: &str = r#"
+[render]
+spp = 1
+seed = 1
+[camera]
+width = 8
+height = 8
+eye = [0.0, 1.0, 2.0]
+target = [0.0, 0.5, -1.0]
+up = [0.0, 1.0, 0.0]
+fov_y_deg = 60.0
+[[object]]
+name = "floor"
+group = "floor"
+shape = "quad"
+corner = [-2.0, 0.0, 1.0]
+edge_u = [4.0, 0.0, 0.0]
+edge_v = [0.0, 0.0, -3.0]
+material = { type = "diffuse", rho_d = {floor} }
+[[object]]
+name = "wall"
+group = "wall"
+shape = "quad"
+corner = [-2.0, 0.0, -2.0]
+edge_u = [4.0, 0.0, 0.0]
+edge_v = [0.0, 2.0, 0.0]
+material = {wall}
+[[object]]
+name = "side"
+group = "side"
+shape = "quad"
+corner = [-2.0, 0.0, 1.0]
+edge_u = [0.0, 0.0, -3.0]
+edge_v = [0.0, 2.0, 0.0]
+tangent = [0.0, 1.0, 0.0]
+material = {side}
+[[object]]
+name = "lamp"
+group = "lamp"
+shape = "quad"
+corner = [1.9, 0.5, -1.5]
+edge_u = [0.0, 0.0, 1.0]
+edge_v = [0.0, 1.0, 0.0]
+emission = 5.0
+[[light]]
+name = "sun"
+type = "directional"
+direction = [0.3, -1.0, -0.4]
+irradiance = 2.0
+[stray_light]
+radiance = [0.3, 0.3, 0.3]
+"#;
+
+    const WALL: &str = r#"{ type = "diffuse", rho_d = [0.6, 0.5, 0.4] }"#;
+    const SIDE: &str = r#"{ type = "ward", rho_d = 0.3, rho_s = 0.4, alpha_x = 0.1, alpha_y = 0.3, theta_deg = 0.0 }"#;
+
+    fn room(floor: f32, wall: &str, side: &str) -> Scene {
+        let text = ROOM
+            .replace("{floor}", &floor.to_string())
+            .replace("{wall}", wall)
+            .replace("{side}", side);
+        parse_scene(&text, std::path::Path::new("room.toml")).unwrap()
+    }
+
+    /// Rays leaving the floor in directions spread over the hemisphere, their paths drawing
+    /// from samplers of `seed`.
+    fn rays(scene: &Scene, n: u64, seed: u64) -> Vec<IndirectRay> {
+        (0..n)
+            .map(|i| {
+                let (u, v) = ((i % 50) as f32 / 50.0, (i / 50 % 80) as f32 / 80.0);
+                let o = Vec3::new(-1.5 + 3.0 * u, 1e-3, 0.5 - 2.0 * v);
+                let (phi, z) = (
+                    2.0 * std::f32::consts::PI * (i as f32 * 0.618).fract(),
+                    0.05 + 0.45 * v,
+                );
+                let r = (1.0 - z * z).sqrt();
+                let ray = Ray::new(o, Vec3::new(r * phi.cos(), z, r * phi.sin()));
+                let mut sampler = Sampler::new(seed, i);
+                sampler.start_sample(0);
+                IndirectRay {
+                    hit: scene.intersect_hit(&ray, f32::INFINITY),
+                    ray,
+                    sampler,
+                }
+            })
+            .collect()
+    }
+
+    fn close(a: Rgb, b: Rgb, rel: f32) -> bool {
+        (0..3).all(|c| (a[c] - b[c]).abs() <= rel * a[c].abs().max(b[c].abs()) + 1e-7)
+    }
+
+    #[test]
+    fn recording_a_path_changes_nothing_of_it() {
+        let scene = room(0.5, WALL, SIDE);
+        let pt = PathTracer::new(&scene);
+        let traced = indirect_radiance(&pt, rays(&scene, 3000, 5));
+        let (recorded, bank) = record(&pt, rays(&scene, 3000, 5));
+        assert_eq!(bank.len(), 3000);
+        for ((l, t), (m, u)) in traced.iter().zip(&recorded) {
+            assert_eq!(l.to_array().map(f32::to_bits), m.to_array().map(f32::to_bits));
+            assert_eq!(t, u);
+        }
+    }
+
+    #[test]
+    fn weighed_again_under_the_same_materials_a_path_gives_its_radiance() {
+        let scene = room(0.5, WALL, SIDE);
+        let (recorded, bank) = record(&PathTracer::new(&scene), rays(&scene, 3000, 5));
+        let replay = Replay::new(&scene);
+        let mut lit = 0;
+        for (i, (l, _)) in recorded.iter().enumerate() {
+            let again = replay.radiance(&bank, i).expect("nothing changed kind");
+            assert!(close(*l, again, 2e-5), "path {i}: {l:?} traced, {again:?} again");
+            lit += usize::from(l.max_element() > 0.0);
+        }
+        assert!(lit > 1000, "{lit} paths brought light");
+    }
+
+    const NEW_WALL: &str = r#"{ type = "ward", rho_d = [0.3, 0.35, 0.2], rho_s = 0.2, alpha_x = 0.3, alpha_y = 0.3, theta_deg = 0.0 }"#;
+    const NEW_SIDE: &str = r#"{ type = "ward", rho_d = 0.1, rho_s = 0.6, alpha_x = 0.25, alpha_y = 0.12, theta_deg = 40.0 }"#;
+
+    /// Every material but the lights moves (a diffuse ρ; a Ward lobe's reflectances, widths
+    /// and rotation; a diffuse wall turned glossy): the replayed paths' mean agrees with that
+    /// of paths traced afresh in the new scene, within their standard errors.
+    #[test]
+    fn weighed_again_under_new_materials_paths_agree_with_tracing_them() {
+        agree(room(0.5, WALL, SIDE), room(0.7, NEW_WALL, NEW_SIDE));
+    }
+
+    /// A mirror's reflectance moves: the paths it reflected are weighed by the new one.
+    #[test]
+    fn a_mirror_weighed_again_agrees_with_tracing_it() {
+        let mirror = |rho: f32| format!(r#"{{ type = "mirror", rho_s = {rho} }}"#);
+        agree(room(0.5, &mirror(0.9), SIDE), room(0.5, &mirror(0.4), SIDE));
+    }
+
+    /// The mean radiance per channel of `n` paths replayed from `old` into `new` agrees with
+    /// that of `n` paths traced in `new`, within 4 standard errors; and the two scenes differ
+    /// by more than 10 in some channel (so that a replay that ignored the change would fail).
+    fn agree(old: Scene, new: Scene) {
+        let n = 40_000;
+        let (_, bank) = record(&PathTracer::new(&old), rays(&old, n, 5));
+        let replay = Replay::new(&new);
+        let replayed: Vec<Rgb> = (0..bank.len())
+            .map(|i| replay.radiance(&bank, i).expect("no kind changed"))
+            .collect();
+        let traced = |scene: &Scene| -> Vec<Rgb> {
+            indirect_radiance(&PathTracer::new(scene), rays(scene, n, 9))
+                .into_iter()
+                .map(|(l, _)| l)
+                .collect()
+        };
+        let (fresh, before) = (traced(&new), traced(&old));
+        let stats = |x: &[Rgb], c: usize| {
+            let m = x.iter().map(|v| v[c] as f64).sum::<f64>() / x.len() as f64;
+            let var = x.iter().map(|v| (v[c] as f64 - m).powi(2)).sum::<f64>()
+                / (x.len() - 1) as f64;
+            (m, var / x.len() as f64)
+        };
+        let mut moved = 0.0f64;
+        for c in 0..3 {
+            let ((a, va), (b, vb), (o, vo)) =
+                (stats(&replayed, c), stats(&fresh, c), stats(&before, c));
+            let z = (a - b) / (va + vb).sqrt();
+            assert!(z.abs() < 4.0, "channel {c}: replayed {a}, fresh {b}, z {z}");
+            moved = moved.max(((o - b) / (vo + vb).sqrt()).abs());
+        }
+        assert!(moved > 10.0, "the scenes differ by {moved} standard errors");
+    }
+
+    #[test]
+    fn a_path_through_a_surface_that_changed_kind_is_not_weighed_again() {
+        let old = room(0.5, WALL, SIDE);
+        let new = room(0.5, r#"{ type = "mirror", rho_s = 0.9 }"#, SIDE);
+        let (traced, bank) = record(&PathTracer::new(&old), rays(&old, 3000, 5));
+        let wall = old.group_index("wall").unwrap();
+        let replay = Replay::new(&new);
+        let mut refused = 0;
+        for (i, (_, touched)) in traced.iter().enumerate() {
+            let again = replay.radiance(&bank, i);
+            if !touched.group(wall) {
+                assert!(again.is_some(), "path {i} never met the wall");
+            } else if again.is_none() {
+                refused += 1;
+            }
+        }
+        assert!(refused > 300, "{refused} paths refused");
+    }
+
+    /// A direction's coordinates in a frame turned for a lobe at θ and faced to the viewer,
+    /// turned by `Turn`, are its coordinates in the frame turned for another θ: on both sides.
+    #[test]
+    fn a_turn_takes_coordinates_from_one_lobe_rotation_to_another() {
+        let frame = Frame::from_normal(Vec3::new(0.2, 0.9, -0.3).normalize());
+        let v = Vec3::new(-0.4, 0.5, 0.7).normalize();
+        for (ng, wo) in [
+            (frame.n, frame.n),
+            (frame.n, -frame.n),
+            (-frame.n, frame.n),
+        ] {
+            for (a, b) in [(0.0f32, 0.7f32), (0.3, -1.1), (2.0, 0.0)] {
+                let (fa, _) = facing(frame.rotated(a), ng, wo);
+                let (fb, _) = facing(frame.rotated(b), ng, wo);
+                let flipped = fa.n.dot(frame.n) < 0.0;
+                let turn = Turn::new(if flipped { a - b } else { b - a });
+                let (got, want) = (turn.apply(fa.to_local(v)), fb.to_local(v));
+                assert!((got - want).length() < 1e-5, "{got:?} against {want:?}");
+            }
+        }
+    }
+}
+
+/// What weighing kept paths again costs against tracing them, on the bundled figure6 room:
+/// `cargo test --profile ci -p matfit --features internals --lib replay_costs -- --ignored
+/// --nocapture` (one thread; it prints, and asserts only that the replay agrees with fresh
+/// paths).
+#[cfg(test)]
+mod cost {
+    use super::*;
+    use crate::geometry::{offset_origin, Ray};
+    use crate::math::{warp, Frame, Sampler, Vec2};
+    use crate::render::incident::indirect_radiance;
+    use crate::render::integrator::facing;
+    use crate::scene::Material;
+    use std::time::Instant;
+
+    /// Indirect rays as a cache draws them: from the surface each pixel of a lattice sees,
+    /// cosine-distributed about its normal, `per` of them a pixel.
+    fn rays(scene: &Scene, per: u32, seed: u64) -> Vec<IndirectRay> {
+        let cam = &scene.camera;
+        let mut out = Vec::new();
+        for y in (0..cam.height as usize).step_by(4) {
+            for x in (0..cam.width as usize).step_by(4) {
+                let ray = cam.ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5));
+                let Some(hit) = scene.intersect_hit(&ray, f32::INFINITY) else {
+                    continue;
+                };
+                let sh = scene.surface_hit(&ray, &hit);
+                let (frame, ng) = facing(Frame::from_normal(sh.ng), sh.ng, -ray.d);
+                for k in 0..per {
+                    let mut sampler = Sampler::new(seed, (y * 4096 + x) as u64);
+                    sampler.start_sample(k);
+                    let d = frame.to_world(warp::cosine_hemisphere(sampler.next_2d()));
+                    let r = Ray::new(offset_origin(sh.p, ng, d), d);
+                    out.push(IndirectRay {
+                        hit: scene.intersect_hit(&r, f32::INFINITY),
+                        ray: r,
+                        sampler,
+                    });
+                }
+            }
+        }
+        out
+    }
+
+    /// Every reflectance down by a tenth and every lobe 20% wider: about what moves between
+    /// two of a recovery's early iterations.
+    fn moved(scene: &Scene) -> Scene {
+        let mut s = scene.clone();
+        for o in &mut s.objects {
+            match &mut o.material {
+                Material::Diffuse { rho_d } => *rho_d *= 0.9,
+                Material::Ward {
+                    rho_d,
+                    rho_s,
+                    alpha_x,
+                    alpha_y,
+                    ..
+                } => {
+                    *rho_d *= 0.9;
+                    *rho_s *= 0.9;
+                    *alpha_x *= 1.2;
+                    *alpha_y *= 1.2;
+                }
+                _ => {}
+            }
+        }
+        s
+    }
+
+    fn mean_var(x: &[Rgb]) -> (f64, f64) {
+        let l: Vec<f64> = x.iter().map(|v| (v.x + v.y + v.z) as f64 / 3.0).collect();
+        let m = l.iter().sum::<f64>() / l.len() as f64;
+        let v = l.iter().map(|a| (a - m).powi(2)).sum::<f64>() / (l.len() - 1) as f64;
+        (m, v)
+    }
+
+    #[test]
+    #[ignore]
+    fn replay_costs_on_figure6() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/figure6/scene.toml");
+        let scene = crate::scene::load::load_scene(&path).unwrap();
+        let pt = PathTracer::new(&scene);
+        let rs = rays(&scene, 32, 3);
+        let n = rs.len();
+        let t = Instant::now();
+        let lanes = indirect_radiance(&pt, rs.clone());
+        let t_lanes = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let (recorded, bank) = record(&pt, rs.clone());
+        let t_record = t.elapsed().as_secs_f64();
+        assert_eq!(lanes.len(), recorded.len());
+        let new = moved(&scene);
+        let t = Instant::now();
+        let replay = Replay::new(&new);
+        let replayed: Vec<Rgb> = (0..n).filter_map(|i| replay.radiance(&bank, i)).collect();
+        let t_replay = t.elapsed().as_secs_f64();
+        let fresh: Vec<Rgb> = indirect_radiance(&PathTracer::new(&new), rays(&new, 32, 4))
+            .into_iter()
+            .map(|(l, _)| l)
+            .collect();
+        let ((a, va), (b, vb)) = (mean_var(&replayed), mean_var(&fresh));
+        println!(
+            "{n} paths, {:.1} vertices each, {:.0} bytes a path kept",
+            bank.vertices.len() as f64 / n as f64,
+            bank.bytes() as f64 / n as f64
+        );
+        println!(
+            "traced (eight lanes) {t_lanes:.3} s, traced and kept (one at a time) {t_record:.3} s \
+             ({:.2}x), weighed again {t_replay:.3} s ({:.1}x faster than tracing)",
+            t_record / t_lanes,
+            t_lanes / t_replay
+        );
+        println!(
+            "moved materials: replayed mean {a:.5} (variance {va:.3e}), fresh {b:.5} ({vb:.3e}); \
+             {} of {n} not replayed",
+            n - replayed.len()
+        );
+        let z = (a - b) / (va / n as f64 + vb / fresh.len() as f64).sqrt();
+        assert!(z.abs() < 4.0, "replayed {a}, fresh {b}: z {z}");
+    }
+}
