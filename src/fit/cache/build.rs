@@ -19,6 +19,7 @@ use super::pseudo_textures::{PseudoMirror, PseudoTextures};
 use crate::geometry::{offset_origin, Ray};
 use crate::math::{Rgb, Sampler, Vec2, Vec3, INV_PI};
 use crate::render::incident::{indirect_radiance, IndirectRay};
+use crate::render::replay::{record, PathBank, Replay};
 use crate::render::integrator::{facing, mirror_ray, Touched};
 use crate::render::PathTracer;
 use crate::scene::atlas::Atlas;
@@ -27,6 +28,7 @@ use rayon::prelude::*;
 
 /// A cache sample on its way: its half, directions in the local frame, its weight, and the
 /// texels its primary hit reads (when the cache records them).
+#[derive(Clone)]
 struct Entry {
     half: usize,
     wo: Vec3,
@@ -36,6 +38,7 @@ struct Entry {
 }
 
 /// A cache sample's weight: known (next-event estimation), or waiting for its indirect path.
+#[derive(Clone)]
 enum Weight {
     Known(Rgb),
     /// The index of the path among the pixel's indirect rays, the emission seen at the path's first hit
@@ -207,9 +210,142 @@ pub struct CacheRequest<'a> {
 
 /// Builds the cache `req` asks for, tracing through `scene` as it is now (`pt` traces it).
 pub fn build(scene: &Scene, pt: &PathTracer, req: &CacheRequest) -> GroupCache {
+    with_pixel_trace(scene, pt, req, |trace| {
+        let per_pixel: Vec<BuiltPixel> = req
+            .pixels
+            .par_iter()
+            .zip(req.tiles)
+            .enumerate()
+            .map(|(i, (&p, &tile))| trace_pixel(trace, i, p, tile))
+            .collect();
+        assemble(scene, req, per_pixel)
+    })
+}
+
+/// A cache's samples kept with their indirect paths ([`build_kept`]), to be weighed again
+/// under new materials without tracing ([`rebuild`]): each pixel's samples up to their paths,
+/// and the paths (`render::replay`).
+pub struct KeptCache {
+    group: usize,
+    pixels: Vec<usize>,
+    seed: u64,
+    drawn: Vec<(Drawn, PathBank)>,
+}
+
+impl KeptCache {
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        self.drawn
+            .iter()
+            .map(|(d, b)| d.entries.len() * std::mem::size_of::<Entry>() + b.bytes())
+            .sum()
+    }
+}
+
+/// Whether a request's cache can be weighed again: it holds nothing traced but its samples'
+/// indirect paths (no mirror radiance, no unseen group's derivative).
+fn keepable(req: &CacheRequest) -> bool {
+    !req.needs.mirror && req.unseen.iter().all(|u| u.moved.is_none())
+}
+
+/// [`build`], keeping the samples and their paths; None where the request holds what cannot be
+/// weighed again (`keepable`). The cache is `build`'s to the bit.
+pub fn build_kept(
+    scene: &Scene,
+    pt: &PathTracer,
+    req: &CacheRequest,
+) -> Option<(GroupCache, KeptCache)> {
+    if !keepable(req) {
+        return None;
+    }
+    with_pixel_trace(scene, pt, req, |trace| {
+        let (per_pixel, drawn): (Vec<BuiltPixel>, Vec<(Drawn, PathBank)>) = req
+            .pixels
+            .par_iter()
+            .zip(req.tiles)
+            .enumerate()
+            .map(|(i, (&p, &tile))| {
+                let (drawn, rays) = draw_pixel(trace, p);
+                let (traced, bank) = record(pt, rays);
+                let built = finish_pixel(trace, i, p, tile, &drawn, &traced, None);
+                (built, (drawn, bank))
+            })
+            .unzip();
+        let kept = KeptCache {
+            group: req.group,
+            pixels: req.pixels.to_vec(),
+            seed: req.seed,
+            drawn,
+        };
+        Some((assemble(scene, req, per_pixel), kept))
+    })
+}
+
+/// The cache `kept` holds, its paths weighed under `scene`'s materials as they are now, without
+/// tracing a ray; None where the request is not the kept one's (group, pixels, seed), or one
+/// of its paths met a surface whose BSDF changed kind (`Replay::radiance`): that cache is
+/// built afresh.
+pub fn rebuild(
+    scene: &Scene,
+    pt: &PathTracer,
+    req: &CacheRequest,
+    kept: &KeptCache,
+) -> Option<GroupCache> {
+    if !keepable(req) || req.group != kept.group || req.seed != kept.seed || req.pixels != kept.pixels
+    {
+        return None;
+    }
+    let replay = Replay::new(scene);
+    with_pixel_trace(scene, pt, req, |trace| {
+        let per_pixel: Option<Vec<BuiltPixel>> = kept
+            .drawn
+            .par_iter()
+            .zip(req.pixels.par_iter().zip(req.tiles))
+            .enumerate()
+            .map(|(i, ((drawn, bank), (&p, &tile)))| {
+                let traced = (0..bank.len())
+                    .map(|j| replay.radiance(bank, j).map(|l| (l, Touched::default())))
+                    .collect::<Option<Vec<_>>>()?;
+                Some(finish_pixel(trace, i, p, tile, drawn, &traced, None))
+            })
+            .collect();
+        Some(assemble(scene, req, per_pixel?))
+    })
+}
+
+/// Calls `f` with what every pixel of `req`'s cache shares.
+fn with_pixel_trace<T>(
+    scene: &Scene,
+    pt: &PathTracer,
+    req: &CacheRequest,
+    f: impl FnOnce(&PixelTrace) -> T,
+) -> T {
     let CacheRequest {
-        pixels,
-        tiles,
+        needs,
+        atlas,
+        unseen,
+        opts,
+        ..
+    } = *req;
+    let atlas = atlas.filter(|_| needs.texels);
+    let images = super::mirror_images::MirrorImages::new(scene);
+    f(&PixelTrace {
+        scene,
+        pt,
+        req,
+        images: &images,
+        atlas,
+        w: scene.camera.width as usize,
+        nl: opts.light_samples.max(1),
+        ni: opts.indirect_samples.max(1),
+        cw: needs.cosine_weight(),
+        k: unseen.len(),
+    })
+}
+
+/// The cache of `req` from its pixels as built, in order.
+fn assemble(scene: &Scene, req: &CacheRequest, per_pixel: Vec<BuiltPixel>) -> GroupCache {
+    let CacheRequest {
         n_tiles,
         needs,
         atlas,
@@ -221,27 +357,6 @@ pub fn build(scene: &Scene, pt: &PathTracer, req: &CacheRequest) -> GroupCache {
     let k = unseen.len();
     let atlas = atlas.filter(|_| needs.texels);
     let w = scene.camera.width as usize;
-    let (nl, ni) = (opts.light_samples.max(1), opts.indirect_samples.max(1));
-    let cw = needs.cosine_weight();
-    let images = super::mirror_images::MirrorImages::new(scene);
-    let trace = PixelTrace {
-        scene,
-        pt,
-        req,
-        images: &images,
-        atlas,
-        w,
-        nl,
-        ni,
-        cw,
-        k,
-    };
-    let per_pixel: Vec<BuiltPixel> = pixels
-        .par_iter()
-        .zip(tiles)
-        .enumerate()
-        .map(|(i, (&p, &tile))| trace_pixel(&trace, i, p, tile))
-        .collect();
     let mut cache = GroupCache {
         tiles: n_tiles,
         texels: atlas.map(|_| TexelRows::default()),
@@ -370,6 +485,27 @@ struct PixelTrace<'a> {
 /// halves, each its own stratified set; their weights; the unseen groups' derivatives where it
 /// is `DERIVATIVE_STRIDE`'s pixel; its texel rows, light shares and what it read from the photo.
 fn trace_pixel(t: &PixelTrace, i: usize, p: usize, tile: u32) -> BuiltPixel {
+    let (drawn, rays) = draw_pixel(t, p);
+    let probes = (i.is_multiple_of(DERIVATIVE_STRIDE)
+        && t.req.unseen.iter().any(|u| u.moved.is_some()))
+    .then(|| rays.clone());
+    let traced = indirect_radiance(t.pt, rays);
+    finish_pixel(t, i, p, tile, &drawn, &traced, probes)
+}
+
+/// What a pixel's samples drew, up to the radiance of their indirect paths: the samples, how
+/// many primary rays strayed, the share of each half's that read the atlas, and the open share
+/// (`draw_pixel`).
+#[derive(Clone)]
+struct Drawn {
+    entries: Vec<Entry>,
+    stray: usize,
+    tapped: [f32; 2],
+    open: f32,
+}
+
+/// The samples of pixel `p` up to their indirect paths, and those paths' rays.
+fn draw_pixel(t: &PixelTrace, p: usize) -> (Drawn, Vec<IndirectRay>) {
     let PixelTrace {
         scene,
         pt,
@@ -380,23 +516,15 @@ fn trace_pixel(t: &PixelTrace, i: usize, p: usize, tile: u32) -> BuiltPixel {
         nl,
         ni,
         cw,
-        k,
+        ..
     } = *t;
     let CacheRequest {
         group,
         primary,
-        photo,
-        needs,
-        unseen,
-        pseudo,
-        opts,
         seed,
         ..
     } = *req;
-    let probed = i.is_multiple_of(DERIVATIVE_STRIDE);
     let (x, y) = ((p % w) as f32, (p / w) as f32);
-    let mut samples: [Vec<Sample>; 2] = [Vec::new(), Vec::new()];
-    let mut d_half = [Rgb::ZERO; 2];
     let mut stray = 0usize;
     // Each half is its own stratified sample set with its own scramble: Sobol points of
     // even and odd index fall into complementary halves of every dimension, so halves
@@ -518,12 +646,51 @@ fn trace_pixel(t: &PixelTrace, i: usize, p: usize, tile: u32) -> BuiltPixel {
             });
         }
     }
-    let probes = if probed && unseen.iter().any(|u| u.moved.is_some()) {
-        Some(rays.clone())
-    } else {
-        None
-    };
-    let (traced, touched): (Vec<Rgb>, Vec<_>) = indirect_radiance(pt, rays).into_iter().unzip();
+    (
+        Drawn {
+            entries,
+            stray,
+            tapped: tapped.map(|t| t as f32 / (hl + hi) as f32),
+            open: open * INV_PI,
+        },
+        rays,
+    )
+}
+
+/// The rest of [`trace_pixel`], from the radiance `traced` of the pixel's indirect paths (and
+/// their rays again where the unseen groups' derivatives are measured here, `probes`).
+fn finish_pixel(
+    t: &PixelTrace,
+    i: usize,
+    p: usize,
+    tile: u32,
+    drawn: &Drawn,
+    traced: &[(Rgb, Touched)],
+    probes: Option<Vec<IndirectRay>>,
+) -> BuiltPixel {
+    let PixelTrace {
+        scene,
+        pt,
+        req,
+        w,
+        k,
+        ..
+    } = *t;
+    let CacheRequest {
+        primary,
+        photo,
+        needs,
+        unseen,
+        pseudo,
+        opts,
+        seed,
+        ..
+    } = *req;
+    let probed = i.is_multiple_of(DERIVATIVE_STRIDE);
+    let (x, y) = ((p % w) as f32, (p / w) as f32);
+    let mut samples: [Vec<Sample>; 2] = [Vec::new(), Vec::new()];
+    let mut d_half = [Rgb::ZERO; 2];
+    let (traced, touched): (Vec<Rgb>, Vec<Touched>) = traced.iter().copied().unzip();
     // A probe's path is traced again in its moved scene only where it can come back
     // otherwise (`UnseenProbe::moves`).
     let moved: Vec<Option<Vec<Rgb>>> = unseen
@@ -546,7 +713,7 @@ fn trace_pixel(t: &PixelTrace, i: usize, p: usize, tile: u32) -> BuiltPixel {
     let mut dc = vec![Rgb::ZERO; k];
     let mut light_from = vec![0.0f32; scene.groups.len()];
     let mut light_total = 0.0f32;
-    for e in entries {
+    for e in &drawn.entries {
         let mut first = u32::MAX;
         let c = match e.weight {
             Weight::Known(c) => {
@@ -690,13 +857,10 @@ fn trace_pixel(t: &PixelTrace, i: usize, p: usize, tile: u32) -> BuiltPixel {
     (
         px,
         samples,
-        stray,
-        (
-            rows.map(merge_rows),
-            tapped.map(|t| t as f32 / (hl + hi) as f32),
-        ),
+        drawn.stray,
+        (rows.map(merge_rows), drawn.tapped),
         (shares.collect(), dcs, probed, dmirror),
-        (light_from, light_total, open * INV_PI),
+        (light_from, light_total, drawn.open),
         read,
     )
 }
@@ -925,5 +1089,295 @@ irradiance = 2.0
             (mean - Rgb::ONE).abs().max_element() < 1e-3,
             "mean ∂D/∂S {mean} over {n} pixels, want 1"
         );
+    }
+}
+
+#[cfg(test)]
+mod kept_tests {
+    use super::*;
+    use crate::render::aov::index_buffers;
+    use crate::scene::load::parse_scene;
+
+    /// A floor (the cached group), a back wall and a Ward side wall, open above and in front,
+    /// lit by an area light and the sun; `{wall}` and `{side}` are the materials that move.
+    const ROOM: &str = r#"
+[render]
+spp = 1
+seed = 1
+[camera]
+width = 40
+height = 30
+eye = [0.0, 1.2, 2.5]
+target = [0.0, 0.3, -1.0]
+up = [0.0, 1.0, 0.0]
+fov_y_deg = 60.0
+[[object]]
+name = "floor"
+group = "floor"
+shape = "quad"
+corner = [-2.0, 0.0, 1.0]
+edge_u = [4.0, 0.0, 0.0]
+edge_v = [0.0, 0.0, -3.0]
+material = { type = "diffuse", rho_d = 0.5 }
+[[object]]
+name = "wall"
+group = "wall"
+shape = "quad"
+corner = [-2.0, 0.0, -2.0]
+edge_u = [4.0, 0.0, 0.0]
+edge_v = [0.0, 2.0, 0.0]
+material = {wall}
+[[object]]
+name = "side"
+group = "side"
+shape = "quad"
+corner = [-2.0, 0.0, 1.0]
+edge_u = [0.0, 0.0, -3.0]
+edge_v = [0.0, 2.0, 0.0]
+tangent = [0.0, 1.0, 0.0]
+material = {side}
+[[object]]
+name = "lamp"
+group = "lamp"
+shape = "quad"
+corner = [1.9, 0.5, -1.5]
+edge_u = [0.0, 0.0, 1.0]
+edge_v = [0.0, 1.0, 0.0]
+emission = 5.0
+[[light]]
+name = "sun"
+type = "directional"
+direction = [0.3, -1.0, -0.4]
+irradiance = 2.0
+"#;
+
+    fn room(wall: &str, side: &str) -> Scene {
+        let text = ROOM.replace("{wall}", wall).replace("{side}", side);
+        parse_scene(&text, std::path::Path::new("room.toml")).unwrap()
+    }
+
+    fn old() -> Scene {
+        room(
+            r#"{ type = "diffuse", rho_d = [0.6, 0.5, 0.4] }"#,
+            r#"{ type = "ward", rho_d = 0.3, rho_s = 0.4, alpha_x = 0.1, alpha_y = 0.3, theta_deg = 0.0 }"#,
+        )
+    }
+
+    fn new() -> Scene {
+        room(
+            r#"{ type = "ward", rho_d = [0.1, 0.1, 0.05], rho_s = 0.2, alpha_x = 0.3, alpha_y = 0.3, theta_deg = 0.0 }"#,
+            r#"{ type = "ward", rho_d = 0.1, rho_s = 0.6, alpha_x = 0.25, alpha_y = 0.12, theta_deg = 40.0 }"#,
+        )
+    }
+
+    /// The floor's cache of `scene` with `seed`: built afresh, or kept, or rebuilt from `kept`.
+    fn floor_cache(scene: &Scene, seed: u64, how: How) -> (Option<GroupCache>, Option<KeptCache>) {
+        let floor = scene.group_index("floor").unwrap();
+        let ib = index_buffers(scene, &scene.camera);
+        let pixels: Vec<usize> = (0..ib.group.len())
+            .filter(|&i| ib.group[i] == floor as i32)
+            .collect();
+        let tiles = vec![0u32; pixels.len()];
+        let photo = vec![Rgb::ZERO; ib.group.len()];
+        let opts = CacheOptions::default();
+        let req = CacheRequest {
+            group: floor,
+            primary: Primary::Camera,
+            pixels: &pixels,
+            tiles: &tiles,
+            n_tiles: 1,
+            photo: &photo,
+            needs: CacheNeeds {
+                lobe_samples: true,
+                ..Default::default()
+            },
+            atlas: None,
+            unseen: &[],
+            pseudo: None,
+            opts: &opts,
+            seed,
+        };
+        let pt = PathTracer::new(scene);
+        match how {
+            How::Fresh => (Some(build(scene, &pt, &req)), None),
+            How::Kept => {
+                let (c, k) = build_kept(scene, &pt, &req).expect("keepable");
+                (Some(c), Some(k))
+            }
+            How::From(kept) => (rebuild(scene, &pt, &req, kept), None),
+        }
+    }
+
+    enum How<'a> {
+        Fresh,
+        Kept,
+        From(&'a KeptCache),
+    }
+
+    fn ds(c: &GroupCache) -> Vec<Rgb> {
+        c.pixels.iter().map(|p| p.d).collect()
+    }
+
+    /// The paired difference of two caches' D over their pixels, in standard errors of its
+    /// mean (luminance).
+    fn z(a: &[Rgb], b: &[Rgb]) -> f64 {
+        let d: Vec<f64> = a
+            .iter()
+            .zip(b)
+            .map(|(x, y)| ((x.x + x.y + x.z) - (y.x + y.y + y.z)) as f64)
+            .collect();
+        let n = d.len() as f64;
+        let m = d.iter().sum::<f64>() / n;
+        let v = d.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
+        m / (v / n).sqrt()
+    }
+
+    #[test]
+    fn a_kept_cache_is_the_cache_and_weighed_again_unchanged_gives_it_back() {
+        let scene = old();
+        let (fresh, _) = floor_cache(&scene, 7, How::Fresh);
+        let (kept_cache, kept) = floor_cache(&scene, 7, How::Kept);
+        let (fresh, kept_cache, kept) = (fresh.unwrap(), kept_cache.unwrap(), kept.unwrap());
+        assert!(fresh.pixels.len() > 300, "{} floor pixels", fresh.pixels.len());
+        for (a, b) in ds(&fresh).iter().zip(ds(&kept_cache)) {
+            assert_eq!(a.to_array().map(f32::to_bits), b.to_array().map(f32::to_bits));
+        }
+        let (again, _) = floor_cache(&scene, 7, How::From(&kept));
+        for (a, b) in ds(&fresh).iter().zip(ds(&again.unwrap())) {
+            assert!((*a - b).abs().max_element() <= 1e-4 * a.max_element(), "{a:?} {b:?}");
+        }
+        // Not the kept request: built afresh.
+        assert!(floor_cache(&scene, 8, How::From(&kept)).0.is_none());
+    }
+
+    /// The walls' materials move (a diffuse wall turned glossy, a Ward lobe turned, widened and
+    /// brightened): the floor's cache weighed again agrees, pixel by pixel, with one traced
+    /// afresh in the new scene, where the old and new caches differ by far more.
+    #[test]
+    fn a_kept_cache_weighed_under_new_materials_agrees_with_one_traced_afresh() {
+        let (_, kept) = floor_cache(&old(), 7, How::Kept);
+        let new = new();
+        let (again, _) = floor_cache(&new, 7, How::From(&kept.unwrap()));
+        let again = ds(&again.expect("no kind changed"));
+        let fresh = ds(&floor_cache(&new, 8, How::Fresh).0.unwrap());
+        let before = ds(&floor_cache(&old(), 8, How::Fresh).0.unwrap());
+        let (same, moved) = (z(&again, &fresh), z(&before, &fresh));
+        assert!(same.abs() < 4.0, "weighed again against fresh: z {same}");
+        assert!(moved.abs() > 10.0, "old against new: z {moved}");
+    }
+
+    #[test]
+    fn a_wall_turned_mirror_sends_the_cache_to_be_traced_again() {
+        let (_, kept) = floor_cache(&old(), 7, How::Kept);
+        let mirror = room(
+            r#"{ type = "mirror", rho_s = 0.9 }"#,
+            r#"{ type = "ward", rho_d = 0.3, rho_s = 0.4, alpha_x = 0.1, alpha_y = 0.3, theta_deg = 0.0 }"#,
+        );
+        assert!(floor_cache(&mirror, 7, How::From(&kept.unwrap())).0.is_none());
+    }
+}
+
+/// What a kept cache costs against one built afresh, on the bundled figure6 room's floor:
+/// `cargo test --profile ci -p matfit --features internals --lib kept_cache_costs -- --ignored
+/// --nocapture` (it prints; it asserts only that the rebuilt cache agrees with a fresh one).
+#[cfg(test)]
+mod kept_cost {
+    use super::*;
+    use crate::render::aov::index_buffers;
+    use crate::scene::Material;
+    use std::time::Instant;
+
+    /// Every reflectance down by a tenth and every lobe a fifth wider.
+    fn moved(scene: &Scene) -> Scene {
+        let mut s = scene.clone();
+        for o in &mut s.objects {
+            match &mut o.material {
+                Material::Diffuse { rho_d } => *rho_d *= 0.9,
+                Material::Ward {
+                    rho_d,
+                    rho_s,
+                    alpha_x,
+                    alpha_y,
+                    ..
+                } => {
+                    *rho_d *= 0.9;
+                    *rho_s *= 0.9;
+                    *alpha_x *= 1.2;
+                    *alpha_y *= 1.2;
+                }
+                _ => {}
+            }
+        }
+        s
+    }
+
+    #[test]
+    #[ignore]
+    fn kept_cache_costs_on_figure6() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/figure6/scene.toml");
+        let scene = crate::scene::load::load_scene(&path).unwrap();
+        let opts = CacheOptions::default();
+        let ib = index_buffers(&scene, &scene.camera);
+        let new = moved(&scene);
+        for name in ["floor", "back_wall"] {
+            let g = scene.group_index(name).unwrap();
+            let usable: Vec<usize> =
+                (0..ib.group.len()).filter(|&i| ib.group[i] == g as i32).collect();
+            let (pixels, tiles, n_tiles) = choose_pixels(&usable, scene.camera.width as usize, &opts);
+            let photo = vec![Rgb::ZERO; ib.group.len()];
+            let req = |seed| CacheRequest {
+                group: g,
+                primary: Primary::Camera,
+                pixels: &pixels,
+                tiles: &tiles,
+                n_tiles,
+                photo: &photo,
+                needs: CacheNeeds {
+                    lobe_samples: true,
+                    ..Default::default()
+                },
+                atlas: None,
+                unseen: &[],
+                pseudo: None,
+                opts: &opts,
+                seed,
+            };
+            let (pt, pt_new) = (PathTracer::new(&scene), PathTracer::new(&new));
+            let t = Instant::now();
+            let _ = build(&scene, &pt, &req(7));
+            let t_build = t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let (_, kept) = build_kept(&scene, &pt, &req(7)).unwrap();
+            let t_kept = t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let again = rebuild(&new, &pt_new, &req(7), &kept).unwrap();
+            let t_again = t.elapsed().as_secs_f64();
+            let fresh_a = build(&new, &pt_new, &req(8));
+            let fresh_b = build(&new, &pt_new, &req(9));
+            let lum = |c: &GroupCache| -> Vec<f64> {
+                c.pixels.iter().map(|p| (p.d.x + p.d.y + p.d.z) as f64).collect()
+            };
+            let (r, a, b) = (lum(&again), lum(&fresh_a), lum(&fresh_b));
+            let stats = |x: &[f64], y: &[f64]| {
+                let d: Vec<f64> = x.iter().zip(y).map(|(u, v)| u - v).collect();
+                let n = d.len() as f64;
+                let m = d.iter().sum::<f64>() / n;
+                let v = d.iter().map(|e| (e - m).powi(2)).sum::<f64>() / (n - 1.0);
+                (m / (v / n).sqrt(), v)
+            };
+            let ((z, v_replayed), (_, v_fresh)) = (stats(&r, &b), stats(&a, &b));
+            println!(
+                "{name}: {} pixels; build {t_build:.3} s, build and keep {t_kept:.3} s ({:.2}x), \
+                 weigh again {t_again:.3} s ({:.1}x faster than build); kept {:.0} MB; \
+                 weighed again against fresh: z {z:.2}, variance of the difference {:.3}x fresh's",
+                pixels.len(),
+                t_kept / t_build,
+                t_build / t_again,
+                kept.bytes() as f64 / 1e6,
+                v_replayed / v_fresh
+            );
+            assert!(z.abs() < 4.0);
+        }
     }
 }

@@ -10,6 +10,8 @@ pub mod mixture;
 pub mod pixels;
 pub mod pseudo_textures;
 
-pub use build::{build, choose_pixels, shows_in_mirror, CacheRequest, Primary};
+pub use build::{
+    build, build_kept, choose_pixels, rebuild, shows_in_mirror, CacheRequest, KeptCache, Primary,
+};
 pub use pixels::*;
 pub use pseudo_textures::{photo_radiance, PseudoMirror, PseudoTextures};
