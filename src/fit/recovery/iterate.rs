@@ -63,7 +63,8 @@ impl RecoveryLoop<'_> {
             }
             let tg = Instant::now();
             let cache = self.group_cache(g, &plan, log);
-            self.fit_group(g, cache, &plan, tg, &mut shares, &mut sums, log)?;
+            let cache_secs = tg.elapsed().as_secs_f64();
+            self.fit_group(g, cache, &plan, (tg, cache_secs), &mut shares, &mut sums, log)?;
         }
         let exposure_moved = self.update_exposures(&sums, plan.it);
         let unseen = self.update_unseen(&plan, &shares, log);
@@ -314,14 +315,15 @@ impl RecoveryLoop<'_> {
     /// Group `g` fitted on its fresh `cache` and stepped through the hierarchy (§5.1's
     /// hypotheses first, for a mirror); its shares of the unseen groups' light and its part of
     /// the photos' exposure sums collected; its new parameters put into the scene at once
-    /// (Gauss–Seidel: the next groups' caches see them). `tg`: when its turn began.
+    /// (Gauss–Seidel: the next groups' caches see them). `tg`: when its turn began, and how
+    /// long its cache took.
     #[allow(clippy::too_many_arguments)]
     fn fit_group(
         &mut self,
         g: usize,
         mut cache: GroupCache,
         plan: &Plan,
-        tg: Instant,
+        (tg, cache_secs): (Instant, f64),
         shares: &mut Vec<GroupShares>,
         sums: &mut ExposureSums,
         log: &mut dyn FnMut(&LogLine),
@@ -381,7 +383,10 @@ impl RecoveryLoop<'_> {
             if let Event::Fit { evals: n, .. } = e {
                 self.evals += n as u64;
             }
-            log(&self.line(it, g, e, secs));
+            log(&LogLine {
+                cache_seconds: Some(cache_secs),
+                ..self.line(it, g, e, secs)
+            });
         }
         if let Some(what) = self.states[g].non_finite() {
             return Err(RecoverError::Diverged {
@@ -467,6 +472,7 @@ impl RecoveryLoop<'_> {
                 params: Default::default(),
                 distribution: None,
                 seconds: 0.0,
+                cache_seconds: None,
                 elapsed: self.elapsed(),
             });
             self.set_stray_light(self.current.stray_light);

@@ -169,6 +169,10 @@ pub struct LogLine {
     pub distribution: Option<&'static str>,
     /// Time spent on this group in this iteration (cache build and fits).
     pub seconds: f64,
+    /// Of `seconds`, the time its cache took to build (lines of a group's turn in an
+    /// iteration; absent on the others).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cache_seconds: Option<f64>,
     /// Seconds since the recovery started when the line was written (across a resume: the
     /// interrupted run's time up to its checkpoint plus the resumed run's), so that the
     /// parameters can be plotted against time (`bench/compare.py`).

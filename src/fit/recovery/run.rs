@@ -404,6 +404,7 @@ impl<'a> RecoveryLoop<'a> {
                 .then(|| st.params.distribution.name()),
             event,
             seconds,
+            cache_seconds: None,
             elapsed: self.elapsed(),
         }
     }
