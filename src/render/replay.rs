@@ -517,6 +517,38 @@ radiance = [0.3, 0.3, 0.3]
         assert!(moved > 10.0, "the scenes differ by {moved} standard errors");
     }
 
+    /// A textured wall whose texels move (a checker whose squares trade places and darken,
+    /// then under a varnish): each kept vertex reads the new texture where it was.
+    #[test]
+    fn a_texture_weighed_again_agrees_with_tracing_it() {
+        let d = tempfile::tempdir().unwrap();
+        let checker = |a: Rgb, b: Rgb, name: &str| {
+            let mut t = crate::io::image::Image::new(4, 4);
+            for (i, px) in t.data.iter_mut().enumerate() {
+                *px = if (i % 4 + i / 4) % 2 == 0 { a } else { b };
+            }
+            t.write(&d.path().join(name)).unwrap();
+        };
+        checker(Rgb::new(0.8, 0.7, 0.6), Rgb::new(0.1, 0.2, 0.1), "old.pfm");
+        checker(Rgb::new(0.05, 0.1, 0.2), Rgb::new(0.5, 0.6, 0.7), "new.pfm");
+        let scene = |wall: &str| {
+            let text = ROOM
+                .replace("{floor}", "0.5")
+                .replace("{wall}", wall)
+                .replace("{side}", SIDE);
+            parse_scene(&text, &d.path().join("room.toml")).unwrap()
+        };
+        let old = scene(r#"{ type = "textured", texture = "old.pfm" }"#);
+        agree(old, scene(r#"{ type = "textured", texture = "new.pfm" }"#));
+        let old = scene(r#"{ type = "textured", texture = "old.pfm" }"#);
+        agree(
+            old,
+            scene(
+                r#"{ type = "textured", texture = "new.pfm", rho_s = 0.2, alpha_x = 0.2, alpha_y = 0.2, theta_deg = 0 }"#,
+            ),
+        );
+    }
+
     #[test]
     fn a_path_through_a_surface_that_changed_kind_is_not_weighed_again() {
         let old = room(0.5, WALL, SIDE);
