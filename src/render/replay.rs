@@ -226,6 +226,33 @@ pub fn record(pt: &PathTracer, rays: Vec<IndirectRay>) -> (Vec<(Rgb, Touched)>, 
     (radiance, bank)
 }
 
+/// A kept path weighed again: its radiance, and its importance weight, the ratio of the density
+/// with which the new materials would have drawn its directions to that of the old (the product
+/// over its vertices; roulette left out): paths whose weights spread far from one another say
+/// the old samples serve the new materials badly ([`effective_share`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Replayed {
+    pub radiance: Rgb,
+    pub weight: f32,
+}
+
+/// The effective sample size of importance weights as a share of their number, (Σw)² / (n Σw²)
+/// (Kong 1992; Owen 2013, "Monte Carlo theory, methods and examples", §9.3): 1 where every
+/// weight is the same, 1/n where one weight carries them all. 1 for no weights.
+pub fn effective_share(weights: impl IntoIterator<Item = f32>) -> f64 {
+    let (mut n, mut s, mut s2) = (0usize, 0.0f64, 0.0f64);
+    for w in weights {
+        let w = w as f64;
+        n += 1;
+        s += w;
+        s2 += w * w;
+    }
+    if n == 0 || s2 <= 0.0 {
+        return if n == 0 { 1.0 } else { 0.0 };
+    }
+    s * s / (n as f64 * s2)
+}
+
 /// The materials kept paths are weighed under: a scene's, with each uniform material's BSDF
 /// and lobe rotation worked out once.
 pub struct Replay<'a> {
@@ -251,14 +278,23 @@ impl<'a> Replay<'a> {
     /// Path `i` of `bank`'s radiance under these materials, or None where one of its vertices'
     /// BSDFs changed kind (module comment).
     pub fn radiance(&self, bank: &PathBank, i: usize) -> Option<Rgb> {
+        self.replay(bank, i).map(|r| r.radiance)
+    }
+
+    /// Path `i` of `bank` under these materials: its radiance and its importance weight
+    /// ([`Replayed`]), or None where one of its vertices' BSDFs changed kind.
+    pub fn replay(&self, bank: &PathBank, i: usize) -> Option<Replayed> {
         let path = &bank.paths[i];
-        let (mut beta, mut l) = (Rgb::ONE, Rgb::ZERO);
+        let (mut beta, mut l, mut weight) = (Rgb::ONE, Rgb::ZERO, 1.0f32);
         for v in &bank.vertices[path.first as usize..(path.first + path.count) as usize] {
             l += beta * v.found;
             let (bsdf, theta) = self.bsdf(bank, v);
             let black = matches!(bsdf, Bsdf::Black);
             if v.black || black {
-                return (v.black && black).then_some(l);
+                return (v.black && black).then_some(Replayed {
+                    radiance: l,
+                    weight,
+                });
             }
             if bsdf.has_smooth_part() != v.smooth || has_mirror(&bsdf) != v.mirror {
                 return None;
@@ -274,19 +310,24 @@ impl<'a> Replay<'a> {
                 l += beta * bsdf.eval(wo, turn.apply(wi)) * term;
             }
             if v.pdf <= 0.0 {
-                return Some(l);
+                return Some(Replayed { radiance: l, weight });
             }
             if v.delta {
-                let Bsdf::DiffuseMirror { rho_s, .. } = bsdf else {
+                let Bsdf::DiffuseMirror { rho_d, rho_s } = bsdf else {
                     return None;
                 };
                 beta *= rho_s * (v.rr / v.pdf);
+                weight *= (1.0 - Bsdf::diffuse_prob(rho_d, rho_s)) / v.pdf;
             } else {
                 let wi = turn.apply(v.wi);
                 beta *= bsdf.eval(wo, wi) * (wi.z * v.rr / v.pdf);
+                weight *= bsdf.pdf(wo, wi) / v.pdf;
             }
         }
-        Some(l + beta * path.tail)
+        Some(Replayed {
+            radiance: l + beta * path.tail,
+            weight,
+        })
     }
 
     /// A kept vertex's BSDF under these materials, and its lobe's rotation.
@@ -458,8 +499,10 @@ radiance = [0.3, 0.3, 0.3]
         let replay = Replay::new(&scene);
         let mut lit = 0;
         for (i, (l, _)) in recorded.iter().enumerate() {
-            let again = replay.radiance(&bank, i).expect("nothing changed kind");
+            let again = replay.replay(&bank, i).expect("nothing changed kind");
+            let (w, again) = (again.weight, again.radiance);
             assert!(close(*l, again, 2e-5), "path {i}: {l:?} traced, {again:?} again");
+            assert!((w - 1.0).abs() < 1e-3, "path {i}: weight {w}");
             lit += usize::from(l.max_element() > 0.0);
         }
         assert!(lit > 1000, "{lit} paths brought light");
@@ -512,9 +555,42 @@ radiance = [0.3, 0.3, 0.3]
                 (stats(&replayed, c), stats(&fresh, c), stats(&before, c));
             let z = (a - b) / (va + vb).sqrt();
             assert!(z.abs() < 4.0, "channel {c}: replayed {a}, fresh {b}, z {z}");
+            // Weighed by old densities, not much noisier than paths drawn for the new ones.
+            assert!(va < 2.0 * vb, "channel {c}: variance {va} replayed, {vb} fresh");
             moved = moved.max(((o - b) / (vo + vb).sqrt()).abs());
         }
         assert!(moved > 10.0, "the scenes differ by {moved} standard errors");
+    }
+
+    /// A small move keeps the kept paths' weights close together, a large one (a diffuse wall
+    /// turned glossy, a lobe turned) spreads them some; a wall turned a narrow glossy lobe
+    /// (directions the old diffuse wall drew rarely) spreads them far.
+    #[test]
+    fn the_effective_share_falls_where_old_paths_serve_new_materials_badly() {
+        let old = room(0.5, WALL, SIDE);
+        let (_, bank) = record(&PathTracer::new(&old), rays(&old, 20_000, 5));
+        let share = |new: &Scene| {
+            let replay = Replay::new(new);
+            effective_share((0..bank.len()).filter_map(|i| replay.replay(&bank, i).map(|r| r.weight)))
+        };
+        let near = share(&room(
+            0.52,
+            r#"{ type = "diffuse", rho_d = [0.58, 0.5, 0.42] }"#,
+            r#"{ type = "ward", rho_d = 0.3, rho_s = 0.42, alpha_x = 0.11, alpha_y = 0.31, theta_deg = 3.0 }"#,
+        ));
+        let far = share(&room(
+            0.5,
+            r#"{ type = "ward", rho_d = 0.01, rho_s = 0.8, alpha_x = 0.03, alpha_y = 0.03, theta_deg = 0.0 }"#,
+            SIDE,
+        ));
+        // The move of `weighed_again_under_new_materials_…`, whose replayed variance is
+        // within twice a fresh one's.
+        let moved = share(&room(0.7, NEW_WALL, NEW_SIDE));
+        assert!(near > 0.95, "a small move: {near}");
+        assert!(moved > 0.2, "a large move: {moved}");
+        assert!(far < 0.05, "a narrow lobe: {far}");
+        assert_eq!(effective_share([2.0f32; 5]), 1.0);
+        assert!((effective_share([1.0, 0.0, 0.0, 0.0]) - 0.25).abs() < 1e-12);
     }
 
     /// A textured wall whose texels move (a checker whose squares trade places and darken,
@@ -684,8 +760,10 @@ mod cost {
         let new = moved(&scene);
         let t = Instant::now();
         let replay = Replay::new(&new);
-        let replayed: Vec<Rgb> = (0..n).filter_map(|i| replay.radiance(&bank, i)).collect();
+        let kept: Vec<Replayed> = (0..n).filter_map(|i| replay.replay(&bank, i)).collect();
         let t_replay = t.elapsed().as_secs_f64();
+        let replayed: Vec<Rgb> = kept.iter().map(|r| r.radiance).collect();
+        let share = effective_share(kept.iter().map(|r| r.weight));
         let fresh: Vec<Rgb> = indirect_radiance(&PathTracer::new(&new), rays(&new, 32, 4))
             .into_iter()
             .map(|(l, _)| l)
@@ -704,7 +782,7 @@ mod cost {
         );
         println!(
             "moved materials: replayed mean {a:.5} (variance {va:.3e}), fresh {b:.5} ({vb:.3e}); \
-             {} of {n} not replayed",
+             {} of {n} not replayed; effective share {share:.3}",
             n - replayed.len()
         );
         let z = (a - b) / (va / n as f64 + vb / fresh.len() as f64).sqrt();

@@ -19,7 +19,7 @@ use super::pseudo_textures::{PseudoMirror, PseudoTextures};
 use crate::geometry::{offset_origin, Ray};
 use crate::math::{Rgb, Sampler, Vec2, Vec3, INV_PI};
 use crate::render::incident::{indirect_radiance, IndirectRay};
-use crate::render::replay::{record, PathBank, Replay};
+use crate::render::replay::{effective_share, record, PathBank, Replay, Replayed};
 use crate::render::integrator::{facing, mirror_ray, Touched};
 use crate::render::PathTracer;
 use crate::scene::atlas::Atlas;
@@ -282,9 +282,9 @@ pub fn build_kept(
 }
 
 /// The cache `kept` holds, its paths weighed under `scene`'s materials as they are now, without
-/// tracing a ray; None where the request is not the kept one's (group, pixels, seed), or one
-/// of its paths met a surface whose BSDF changed kind (`Replay::radiance`): that cache is
-/// built afresh.
+/// tracing a ray; None where the request is not the kept one's (group, pixels, seed), one of
+/// its paths met a surface whose BSDF changed kind (`Replay::replay`), or the paths' effective
+/// sample size fell below [`MIN_EFFECTIVE_SHARE`] of their number: that cache is built afresh.
 pub fn rebuild(
     scene: &Scene,
     pt: &PathTracer,
@@ -296,22 +296,41 @@ pub fn rebuild(
         return None;
     }
     let replay = Replay::new(scene);
+    let replayed: Vec<Vec<Replayed>> = kept
+        .drawn
+        .par_iter()
+        .map(|(_, bank)| (0..bank.len()).map(|j| replay.replay(bank, j)).collect())
+        .collect::<Option<_>>()?;
+    let share = effective_share(replayed.iter().flatten().map(|r| r.weight));
+    if share < MIN_EFFECTIVE_SHARE {
+        return None;
+    }
     with_pixel_trace(scene, pt, req, |trace| {
-        let per_pixel: Option<Vec<BuiltPixel>> = kept
+        let per_pixel: Vec<BuiltPixel> = kept
             .drawn
             .par_iter()
+            .zip(&replayed)
             .zip(req.pixels.par_iter().zip(req.tiles))
             .enumerate()
-            .map(|(i, ((drawn, bank), (&p, &tile)))| {
-                let traced = (0..bank.len())
-                    .map(|j| replay.radiance(bank, j).map(|l| (l, Touched::default())))
-                    .collect::<Option<Vec<_>>>()?;
-                Some(finish_pixel(trace, i, p, tile, drawn, &traced, None))
+            .map(|(i, (((drawn, _), paths), (&p, &tile)))| {
+                let traced: Vec<(Rgb, Touched)> = paths
+                    .iter()
+                    .map(|r| (r.radiance, Touched::default()))
+                    .collect();
+                finish_pixel(trace, i, p, tile, drawn, &traced, None)
             })
             .collect();
-        Some(assemble(scene, req, per_pixel?))
+        Some(assemble(scene, req, per_pixel))
     })
 }
+
+/// A kept cache is weighed again only while its paths' effective sample size
+/// (`render::replay::effective_share`, from the ratio of the densities the new and the old
+/// materials draw a path's directions with) is at least this share of their number; below it,
+/// the old paths sample the new materials too unevenly and the cache is traced afresh. The
+/// share is a cautious proxy for the replay's noise (its calibration: bench/README.md, design
+/// measurements).
+pub const MIN_EFFECTIVE_SHARE: f64 = 0.1;
 
 /// Calls `f` with what every pixel of `req`'s cache shares.
 fn with_pixel_trace<T>(
@@ -1264,6 +1283,16 @@ irradiance = 2.0
         let (same, moved) = (z(&again, &fresh), z(&before, &fresh));
         assert!(same.abs() < 4.0, "weighed again against fresh: z {same}");
         assert!(moved.abs() > 10.0, "old against new: z {moved}");
+    }
+
+    #[test]
+    fn a_wall_turned_a_narrow_lobe_sends_the_cache_to_be_traced_again() {
+        let (_, kept) = floor_cache(&old(), 7, How::Kept);
+        let narrow = room(
+            r#"{ type = "ward", rho_d = 0.01, rho_s = 0.8, alpha_x = 0.03, alpha_y = 0.03, theta_deg = 0.0 }"#,
+            r#"{ type = "ward", rho_d = 0.3, rho_s = 0.4, alpha_x = 0.1, alpha_y = 0.3, theta_deg = 0.0 }"#,
+        );
+        assert!(floor_cache(&narrow, 7, How::From(&kept.unwrap())).0.is_none());
     }
 
     #[test]
