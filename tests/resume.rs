@@ -32,7 +32,7 @@ const FIT: [&str; 10] = [
     "3",
 ];
 
-/// results.json without its timing, log.jsonl without its times (seconds, elapsed, fit_seconds),
+/// results.json without its timing, log.jsonl without its times (seconds, elapsed, fit_seconds, cache_seconds),
 /// and recovered.toml.
 fn outputs(dir: &Path) -> (serde_json::Value, Vec<serde_json::Value>, String) {
     let mut res = crate::common::results(dir);
@@ -45,6 +45,7 @@ fn outputs(dir: &Path) -> (serde_json::Value, Vec<serde_json::Value>, String) {
             v.as_object_mut().unwrap().remove("seconds");
             v.as_object_mut().unwrap().remove("elapsed");
             v.as_object_mut().unwrap().remove("fit_seconds");
+            v.as_object_mut().unwrap().remove("cache_seconds");
             v
         })
         .collect();
