@@ -377,7 +377,7 @@ impl Turn {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::geometry::Ray;
     use crate::math::{Frame, Sampler};
@@ -386,16 +386,17 @@ mod tests {
     use crate::scene::load::parse_scene;
 
     /// A floor, a back wall and an anisotropic Ward side wall, open above and in front, lit by
-    /// the sun, an area light and a stray light; `{..}` are the materials that move.
+    /// the sun, an area light and a stray light; `{..}` are the materials that move. (Also the
+    /// room of `fit::cache::build`'s kept-cache tests, whose floor the camera sees.)
     const ROOM: &str = r#"
 [render]
 spp = 1
 seed = 1
 [camera]
-width = 8
-height = 8
-eye = [0.0, 1.0, 2.0]
-target = [0.0, 0.5, -1.0]
+width = 40
+height = 30
+eye = [0.0, 1.2, 2.5]
+target = [0.0, 0.3, -1.0]
 up = [0.0, 1.0, 0.0]
 fov_y_deg = 60.0
 [[object]]
@@ -440,10 +441,10 @@ irradiance = 2.0
 radiance = [0.3, 0.3, 0.3]
 "#;
 
-    const WALL: &str = r#"{ type = "diffuse", rho_d = [0.6, 0.5, 0.4] }"#;
-    const SIDE: &str = r#"{ type = "ward", rho_d = 0.3, rho_s = 0.4, alpha_x = 0.1, alpha_y = 0.3, theta_deg = 0.0 }"#;
+    pub(crate) const WALL: &str = r#"{ type = "diffuse", rho_d = [0.6, 0.5, 0.4] }"#;
+    pub(crate) const SIDE: &str = r#"{ type = "ward", rho_d = 0.3, rho_s = 0.4, alpha_x = 0.1, alpha_y = 0.3, theta_deg = 0.0 }"#;
 
-    fn room(floor: f32, wall: &str, side: &str) -> Scene {
+    pub(crate) fn room(floor: f32, wall: &str, side: &str) -> Scene {
         let text = ROOM
             .replace("{floor}", &floor.to_string())
             .replace("{wall}", wall)
@@ -509,7 +510,7 @@ radiance = [0.3, 0.3, 0.3]
     }
 
     const NEW_WALL: &str = r#"{ type = "ward", rho_d = [0.3, 0.35, 0.2], rho_s = 0.2, alpha_x = 0.3, alpha_y = 0.3, theta_deg = 0.0 }"#;
-    const NEW_SIDE: &str = r#"{ type = "ward", rho_d = 0.1, rho_s = 0.6, alpha_x = 0.25, alpha_y = 0.12, theta_deg = 40.0 }"#;
+    pub(crate) const NEW_SIDE: &str = r#"{ type = "ward", rho_d = 0.1, rho_s = 0.6, alpha_x = 0.25, alpha_y = 0.12, theta_deg = 40.0 }"#;
 
     /// Every material but the lights moves (a diffuse ρ; a Ward lobe's reflectances, widths
     /// and rotation; a diffuse wall turned glossy): the replayed paths' mean agrees with that
@@ -672,7 +673,7 @@ radiance = [0.3, 0.3, 0.3]
 /// --nocapture` (one thread; it prints, and asserts only that the replay agrees with fresh
 /// paths).
 #[cfg(test)]
-mod cost {
+pub(crate) mod cost {
     use super::*;
     use crate::geometry::{offset_origin, Ray};
     use crate::math::{warp, Frame, Sampler, Vec2};
@@ -712,7 +713,7 @@ mod cost {
 
     /// Every reflectance down by a tenth and every lobe 20% wider: about what moves between
     /// two of a recovery's early iterations.
-    fn moved(scene: &Scene) -> Scene {
+    pub(crate) fn moved(scene: &Scene) -> Scene {
         let mut s = scene.clone();
         for o in &mut s.objects {
             match &mut o.material {

@@ -1115,77 +1115,22 @@ irradiance = 2.0
 mod kept_tests {
     use super::*;
     use crate::render::aov::index_buffers;
-    use crate::scene::load::parse_scene;
+    use crate::render::replay::tests::{room as replay_room, NEW_SIDE, SIDE, WALL};
 
-    /// A floor (the cached group), a back wall and a Ward side wall, open above and in front,
-    /// lit by an area light and the sun; `{wall}` and `{side}` are the materials that move.
-    const ROOM: &str = r#"
-[render]
-spp = 1
-seed = 1
-[camera]
-width = 40
-height = 30
-eye = [0.0, 1.2, 2.5]
-target = [0.0, 0.3, -1.0]
-up = [0.0, 1.0, 0.0]
-fov_y_deg = 60.0
-[[object]]
-name = "floor"
-group = "floor"
-shape = "quad"
-corner = [-2.0, 0.0, 1.0]
-edge_u = [4.0, 0.0, 0.0]
-edge_v = [0.0, 0.0, -3.0]
-material = { type = "diffuse", rho_d = 0.5 }
-[[object]]
-name = "wall"
-group = "wall"
-shape = "quad"
-corner = [-2.0, 0.0, -2.0]
-edge_u = [4.0, 0.0, 0.0]
-edge_v = [0.0, 2.0, 0.0]
-material = {wall}
-[[object]]
-name = "side"
-group = "side"
-shape = "quad"
-corner = [-2.0, 0.0, 1.0]
-edge_u = [0.0, 0.0, -3.0]
-edge_v = [0.0, 2.0, 0.0]
-tangent = [0.0, 1.0, 0.0]
-material = {side}
-[[object]]
-name = "lamp"
-group = "lamp"
-shape = "quad"
-corner = [1.9, 0.5, -1.5]
-edge_u = [0.0, 0.0, 1.0]
-edge_v = [0.0, 1.0, 0.0]
-emission = 5.0
-[[light]]
-name = "sun"
-type = "directional"
-direction = [0.3, -1.0, -0.4]
-irradiance = 2.0
-"#;
-
+    /// `render::replay`'s test room (a floor, the cached group; a back wall; a Ward side wall;
+    /// an area light, the sun and a stray light) with the walls' materials given.
     fn room(wall: &str, side: &str) -> Scene {
-        let text = ROOM.replace("{wall}", wall).replace("{side}", side);
-        parse_scene(&text, std::path::Path::new("room.toml")).unwrap()
+        replay_room(0.5, wall, side)
     }
 
     fn old() -> Scene {
-        room(
-            r#"{ type = "diffuse", rho_d = [0.6, 0.5, 0.4] }"#,
-            r#"{ type = "ward", rho_d = 0.3, rho_s = 0.4, alpha_x = 0.1, alpha_y = 0.3, theta_deg = 0.0 }"#,
-        )
+        room(WALL, SIDE)
     }
 
     fn new() -> Scene {
         room(
             r#"{ type = "ward", rho_d = [0.1, 0.1, 0.05], rho_s = 0.2, alpha_x = 0.3, alpha_y = 0.3, theta_deg = 0.0 }"#,
-            r#"{ type = "ward", rho_d = 0.1, rho_s = 0.6, alpha_x = 0.25, alpha_y = 0.12, theta_deg = 40.0 }"#,
+            NEW_SIDE,
         )
     }
 
@@ -1290,7 +1235,7 @@ irradiance = 2.0
         let (_, kept) = floor_cache(&old(), 7, How::Kept);
         let narrow = room(
             r#"{ type = "ward", rho_d = 0.01, rho_s = 0.8, alpha_x = 0.03, alpha_y = 0.03, theta_deg = 0.0 }"#,
-            r#"{ type = "ward", rho_d = 0.3, rho_s = 0.4, alpha_x = 0.1, alpha_y = 0.3, theta_deg = 0.0 }"#,
+            SIDE,
         );
         assert!(floor_cache(&narrow, 7, How::From(&kept.unwrap())).0.is_none());
     }
@@ -1298,10 +1243,7 @@ irradiance = 2.0
     #[test]
     fn a_wall_turned_mirror_sends_the_cache_to_be_traced_again() {
         let (_, kept) = floor_cache(&old(), 7, How::Kept);
-        let mirror = room(
-            r#"{ type = "mirror", rho_s = 0.9 }"#,
-            r#"{ type = "ward", rho_d = 0.3, rho_s = 0.4, alpha_x = 0.1, alpha_y = 0.3, theta_deg = 0.0 }"#,
-        );
+        let mirror = room(r#"{ type = "mirror", rho_s = 0.9 }"#, SIDE);
         assert!(floor_cache(&mirror, 7, How::From(&kept.unwrap())).0.is_none());
     }
 }
@@ -1313,32 +1255,8 @@ irradiance = 2.0
 mod kept_cost {
     use super::*;
     use crate::render::aov::index_buffers;
-    use crate::scene::Material;
+    use crate::render::replay::cost::moved;
     use std::time::Instant;
-
-    /// Every reflectance down by a tenth and every lobe a fifth wider.
-    fn moved(scene: &Scene) -> Scene {
-        let mut s = scene.clone();
-        for o in &mut s.objects {
-            match &mut o.material {
-                Material::Diffuse { rho_d } => *rho_d *= 0.9,
-                Material::Ward {
-                    rho_d,
-                    rho_s,
-                    alpha_x,
-                    alpha_y,
-                    ..
-                } => {
-                    *rho_d *= 0.9;
-                    *rho_s *= 0.9;
-                    *alpha_x *= 1.2;
-                    *alpha_y *= 1.2;
-                }
-                _ => {}
-            }
-        }
-        s
-    }
 
     #[test]
     #[ignore]
