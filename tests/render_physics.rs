@@ -333,7 +333,7 @@ fn eight_path_batches_give_the_one_path_integrators_pixels_to_the_bit() {
             progress: false,
         };
         let img = render(&sc, &sc.camera, &opts);
-        let pt = matfit::render::PathTracer::new(&sc);
+        let pt = matfit::render::PathTracer::new(&sc).with_mirror_lights();
         let w = sc.camera.width as usize;
         let mut lit = 0;
         for (i, px) in img.data.iter().enumerate() {

@@ -75,7 +75,7 @@ fn render_marked(
     cancel: Option<(&(dyn Fn() -> bool + Sync), &std::sync::atomic::AtomicBool)>,
 ) -> Image {
     use std::sync::atomic::Ordering::Relaxed;
-    let pt = PathTracer::new(scene);
+    let pt = PathTracer::new(scene).with_mirror_lights();
     let spp = opts.spp.max(1);
     let (w, h) = (camera.width as usize, camera.height as usize);
     let mut img = Image::new(w, h);

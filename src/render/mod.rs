@@ -8,5 +8,6 @@ pub mod film;
 pub mod incident;
 pub mod integrator;
 pub mod lights;
+pub mod mirror_lights;
 
 pub use integrator::PathTracer;
