@@ -307,10 +307,11 @@ impl<'a> PathTracer<'a> {
     }
 
     /// This path tracer, sampling the area lights' images in the scene's planar mirrors too
-    /// (`render::mirror_lights`): less noise where light arrives through a mirror. What images
-    /// use; the recovery's caches do not, because a path's radiance then depends on a mirror's
-    /// reflectance without the path touching the mirror, and they trace again only the paths
-    /// that touched a group whose material changed (`Touched`).
+    /// (`render::mirror_lights`): less noise where light arrives through a mirror. What
+    /// `matfit render` uses (`film::render_image`); the recovery's caches do not, because a
+    /// path's radiance then depends on a mirror's reflectance without the path touching the
+    /// mirror, and they trace again only the paths that touched a group whose material changed
+    /// (`Touched`).
     pub fn with_mirror_lights(mut self) -> PathTracer<'a> {
         self.mirrors = MirrorLights::new(self.scene, &self.lights);
         self
