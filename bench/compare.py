@@ -3,6 +3,7 @@
 
     bash bench/run.sh [--quick]            # builds matfit, sets up Mitsuba, runs this
     python bench/compare.py [--quick] [--matfit PATH] [--out DIR] [--md FILE]
+    python bench/compare.py --scene glossy [--before PATH]   # part 1 only, on scenes/glossy
 
 The scene is scenes/figure6 with its anisotropic Ward floor replaced by a diffuse one of
 rho_d FLOOR_RHO (not grey 0.5, so that no group starts at its answer), rendered at RES (the
@@ -44,6 +45,15 @@ Mitsuba's meaning). Mitsuba loads the XML written by `matfit export mitsuba`. Bo
 3. Cross-renderer accuracy: matfit recovers the diffuse-floor scene (the run of part 2) and a
    mirror-floor variant (rho_s 0.8) from photos rendered by Mitsuba; true vs recovered values.
 
+--scene glossy measures part 1 alone (Mitsuba has no Ward BRDF, and parts 2-3 expect diffuse
+and mirror groups) on scenes/glossy with its Ward sphere replaced by the lobe `matfit export
+mitsuba` fits to it, a Beckmann microfacet lobe (GLOSSY_SPHERE), which Mitsuba renders exactly;
+at half the scene's 400x300. --forward-only measures part 1 alone on figure6. --before PATH
+adds a second matfit binary (e.g. a build of the main branch) to the equal-spp and equal-time
+tables, taking turns with the first, so that a change is measured before and after in one run.
+Every equal-time row has its efficiency 1 / (RMSE^2 x time) and its ratio to Mitsuba
+llvm_ad_rgb's at the same budget.
+
 Writes OUT/{forward,inverse,cross}.json, the images, the convergence plot OUT/convergence.svg
 (copied next to the Markdown file) and the Markdown report (--md; default bench/RESULTS.md in
 full mode, OUT/RESULTS.md with --quick).
@@ -53,6 +63,7 @@ import datetime
 import json
 import os
 import platform
+import re
 import shutil
 import subprocess
 import sys
@@ -68,6 +79,10 @@ sys.path.insert(0, HERE)
 import crosscheck as cc  # noqa: E402  (read_pfm, eroded_masks, figure6_variant, ...)
 
 FLOOR_RHO = (0.2, 0.3, 0.4)
+# scenes/glossy's Ward sphere (rho_d 0.2, rho_s 0.3, alpha 0.15) as `matfit export mitsuba`
+# approximates it: Lambert + a Beckmann lobe of the fitted alpha and scale k = 0.698.
+GLOSSY_SPHERE = ('{ type = "microfacet", distribution = "beckmann", rho_d = 0.2, '
+                 'rho_s = 0.2094, alpha = 0.1463 }')
 MIRROR_RHO = 0.8
 THRESHOLDS = (0.05, 0.02, 0.01)
 
@@ -95,6 +110,8 @@ MODES = {
         recover_args=["--white-unseen", "--final-spp", "16"],
     ),
 }
+# scenes/glossy (--scene glossy): its 400x300 halved, a quarter with --quick.
+GLOSSY_RES = {"full": (200, 150), "quick": (100, 75)}
 # The big mesh (issue 24): scenes/office-large made all diffuse by its generator, at this size.
 BIG = {
     "full": dict(res=(480, 270), spp=16, triangles=1.2e6),
@@ -216,8 +233,8 @@ def fmt_t(stay_first, budget_note=""):
 
 
 class Matfit:
-    def __init__(self, exe, threads):
-        self.exe, self.threads = exe, threads
+    def __init__(self, exe, threads, name="matfit"):
+        self.exe, self.threads, self.name = exe, threads, name
 
     def cmd(self, *args):
         return [self.exe, "--threads", str(self.threads), *args]
@@ -280,7 +297,7 @@ class Mitsuba:
 # 1. forward
 
 
-def forward(mf, ms, cfg, d, scene, xml, ids, light_id, group_names):
+def forward(mf, ms, cfg, d, scene, xml, ids, light_id, group_names, before=None):
     w, h = cfg["res"]
     px = w * h
     res = {"res": [w, h]}
@@ -296,16 +313,23 @@ def forward(mf, ms, cfg, d, scene, xml, ids, light_id, group_names):
     scal = ms.render("scalar_rgb", xml, spp, seed=1)
     # The machine is noisy: matfit and Mitsuba's warm calls take turns, EQ_RUNS each, and the
     # table quotes medians (matfit's runs use one seed: the same image each time).
-    mruns, llvm_warm = [], []
+    mruns, llvm_warm, bruns = [], [], []
     for k in range(EQ_RUNS):
         mruns.append(mf.render(scene, os.path.join(d, "matfit_eq.pfm"), spp, 1))
+        if before:
+            bruns.append(before.render(scene, os.path.join(d, "before_eq.pfm"), spp, 1))
         llvm_warm.append(ms.render("llvm_ad_rgb", xml, spp, seed=2 + k))
     mimg = mruns[0][0]
     mt, mwall = (float(np.median([r[i] for r in mruns])) for i in (1, 2))
     mcpu = float(np.median([r[3] / r[2] for r in mruns]))
     warm_t = float(np.median([r[1] for r in llvm_warm]))
-    rows.append(dict(tool="matfit", time=mt, wall=mwall, cpu=mcpu, img=mimg,
+    rows.append(dict(tool=mf.name, time=mt, wall=mwall, cpu=mcpu, img=mimg,
                      note=f"median of {EQ_RUNS} runs; process {mwall:.2f} s incl. loading"))
+    if before:
+        bt, bwall = (float(np.median([r[i] for r in bruns])) for i in (1, 2))
+        rows.append(dict(tool=before.name, time=bt, wall=bwall, img=bruns[0][0],
+                         cpu=float(np.median([r[3] / r[2] for r in bruns])),
+                         note=f"median of {EQ_RUNS} runs; process {bwall:.2f} s incl. loading"))
     rows.append(dict(tool="Mitsuba llvm_ad_rgb, first call", time=llvm_first[1],
                      cpu=llvm_first[2] / llvm_first[1], img=llvm_first[0],
                      note=f"JIT compile (empty kernel cache); load {t_load:.2f} s"))
@@ -340,15 +364,22 @@ def forward(mf, ms, cfg, d, scene, xml, ids, light_id, group_names):
 
     # Equal time: spp from each tool's warm throughput.
     thr = {"matfit": px * spp / mt, "llvm": px * spp / warm_t, "scalar": px * spp / scal[1]}
+    if before:
+        thr["before"] = px * spp / bt
     eq_time = []
     longest = {}
     for b in cfg["budgets"]:
         log(f"forward: equal time ({b:g} s) ...")
         n = max(1, round(b * thr["matfit"] / px))
         img, t, wall, cpu = mf.render(scene, os.path.join(d, f"matfit_{b:g}s.pfm"), n, 7)
-        eq_time.append(dict(budget=b, tool="matfit", spp=n, seconds=t, rmse=rmse(img),
+        eq_time.append(dict(budget=b, tool=mf.name, spp=n, seconds=t, rmse=rmse(img),
                             rmse_all=rmse_all(img), cpu_use=cpu / wall))
         longest["matfit"] = (img, n)
+        if before:
+            n = max(1, round(b * thr["before"] / px))
+            img, t, wall, cpu = before.render(scene, os.path.join(d, f"before_{b:g}s.pfm"), n, 7)
+            eq_time.append(dict(budget=b, tool=before.name, spp=n, seconds=t, rmse=rmse(img),
+                                rmse_all=rmse_all(img), cpu_use=cpu / wall))
         n = max(1, round(b * thr["llvm"] / px))
         first = ms.render("llvm_ad_rgb", xml, n, seed=11)  # compiles if this spp is new
         img, t, cpu = ms.render("llvm_ad_rgb", xml, n, seed=12)
@@ -360,6 +391,13 @@ def forward(mf, ms, cfg, d, scene, xml, ids, light_id, group_names):
         img, t, cpu = ms.render("scalar_rgb", xml, n, seed=13)
         eq_time.append(dict(budget=b, tool="Mitsuba scalar_rgb", spp=n, seconds=t,
                             rmse=rmse(img), rmse_all=rmse_all(img), cpu_use=cpu / t))
+    # Efficiency 1 / (RMSE^2 x time), and its ratio to Mitsuba llvm's at the same budget.
+    for r in eq_time:
+        r["efficiency"] = 1.0 / max(r["rmse"] ** 2 * r["seconds"], 1e-300)
+    for r in eq_time:
+        llvm = next(x for x in eq_time
+                    if x["budget"] == r["budget"] and x["tool"] == "Mitsuba llvm_ad_rgb")
+        r["vs_llvm"] = r["efficiency"] / llvm["efficiency"]
     res["equal_time"] = eq_time
 
     # Does matfit agree with the reference? Group means over eroded masks.
@@ -659,6 +697,8 @@ def markdown(meta, fw, inv, cross, cfg, svg_name):
     A("# matfit vs Mitsuba 3: forward rendering, inverse rendering, cross-renderer accuracy\n")
     if meta["provisional"]:
         A(f"**Provisional**: {meta['provisional']}\n")
+    if inv is None:
+        L[0] = "# matfit vs Mitsuba 3: forward rendering\n"
     A("Made by one command (what each number means: [bench/README.md](README.md)):\n")
     A(f"```sh\n{meta['command']}\n```\n")
     A(f"- date: {meta['date']}")
@@ -667,8 +707,16 @@ def markdown(meta, fw, inv, cross, cfg, svg_name):
     A(f"- {meta['matfit_version']} (git {meta['git']}), `--threads {meta['threads']}`; "
       f"Mitsuba {meta['mitsuba']}, Dr.Jit {meta['drjit']} (`dr.set_thread_count("
       f"{meta['threads']})`), numpy {meta['numpy']}, Python {meta['python']}")
-    A(f"- scene: scenes/figure6 with a diffuse floor ρd = ({f3(FLOOR_RHO)}), {w}×{h}, "
-      f"max_depth 8 in both renderers; total run time {meta['total_s'] / 60:.1f} min\n")
+    if meta.get("scene", "figure6") == "glossy":
+        A(f"- scene: scenes/glossy with its Ward sphere as the Beckmann lobe `matfit export "
+          f"mitsuba` fits to it (`{GLOSSY_SPHERE}`), {w}×{h}, max_depth 8 in both renderers; "
+          f"total run time {meta['total_s'] / 60:.1f} min")
+    else:
+        A(f"- scene: scenes/figure6 with a diffuse floor ρd = ({f3(FLOOR_RHO)}), {w}×{h}, "
+          f"max_depth 8 in both renderers; total run time {meta['total_s'] / 60:.1f} min")
+    if meta.get("before"):
+        A(f"- 'matfit before': {meta['before']}, measured in the same run, taking turns")
+    A("")
 
     A("## 1. Forward rendering\n")
     A(f"Reference: Mitsuba `llvm_ad_rgb` at {fw['reference']['spp']} spp "
@@ -685,14 +733,15 @@ def markdown(meta, fw, inv, cross, cfg, svg_name):
     A("")
     A("**Equal time** (spp chosen from each renderer's equal-spp throughput; Mitsuba llvm "
       "timed on a second call at that spp, its first call in brackets):\n")
-    A("| budget | renderer | spp | time | CPU | RMSE | RMSE, all px |")
-    A("|---:|---|---:|---:|---:|---:|---:|")
+    A("| budget | renderer | spp | time | CPU | RMSE | RMSE, all px | efficiency | vs llvm |")
+    A("|---:|---|---:|---:|---:|---:|---:|---:|---:|")
     for r in fw["equal_time"]:
         t = f"{r['seconds']:.2f} s"
         if "first_call" in r:
             t += f" ({r['first_call']:.2f} s)"
+        eff = (f"{r['efficiency']:.0f} | {r['vs_llvm']:.2f}×" if "efficiency" in r else " | ")
         A(f"| {r['budget']:g} s | {r['tool']} | {r['spp']} | {t} | {r['cpu_use']:.2f} | "
-          f"{r['rmse']:.4f} | {r['rmse_all']:.4f} |")
+          f"{r['rmse']:.4f} | {r['rmse_all']:.4f} | {eff} |")
     A("")
     ag = fw["agreement"]
     worst = max(max(abs(x) for x in g["rel"]) for g in ag["groups"])
@@ -731,6 +780,13 @@ def markdown(meta, fw, inv, cross, cfg, svg_name):
           f"pixels) of matfit's image against Mitsuba's {EQ_RUNS} renders averaged: largest "
           f"|rel. diff| {ag['worst']:.2%}; between two of Mitsuba's own renders "
           f"{ag['mitsuba_noise']:.2%} (the noise at {b['spp']} spp).\n")
+
+    if inv is None:
+        A("## Goals\n")
+        for g in meta["goals"]:
+            A(f"- {g}")
+        A("")
+        return "\n".join(L)
 
     A("## 2. Inverse rendering\n")
     A(f"Photo: the reference image above. Unknowns: ρd (RGB) of the {len(inv['groups'])} "
@@ -807,6 +863,21 @@ def prepare_case(mf, d, floor, res):
     return scene, xml, ids, names
 
 
+def prepare_glossy(mf, d, res):
+    """scenes/glossy with its Ward sphere as GLOSSY_SPHERE, at RES, exported under D."""
+    os.makedirs(d, exist_ok=True)
+    text = open(os.path.join(ROOT, "scenes", "glossy", "scene.toml")).read()
+    text, n = cc.FLOOR.subn(f"material = {GLOSSY_SPHERE}", text)
+    assert n == 1, "glossy's Ward material line changed"
+    text = re.sub(r"^width = \d+$", f"width = {res[0]}", text, count=1, flags=re.M)
+    text = re.sub(r"^height = \d+$", f"height = {res[1]}", text, count=1, flags=re.M)
+    scene = os.path.join(d, "scene.toml")
+    with open(scene, "w") as f:
+        f.write(text)
+    xml, ids, names = export_case(mf, d, scene)
+    return scene, xml, ids, names
+
+
 def visible_groups(ids, names, truth):
     return [names[g] for g in range(len(names))
             if names[g] in truth and int((ids == g).sum()) >= 50]
@@ -837,24 +908,37 @@ def measure(args, cfg, out):
     t_all = time.perf_counter()
     load_start = "%.2f %.2f %.2f" % os.getloadavg()
     mf = Matfit(cc.find_matfit(args.matfit), args.threads)
+    before = (Matfit(os.path.abspath(args.before), args.threads, "matfit before")
+              if args.before else None)
     ms = Mitsuba(args.threads)
     log(f"{'quick' if args.quick else 'full'} mode, {args.threads} threads, matfit {mf.exe}, "
         f"out {out}")
+    for name in ("inverse.json", "cross.json"):
+        if os.path.exists(os.path.join(out, name)):
+            os.remove(os.path.join(out, name))
 
     # Scenes.
-    floor_d = "{ type = \"diffuse\", rho_d = [%g, %g, %g] }" % FLOOR_RHO
-    dd = os.path.join(out, "diffuse")
-    scene, xml, ids, names = prepare_case(mf, dd, floor_d, cfg["res"])
-    truth = scene_truth(scene)
-    objects = group_objects(scene)
+    if args.scene == "glossy":
+        dd = os.path.join(out, "glossy")
+        scene, xml, ids, names = prepare_glossy(mf, dd, cfg["res"])
+    else:
+        floor_d = "{ type = \"diffuse\", rho_d = [%g, %g, %g] }" % FLOOR_RHO
+        dd = os.path.join(out, "diffuse")
+        scene, xml, ids, names = prepare_case(mf, dd, floor_d, cfg["res"])
     light_id = names.index("light")
-    groups = visible_groups(ids, names, truth)
 
     # 1. forward
-    fw, ref = forward(mf, ms, cfg, dd, scene, xml, ids, light_id, names)
-    fw["big"] = forward_big(mf, ms, BIG["quick" if args.quick else "full"],
-                            os.path.join(out, "office"))
+    fw, ref = forward(mf, ms, cfg, dd, scene, xml, ids, light_id, names, before)
+    if not args.forward_only:
+        fw["big"] = forward_big(mf, ms, BIG["quick" if args.quick else "full"],
+                                os.path.join(out, "office"))
     json.dump(fw, open(os.path.join(out, "forward.json"), "w"), indent=1)
+    if args.forward_only:
+        write_meta(args, cfg, out, mf, ms, load_start, t_all)
+        return
+    truth = scene_truth(scene)
+    objects = group_objects(scene)
+    groups = visible_groups(ids, names, truth)
     photo = os.path.join(dd, "reference.exr")
 
     # 2. inverse: matfit
@@ -904,11 +988,16 @@ def measure(args, cfg, out):
     cross.append(dict(name=f"Mirror floor (ρs {MIRROR_RHO})", spp=cfg["mirror_spp"],
                       wall=mmrec["wall"], rows=cross_rows(mmrec, mtruth, mgroups)))
     json.dump(cross, open(os.path.join(out, "cross.json"), "w"), indent=1)
+    write_meta(args, cfg, out, mf, ms, load_start, t_all)
 
+
+def write_meta(args, cfg, out, mf, ms, load_start, t_all):
+    """OUT/meta.json: the machine, the versions, the command, the run's load and time."""
     git = run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"]).stdout.strip()
     dirty = run(["git", "-C", ROOT, "status", "--porcelain", "--untracked-files=no"]).stdout
     meta = dict(
-        quick=args.quick, res=list(cfg["res"]), recover_args=cfg["recover_args"],
+        quick=args.quick, res=list(cfg["res"]), scene=args.scene,
+        before=os.path.abspath(args.before) if args.before else None, recover_args=cfg["recover_args"],
         provisional=args.provisional, command=command_line(args),
         date=datetime.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
         machine=cc.machine(), nproc=os.cpu_count(), load_start=load_start,
@@ -927,17 +1016,63 @@ def command_line(args):
         c += " --quick"
     if args.threads != (os.cpu_count() or 2):
         c += f" --threads {args.threads}"
+    if args.scene != "figure6":
+        c += f" --scene {args.scene}"
+    elif args.forward_only:
+        c += " --forward-only"
+    if args.before:
+        c += " --before BINARY"
     return c
+
+
+def forward_goals(fw):
+    """The goals part 1 checks: equal-spp throughput (issues 7 and 24) and equal-time
+    efficiency (issue 79: at least 2x Mitsuba llvm_ad_rgb's at every budget)."""
+    eq = {r["tool"]: r for r in fw["equal_spp"]}
+    mf_sps = eq["matfit"]["samples_per_s"]
+    ll_sps = eq["Mitsuba llvm_ad_rgb, warm"]["samples_per_s"]
+    goals = []
+    ok = mf_sps >= ll_sps
+    goals.append(f"Forward throughput ≥ Mitsuba llvm_ad_rgb: **{'met' if ok else 'not met'}** — "
+                 f"matfit {mf_sps / 1e6:.2f} M samples/s vs {ll_sps / 1e6:.2f} M "
+                 f"({mf_sps / ll_sps:.2f}×"
+                 + ("" if ok else f"; matfit must become {ll_sps / mf_sps:.1f}× faster") + ").")
+    ok = mf_sps >= 1.3 * ll_sps
+    goals.append(f"Forward throughput ≥ 1.3× Mitsuba llvm_ad_rgb (issue 24): "
+                 f"**{'met' if ok else 'not met'}** — {mf_sps / ll_sps:.2f}×"
+                 + ("" if ok else f"; matfit must become {1.3 * ll_sps / mf_sps:.2f}× faster")
+                 + ".")
+    if "big" in fw:
+        b = fw["big"]
+        r = b["matfit"]["samples_per_s"] / b["mitsuba"]["samples_per_s"]
+        goals.append(f"The same on the big mesh (office-large, diffuse, {b['triangles']:,} "
+                     f"triangles): **{'met' if r >= 1.3 else 'not met'}** — {r:.2f}×"
+                     + ("" if r >= 1.3 else f"; matfit must become {1.3 / r:.2f}× faster")
+                     + ".")
+    effs = [r for r in fw["equal_time"] if r["tool"] == "matfit" and "vs_llvm" in r]
+    if effs:
+        ok = all(r["vs_llvm"] >= 2.0 for r in effs)
+        goals.append("Forward efficiency 1 / (RMSE² × time) ≥ 2× Mitsuba llvm_ad_rgb's (issue "
+                     f"79): **{'met' if ok else 'not met'}** — "
+                     + ", ".join(f"{r['vs_llvm']:.2f}× at {r['budget']:g} s" for r in effs) + ".")
+    return goals
 
 
 def report(out, md_path, provisional=None):
     """Derived figures, goals, plot and Markdown from OUT/*.json."""
     fw = json.load(open(os.path.join(out, "forward.json")))
-    inv = json.load(open(os.path.join(out, "inverse.json")))
-    cross = json.load(open(os.path.join(out, "cross.json")))
     meta = json.load(open(os.path.join(out, "meta.json")))
     if provisional is not None:
         meta["provisional"] = provisional
+    if not os.path.exists(os.path.join(out, "inverse.json")):
+        # Part 1 alone (--forward-only, --scene glossy).
+        meta["goals"] = forward_goals(fw)
+        text = markdown(meta, fw, None, None, meta, None)
+        with open(md_path, "w") as f:
+            f.write(text)
+        return text
+    inv = json.load(open(os.path.join(out, "inverse.json")))
+    cross = json.load(open(os.path.join(out, "cross.json")))
     mrec = inv["matfit"]
     mrec["reach"] = {str(t): reach_times(mrec["curve"], t) for t in THRESHOLDS}
     for m in inv["mitsuba"]:
@@ -971,27 +1106,7 @@ def report(out, md_path, provisional=None):
                              f"{inv['mitsuba'][0]['warmup'][1]:.2f} s in the first configuration, "
                              f"against {inv['mitsuba'][0]['per_it']:.2f} s for a timed one")
 
-    eq = {r["tool"]: r for r in fw["equal_spp"]}
-    mf_sps = eq["matfit"]["samples_per_s"]
-    ll_sps = eq["Mitsuba llvm_ad_rgb, warm"]["samples_per_s"]
-    goals = []
-    ok = mf_sps >= ll_sps
-    goals.append(f"Forward throughput ≥ Mitsuba llvm_ad_rgb: **{'met' if ok else 'not met'}** — "
-                 f"matfit {mf_sps / 1e6:.2f} M samples/s vs {ll_sps / 1e6:.2f} M "
-                 f"({mf_sps / ll_sps:.2f}×"
-                 + ("" if ok else f"; matfit must become {ll_sps / mf_sps:.1f}× faster") + ").")
-    ok = mf_sps >= 1.3 * ll_sps
-    goals.append(f"Forward throughput ≥ 1.3× Mitsuba llvm_ad_rgb (issue 24): "
-                 f"**{'met' if ok else 'not met'}** — {mf_sps / ll_sps:.2f}×"
-                 + ("" if ok else f"; matfit must become {1.3 * ll_sps / mf_sps:.2f}× faster")
-                 + ".")
-    if "big" in fw:
-        b = fw["big"]
-        r = b["matfit"]["samples_per_s"] / b["mitsuba"]["samples_per_s"]
-        goals.append(f"The same on the big mesh (office-large, diffuse, {b['triangles']:,} "
-                     f"triangles): **{'met' if r >= 1.3 else 'not met'}** — {r:.2f}×"
-                     + ("" if r >= 1.3 else f"; matfit must become {1.3 / r:.2f}× faster")
-                     + ".")
+    goals = forward_goals(fw)
     if ratio is not None:
         goals.append(f"Inverse time to 0.01 ≥ 20× shorter than Mitsuba's: "
                      f"**{'met' if ratio >= 20 else 'not met'}** — {ratio:.1f}×"
@@ -1033,14 +1148,23 @@ def main():
                                  "OUT/RESULTS.md)")
     ap.add_argument("--provisional", default=None,
                     help="a note printed at the top of the report (e.g. 'loaded machine')")
+    ap.add_argument("--scene", choices=["figure6", "glossy"], default="figure6",
+                    help="glossy: part 1 alone, on scenes/glossy (the docstring)")
+    ap.add_argument("--forward-only", action="store_true", help="part 1 alone")
+    ap.add_argument("--before", metavar="PATH",
+                    help="another matfit binary to measure beside the first in part 1")
     ap.add_argument("--report-only", action="store_true",
                     help="measure nothing: rewrite the report from OUT/*.json")
     args = ap.parse_args()
+    args.forward_only |= args.scene == "glossy"
 
     mode = "quick" if args.quick else "full"
-    cfg = MODES[mode]
-    out = os.path.abspath(args.out or os.path.join(HERE, "out", mode))
-    md_path = args.md or (os.path.join(out, "RESULTS.md") if args.quick
+    cfg = dict(MODES[mode])
+    if args.scene == "glossy":
+        cfg["res"] = GLOSSY_RES[mode]
+    sub = mode if args.scene == "figure6" and not args.forward_only else f"{mode}-{args.scene}"
+    out = os.path.abspath(args.out or os.path.join(HERE, "out", sub))
+    md_path = args.md or (os.path.join(out, "RESULTS.md") if args.quick or args.forward_only
                           else os.path.join(HERE, "RESULTS.md"))
     os.makedirs(out, exist_ok=True)
     if not args.report_only:

@@ -332,22 +332,34 @@ fn eight_path_batches_give_the_one_path_integrators_pixels_to_the_bit() {
             seed,
             progress: false,
         };
-        let img = render(&sc, &sc.camera, &opts);
-        let pt = matfit::render::PathTracer::new(&sc);
+        // `render`, and `render_image` (next-event estimation through planar mirrors too,
+        // which glossy has), against the one-path integrator with the same lights.
+        let plain = render(&sc, &sc.camera, &opts);
+        let imaged =
+            matfit::render::film::render_image(&sc, &sc.camera, &opts, |_| {}, &|| false).unwrap();
+        let tracers = [
+            (plain, matfit::render::PathTracer::new(&sc)),
+            (
+                imaged,
+                matfit::render::PathTracer::new(&sc).with_mirror_lights(),
+            ),
+        ];
         let w = sc.camera.width as usize;
         let mut lit = 0;
-        for (i, px) in img.data.iter().enumerate() {
-            let (x, y) = (i % w, i / w);
-            let one = matfit::render::film::render_pixel(&pt, &sc.camera, x, y, spp, seed);
-            assert_eq!(
-                px.to_array().map(f32::to_bits),
-                one.to_array().map(f32::to_bits),
-                "{name}: pixel ({x}, {y}): {px} vs {one}"
-            );
-            lit += usize::from(px.max_element() > 0.0);
+        for (img, pt) in &tracers {
+            for (i, px) in img.data.iter().enumerate() {
+                let (x, y) = (i % w, i / w);
+                let one = matfit::render::film::render_pixel(pt, &sc.camera, x, y, spp, seed);
+                assert_eq!(
+                    px.to_array().map(f32::to_bits),
+                    one.to_array().map(f32::to_bits),
+                    "{name}: pixel ({x}, {y}): {px} vs {one}"
+                );
+                lit += usize::from(px.max_element() > 0.0);
+            }
         }
         assert!(
-            lit > img.data.len() / 2,
+            lit > tracers[0].0.data.len(),
             "{name}: a dark image tests little"
         );
     }

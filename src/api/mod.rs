@@ -201,7 +201,7 @@ pub fn render(scene: &Scene, request: &RenderRequest, observer: &dyn Observer) -
                 seed: request.seed.unwrap_or(sc.render.seed),
                 progress: true,
             };
-            crate::render::film::render_reporting(
+            crate::render::film::render_image(
                 sc,
                 &sc.camera,
                 &opts,

@@ -186,6 +186,17 @@ impl Sampler {
         }
     }
 
+    /// What [`Sampler::next_n`] would give, leaving this sampler as it is.
+    #[inline]
+    pub fn peek_n<const N: usize>(&self) -> [f32; N] {
+        let d = self.dim as usize;
+        if d + N <= SOBOL_DIMS as usize {
+            std::array::from_fn(|k| self.buffer[d + k])
+        } else {
+            self.clone().next_n::<N>()
+        }
+    }
+
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
         let a = self.next_1d();

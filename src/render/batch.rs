@@ -36,7 +36,7 @@
 //! All the lanes' rays are traced before any of them arrives (lane by lane is slower).
 
 use super::bsdf::{mirror, Bsdf, Lobes8, WardLobe};
-use super::integrator::{facing, PathState, PathTracer};
+use super::integrator::{facing, PathState, PathTracer, Vertex};
 use super::lights::{punctual_sample, LightSample, Lights};
 use crate::geometry::packet::LANES;
 use crate::geometry::{Hit, Ray};
@@ -150,10 +150,23 @@ pub fn trace_jobs(
                 let alive =
                     if let Some((ng, frame, rho_d)) = flat_lambert(pt, obj, hit, lane.st.ray.d) {
                         let p = pt.scene.hit_point(hit);
+                        if !pt.mirrors.is_empty() {
+                            let wo = frame.to_local(-lane.st.ray.d);
+                            let bsdf = Bsdf::Diffuse { rho_d };
+                            lane_mirror_lights(pt, lane, p, ng, &frame, bsdf, wo);
+                        }
                         gathered.push(i, pt, p, ng, &frame, rho_d, lane);
                         true
                     } else if let Some(w) = flat_ward(pt, obj, hit, lane.st.ray.d) {
                         let (p, j) = (pt.scene.hit_point(hit), gathered.n);
+                        if !pt.mirrors.is_empty() {
+                            let bsdf = Bsdf::Ward {
+                                rho_d: w.rho_d,
+                                rho_s: w.rho_s,
+                                lobe: w.lobe,
+                            };
+                            lane_mirror_lights(pt, lane, p, w.ng, &w.frame, bsdf, w.wo);
+                        }
                         gathered.push(i, pt, p, w.ng, &w.frame, w.rho_d, lane);
                         gathered.push_ward(j, w.wo, w.rho_s, w.lobe);
                         true
@@ -162,10 +175,18 @@ pub fn trace_jobs(
                             None => false,
                             Some(v) => match v.bsdf {
                                 Bsdf::Diffuse { rho_d } if gathers(pt, rho_d, v.wo.z) => {
+                                    if !pt.mirrors.is_empty() {
+                                        let (p, ng, f, b) = (v.p, v.ng, &v.frame, v.bsdf);
+                                        lane_mirror_lights(pt, lane, p, ng, f, b, v.wo);
+                                    }
                                     gathered.push(i, pt, v.p, v.ng, &v.frame, rho_d, lane);
                                     true
                                 }
                                 Bsdf::Ward { rho_d, rho_s, lobe } if gathers_ward(pt, v.wo.z) => {
+                                    if !pt.mirrors.is_empty() {
+                                        let (p, ng, f, b) = (v.p, v.ng, &v.frame, v.bsdf);
+                                        lane_mirror_lights(pt, lane, p, ng, f, b, v.wo);
+                                    }
                                     let j = gathered.n;
                                     gathered.push(i, pt, v.p, v.ng, &v.frame, rho_d, lane);
                                     gathered.push_ward(j, v.wo, rho_s, lobe);
@@ -260,6 +281,31 @@ struct FlatWard {
     rho_d: Rgb,
     rho_s: Rgb,
     lobe: WardLobe,
+}
+
+/// Next-event estimation through planar mirrors (`PathTracer::sample_mirror_lights`) at a
+/// vertex about to join the eight lanes, from the light numbers `SmoothLanes::push` is about
+/// to draw, added to the path's radiance before `push` copies it: the order in which
+/// `PathTracer::scatter` adds them, so that the pixels stay the scalar integrator's to the bit.
+#[inline(never)]
+fn lane_mirror_lights(
+    pt: &PathTracer,
+    lane: &mut Job,
+    p: Vec3,
+    ng: Vec3,
+    frame: &Frame,
+    bsdf: Bsdf,
+    wo: Vec3,
+) {
+    let [uc, l0, l1] = lane.sampler.peek_n::<3>();
+    let v = Vertex {
+        p,
+        bsdf,
+        frame: *frame,
+        ng,
+        wo,
+    };
+    pt.sample_mirror_lights(&mut lane.st, &v, uc, Vec2::new(l0, l1));
 }
 
 /// Whether a Lambert vertex of reflectance `rho_d`, seen at `wo_z` (the outgoing direction's

@@ -27,7 +27,7 @@ pub fn progress_bar(len: u64, what: &str, show: bool) -> Bar<'static> {
 /// Renders the scene through `camera` (normally `scene.camera`), at least one sample per pixel.
 pub fn render(scene: &Scene, camera: &Camera, opts: &RenderOptions) -> Image {
     let bar = progress_bar(camera.height as u64, "render", opts.progress);
-    render_marked(scene, camera, opts, None, bar, None)
+    render_marked(&PathTracer::new(scene), camera, opts, None, bar, None)
 }
 
 /// [`render`], reporting its progress to `report` (whatever `opts.progress` says) and asking
@@ -41,7 +41,27 @@ pub fn render_reporting(
 ) -> Option<Image> {
     let bar = Bar::to(camera.height as u64, "render", report);
     let stop = std::sync::atomic::AtomicBool::new(false);
-    let img = render_marked(scene, camera, opts, None, bar, Some((cancelled, &stop)));
+    let pt = PathTracer::new(scene);
+    let img = render_marked(&pt, camera, opts, None, bar, Some((cancelled, &stop)));
+    (!stop.into_inner()).then_some(img)
+}
+
+/// [`render_reporting`] with next-event estimation through planar mirrors
+/// (`PathTracer::with_mirror_lights`): what `matfit render` draws. Less noise where light
+/// arrives by way of a mirror, the same image in expectation; the other renders (a recovery's
+/// photo-like renders and final render, composites) keep the plain path tracer, on whose noise
+/// the recovery's tests were measured.
+pub fn render_image(
+    scene: &Scene,
+    camera: &Camera,
+    opts: &RenderOptions,
+    report: impl Fn(&crate::io::progress::Progress) + Send + Sync,
+    cancelled: &(dyn Fn() -> bool + Sync),
+) -> Option<Image> {
+    let bar = Bar::to(camera.height as u64, "render", report);
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    let pt = PathTracer::new(scene).with_mirror_lights();
+    let img = render_marked(&pt, camera, opts, None, bar, Some((cancelled, &stop)));
     (!stop.into_inner()).then_some(img)
 }
 
@@ -61,13 +81,13 @@ pub fn render_where(
         "render_where: the mask is not the camera's size"
     );
     let bar = progress_bar(camera.height as u64, "render", opts.progress);
-    render_marked(scene, camera, opts, Some(wanted), bar, None)
+    render_marked(&PathTracer::new(scene), camera, opts, Some(wanted), bar, None)
 }
 
 /// [`render`] of every pixel, or of those `wanted` marks; with `cancel`, a row starts only
 /// while its function says go on, and the flag records that it said stop.
 fn render_marked(
-    scene: &Scene,
+    pt: &PathTracer,
     camera: &Camera,
     opts: &RenderOptions,
     wanted: Option<&[bool]>,
@@ -75,7 +95,6 @@ fn render_marked(
     cancel: Option<(&(dyn Fn() -> bool + Sync), &std::sync::atomic::AtomicBool)>,
 ) -> Image {
     use std::sync::atomic::Ordering::Relaxed;
-    let pt = PathTracer::new(scene);
     let spp = opts.spp.max(1);
     let (w, h) = (camera.width as usize, camera.height as usize);
     let mut img = Image::new(w, h);
@@ -97,7 +116,7 @@ fn render_marked(
                 continue;
             }
             let end = (x..w).find(|&e| !marked(e)).unwrap_or(w).min(x + run);
-            batch::render_pixels(&pt, camera, y, x, spp, opts.seed, &mut row[x..end]);
+            batch::render_pixels(pt, camera, y, x, spp, opts.seed, &mut row[x..end]);
             x = end;
         }
         pb.inc(1);

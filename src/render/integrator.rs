@@ -7,8 +7,9 @@
 
 use super::bsdf::{Bsdf, MicrofacetLobe, WardLobe};
 use super::lights::Lights;
+use super::mirror_lights::MirrorLights;
 use crate::geometry::{offset_origin, Hit, Ray};
-use crate::math::{power_heuristic, Frame, Rgb, Sampler, Vec3};
+use crate::math::{power_heuristic, Frame, Rgb, Sampler, Vec2, Vec3};
 use crate::scene::{Material, Object, Scene, SurfaceHit, WardVariant};
 
 /// The BSDF of `material` at a hit, with the shading frame it is expressed in.
@@ -199,6 +200,12 @@ pub struct PathState {
     pub count_emission: bool,
     /// Where its segments arrived.
     pub touched: Touched,
+    /// When `ray` left a planar mirror of `PathTracer::mirrors` that the segment before it
+    /// reached by BSDF sampling: that sampling's density (else 0), and the length of that
+    /// segment. Emission found at the end of `ray` is then MIS-weighted against the mirror's
+    /// virtual light (`render::mirror_lights`).
+    pub mirror_pdf: f32,
+    pub mirror_t: f32,
 }
 
 /// The groups whose surfaces a path's segments arrived at, and whether one left the scene
@@ -243,6 +250,8 @@ impl PathState {
             first: true,
             count_emission,
             touched: Touched::default(),
+            mirror_pdf: 0.0,
+            mirror_t: 0.0,
         }
     }
 
@@ -261,6 +270,8 @@ impl PathState {
             first,
             count_emission: counts,
             touched,
+            mirror_pdf,
+            mirror_t,
         } = self;
         *r = ray;
         *beta = Rgb::ONE;
@@ -270,6 +281,8 @@ impl PathState {
         *first = true;
         *counts = count_emission;
         *touched = Touched::default();
+        *mirror_pdf = 0.0;
+        *mirror_t = 0.0;
     }
 }
 
@@ -325,6 +338,9 @@ pub(super) struct Vertex {
 pub struct PathTracer<'a> {
     pub scene: &'a Scene,
     pub lights: Lights,
+    /// Planar mirrors whose images of the area lights next-event estimation samples
+    /// (`render::mirror_lights`); none unless `with_mirror_lights`.
+    pub mirrors: MirrorLights,
     pub max_depth: u32,
     pub rr_depth: u32,
 }
@@ -334,9 +350,21 @@ impl<'a> PathTracer<'a> {
         PathTracer {
             scene,
             lights: Lights::new(scene),
+            mirrors: MirrorLights::default(),
             max_depth: scene.render.max_depth,
             rr_depth: scene.render.rr_depth,
         }
+    }
+
+    /// This path tracer, sampling the area lights' images in the scene's planar mirrors too
+    /// (`render::mirror_lights`): less noise where light arrives through a mirror. What
+    /// `matfit render` uses (`film::render_image`); the recovery's caches do not, because a
+    /// path's radiance then depends on a mirror's reflectance without the path touching the
+    /// mirror, and they trace again only the paths that touched a group whose material changed
+    /// (`Touched`).
+    pub fn with_mirror_lights(mut self) -> PathTracer<'a> {
+        self.mirrors = MirrorLights::new(self.scene, &self.lights);
+        self
     }
 
     /// Radiance arriving along `ray` (towards its origin).
@@ -439,6 +467,7 @@ impl<'a> PathTracer<'a> {
         let g = &*self.scene.geometry;
         let obj = &self.scene.objects[g.tris[hit.prim as usize].object as usize];
         st.touched.arrive(obj.group);
+        let via_mirror = std::mem::replace(&mut st.mirror_pdf, 0.0);
         // Emission (front side only).
         if obj.is_emitter() {
             let ng = g.faces[hit.prim as usize].ng;
@@ -451,6 +480,14 @@ impl<'a> PathTracer<'a> {
                             0.0
                         }
                     }
+                    // A BSDF-sampled path through a planar mirror, which the mirror's virtual
+                    // light also samples: the light's density at the vertex before the mirror
+                    // is over the whole length of the reflected path.
+                    None if via_mirror > 0.0 => {
+                        let dist = st.mirror_t + hit.t;
+                        let pl = self.lights.pdf(hit.prim, dist, st.ray.d, ng);
+                        power_heuristic(via_mirror, pl)
+                    }
                     None => 1.0,
                     Some(pb) => {
                         let pl = self.lights.pdf(hit.prim, hit.t, st.ray.d, ng);
@@ -459,6 +496,14 @@ impl<'a> PathTracer<'a> {
                 };
                 st.l += st.beta * obj.emission * w;
                 rec.found(obj.emission * w);
+            }
+        }
+        if !self.mirrors.is_empty() && !st.first {
+            if let Some(pb) = st.prev_pdf {
+                if self.mirrors.contains(hit.prim) {
+                    st.mirror_pdf = pb;
+                    st.mirror_t = hit.t;
+                }
             }
         }
         st.first = false;
@@ -503,6 +548,50 @@ impl<'a> PathTracer<'a> {
         })
     }
 
+    /// Next-event estimation at `v` of the light point that `uc` and `u` choose (as
+    /// `Lights::sample_with`), seen through each planar mirror (`render::mirror_lights`),
+    /// MIS-weighted against BSDF sampling; for paths within `max_depth` (two segments more).
+    pub(super) fn sample_mirror_lights(&self, st: &mut PathState, v: &Vertex, uc: f32, u: Vec2) {
+        if st.segments + 2 > self.max_depth || !self.lights.has_area() {
+            return;
+        }
+        let (y, tri) = self.lights.point(uc, u);
+        for k in 0..self.mirrors.len() {
+            let Some(ms) = self
+                .mirrors
+                .sample(k, v.p, y, tri.n, tri.radiance, tri.pdf_area)
+            else {
+                continue;
+            };
+            let wi = v.frame.to_local(ms.wi);
+            if wi.z <= 0.0 || v.ng.dot(ms.wi) <= 0.0 {
+                continue;
+            }
+            let f = v.bsdf.eval(v.wo, wi);
+            if !(f.max_element() > 0.0) {
+                continue;
+            }
+            // Both segments unblocked: to the mirror, and from it to the light.
+            let origin = offset_origin(v.p, v.ng, ms.wi);
+            let m_origin = offset_origin(ms.m, ms.mirror_n, ms.point - ms.m);
+            if !self.clear(origin, ms.m) || !self.clear(m_origin, ms.point) {
+                continue;
+            }
+            st.touched.arrive(ms.group);
+            let w = power_heuristic(ms.pdf, v.bsdf.pdf(v.wo, wi));
+            st.l += st.beta * f * ms.radiance * (wi.z * w / ms.pdf);
+        }
+    }
+
+    /// Whether the segment from `origin` (already offset off its surface) to `end` is
+    /// unblocked, stopping short of `end` as `Lights::visible` does.
+    fn clear(&self, origin: Vec3, end: Vec3) -> bool {
+        let d = end - origin;
+        let len = d.length();
+        let eps = 2e-4 * (1.0 + end.abs().max_element());
+        len > eps && !self.scene.occluded(&Ray::new(origin, d / len), len - eps)
+    }
+
     /// The second half of a path segment: next-event estimation at `v`, then the BSDF-sampled
     /// direction and Russian roulette. Sets `st.ray` to the next segment and returns true, or
     /// returns false where the path ends. Draws 3 + 3 + 1 sampler dimensions (light, BSDF,
@@ -525,7 +614,13 @@ impl<'a> PathTracer<'a> {
         // Next-event estimation: one point on an area light, one direction to the environment
         // and to each disc light, and every punctual light.
         if bsdf.has_smooth_part() {
-            let area = self.lights.sample(v.p, sampler);
+            let (uc, u) = (sampler.next_1d(), sampler.next_2d());
+            // The light point's images in planar mirrors first: the eight-lane loop adds them
+            // before its lanes' own light samples (`batch::lane_mirror_lights`).
+            if !self.mirrors.is_empty() {
+                self.sample_mirror_lights(st, v, uc, u);
+            }
+            let area = self.lights.sample_with(v.p, uc, u);
             let env = self.lights.sample_environment(v.p, sampler);
             let punctual = self.lights.punctual_samples(v.p);
             let discs = (0..self.lights.disc_count())

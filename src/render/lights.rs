@@ -15,7 +15,7 @@
 //! than a spot would otherwise starve the spot of samples.
 
 use crate::geometry::Ray;
-use crate::math::{luminance_mean, warp, Rgb, Sampler, Vec3};
+use crate::math::{luminance_mean, warp, Rgb, Sampler, Vec2, Vec3};
 use crate::scene::environment::Environment;
 use crate::scene::{Punctual, Scene};
 use std::sync::Arc;
@@ -226,13 +226,16 @@ impl Lights {
     pub fn sample(&self, p: Vec3, sampler: &mut Sampler) -> Option<LightSample> {
         let uc = sampler.next_1d();
         let u = sampler.next_2d();
+        self.sample_with(p, uc, u)
+    }
+
+    /// [`Lights::sample`] from its three numbers: `uc` chooses the triangle, `u` the point.
+    #[inline(always)]
+    pub fn sample_with(&self, p: Vec3, uc: f32, u: Vec2) -> Option<LightSample> {
         if self.tris.is_empty() {
             return None;
         }
-        let light = &self.tris[self.pick_index(uc)];
-        let [a, b, c] = light.v;
-        let (b1, b2) = warp::uniform_triangle(u);
-        let q = a * (1.0 - b1 - b2) + b * b1 + c * b2;
+        let (q, light) = self.point(uc, u);
         let d = q - p;
         let dist2 = d.length_squared();
         let dist = dist2.sqrt();
@@ -249,6 +252,15 @@ impl Lights {
             pdf: light.pdf_area * dist2 / cos_l,
             delta: false,
         })
+    }
+
+    /// The point `sample_with` takes for `uc` and `u`, and its triangle (there must be one).
+    #[inline(always)]
+    pub(super) fn point(&self, uc: f32, u: Vec2) -> (Vec3, &LightTri) {
+        let light = &self.tris[self.pick_index(uc)];
+        let [a, b, c] = light.v;
+        let (b1, b2) = warp::uniform_triangle(u);
+        (a * (1.0 - b1 - b2) + b * b1 + c * b2, light)
     }
 
     /// The light triangle chosen by `uc` ∈ [0, 1) (there must be one), by its index (for
@@ -294,7 +306,7 @@ impl Lights {
 
     /// Probability of choosing scene triangle `prim` divided by its area; 0 if not a light.
     #[inline]
-    fn pdf_area(&self, prim: u32) -> f32 {
+    pub(super) fn pdf_area(&self, prim: u32) -> f32 {
         let k = self.spans.partition_point(|s| s.0 <= prim);
         match k.checked_sub(1).map(|k| self.spans[k]) {
             Some((start, end, first)) if prim < end => {

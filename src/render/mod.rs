@@ -8,6 +8,7 @@ pub mod film;
 pub mod incident;
 pub mod integrator;
 pub mod lights;
+pub mod mirror_lights;
 pub mod replay;
 
 pub use integrator::PathTracer;

@@ -206,8 +206,11 @@ impl Record for Recorder<'_, '_> {
 
 /// What `render::incident::indirect_radiance` gives for the same rays, to the bit (traced one
 /// at a time, by the scalar route the eight-lane one repeats), with the paths kept to be
-/// weighed again (`Replay`).
+/// weighed again (`Replay`). `pt` is `PathTracer::new`'s, as the caches' are: light sampled
+/// through a mirror (`with_mirror_lights`) depends on the mirror's material too, which a kept
+/// vertex does not say.
 pub fn record(pt: &PathTracer, rays: Vec<IndirectRay>) -> (Vec<(Rgb, Touched)>, PathBank) {
+    debug_assert!(pt.mirrors.is_empty(), "paths kept with mirror lights");
     let mut bank = PathBank::default();
     let mut rec = Recorder {
         bank: &mut bank,
