@@ -18,7 +18,8 @@
 //! "Radiative backpropagation", §4). A vertex whose BSDF changed kind — gained or lost a smooth
 //! part (light sampling was done or not), or a mirror lobe (a direction only a delta draws) —
 //! cannot be weighed so: such a path is not replayed (`replay` gives None) and is traced again.
-//! Nor is a path that ended on a black surface that is black no more.
+//! Nor is a path that ended on a black surface that is black no more, nor one through a surface
+//! that now reads a texture where it did not (where it was hit is kept only for textures).
 //!
 //! Directions are kept in the vertex's shading frame as it was turned for the lobe's rotation θ
 //! then; a new θ turns them about the normal by the difference (the other way where the frame
@@ -291,7 +292,7 @@ impl<'a> Replay<'a> {
         let (mut beta, mut l, mut weight) = (Rgb::ONE, Rgb::ZERO, 1.0f32);
         for v in &bank.vertices[path.first as usize..(path.first + path.count) as usize] {
             l += beta * v.found;
-            let (bsdf, theta) = self.bsdf(bank, v);
+            let (bsdf, theta) = self.bsdf(bank, v)?;
             let black = matches!(bsdf, Bsdf::Black);
             if v.black || black {
                 return (v.black && black).then_some(Replayed {
@@ -334,17 +335,19 @@ impl<'a> Replay<'a> {
     }
 
     /// A kept vertex's BSDF under these materials, and its lobe's rotation.
-    fn bsdf(&self, bank: &PathBank, v: &KeptVertex) -> (Bsdf, f32) {
+    /// None where the material now reads a texture and the vertex, kept under a uniform one,
+    /// did not keep where it was.
+    fn bsdf(&self, bank: &PathBank, v: &KeptVertex) -> Option<(Bsdf, f32)> {
         if let Some(b) = self.uniform[v.object as usize] {
-            return b;
+            return Some(b);
         }
         let material = &self.scene.objects[v.object as usize].material;
-        let at = bank.points[v.point as usize];
-        material_bsdf(
+        let at = bank.points.get(v.point as usize)?;
+        Some(material_bsdf(
             material,
             |t| t.at_point(v.object, at.uv, at.p, at.ng),
             self.scene.render.ward_variant,
-        )
+        ))
     }
 }
 
@@ -564,6 +567,33 @@ radiance = [0.3, 0.3, 0.3]
             moved = moved.max(((o - b) / (vo + vb).sqrt()).abs());
         }
         assert!(moved > 10.0, "the scenes differ by {moved} standard errors");
+    }
+
+    /// A uniform wall turned textured: the paths that met it did not keep where (only a
+    /// texture reads that), so they are refused, the others replayed.
+    #[test]
+    fn a_surface_turned_textured_refuses_the_paths_that_met_it() {
+        let d = tempfile::tempdir().unwrap();
+        let mut t = crate::io::image::Image::new(2, 2);
+        t.data.fill(Rgb::new(0.5, 0.4, 0.3));
+        t.write(&d.path().join("t.pfm")).unwrap();
+        let text = ROOM
+            .replace("{floor}", "0.5")
+            .replace("{wall}", r#"{ type = "textured", texture = "t.pfm" }"#)
+            .replace("{side}", SIDE);
+        let textured = parse_scene(&text, &d.path().join("room.toml")).unwrap();
+        let old = room(0.5, WALL, SIDE);
+        let (traced, bank) = record(&PathTracer::new(&old), rays(&old, 3000, 5));
+        let wall = old.group_index("wall").unwrap();
+        let replay = Replay::new(&textured);
+        for (i, (_, touched)) in traced.iter().enumerate() {
+            let met = bank.vertices[bank.paths[i].first as usize..]
+                .iter()
+                .take(bank.paths[i].count as usize)
+                .any(|v| old.objects[v.object as usize].group == wall);
+            assert_eq!(replay.radiance(&bank, i).is_none(), met, "path {i}");
+            assert!(touched.group(wall) || !met);
+        }
     }
 
     /// A small move keeps the kept paths' weights close together, a large one (a diffuse wall
