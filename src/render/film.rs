@@ -39,11 +39,7 @@ pub fn render_reporting(
     report: impl Fn(&crate::io::progress::Progress) + Send + Sync,
     cancelled: &(dyn Fn() -> bool + Sync),
 ) -> Option<Image> {
-    let bar = Bar::to(camera.height as u64, "render", report);
-    let stop = std::sync::atomic::AtomicBool::new(false);
-    let pt = PathTracer::new(scene);
-    let img = render_marked(&pt, camera, opts, None, bar, Some((cancelled, &stop)));
-    (!stop.into_inner()).then_some(img)
+    render_cancellable(&PathTracer::new(scene), camera, opts, report, cancelled)
 }
 
 /// [`render_reporting`] with next-event estimation through planar mirrors
@@ -58,10 +54,22 @@ pub fn render_image(
     report: impl Fn(&crate::io::progress::Progress) + Send + Sync,
     cancelled: &(dyn Fn() -> bool + Sync),
 ) -> Option<Image> {
+    let pt = PathTracer::new(scene).with_mirror_lights();
+    render_cancellable(&pt, camera, opts, report, cancelled)
+}
+
+/// The image `pt` traces, its progress told to `report`, `cancelled` asked between rows: None
+/// when it said stop.
+fn render_cancellable(
+    pt: &PathTracer,
+    camera: &Camera,
+    opts: &RenderOptions,
+    report: impl Fn(&crate::io::progress::Progress) + Send + Sync,
+    cancelled: &(dyn Fn() -> bool + Sync),
+) -> Option<Image> {
     let bar = Bar::to(camera.height as u64, "render", report);
     let stop = std::sync::atomic::AtomicBool::new(false);
-    let pt = PathTracer::new(scene).with_mirror_lights();
-    let img = render_marked(&pt, camera, opts, None, bar, Some((cancelled, &stop)));
+    let img = render_marked(pt, camera, opts, None, bar, Some((cancelled, &stop)));
     (!stop.into_inner()).then_some(img)
 }
 

@@ -42,7 +42,7 @@ pub fn indirect_radiance(pt: &PathTracer, rays: Vec<IndirectRay>) -> Vec<(Rgb, T
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::math::Vec3;
     use crate::scene::load::parse_scene;
@@ -110,11 +110,12 @@ radiance = [{stray}, {stray}, {stray}]
         parse_scene(&text, std::path::Path::new("room.toml")).unwrap()
     }
 
-    /// Rays leaving the floor in directions spread over the hemisphere.
-    fn rays(scene: &crate::scene::Scene) -> Vec<IndirectRay> {
-        (0..4000u64)
+    /// Rays leaving the floor in directions spread over the hemisphere, their paths drawing
+    /// from samplers of `seed` (the rooms of this module's and `replay`'s tests share a floor).
+    pub(crate) fn rays(scene: &crate::scene::Scene, n: u64, seed: u64) -> Vec<IndirectRay> {
+        (0..n)
             .map(|i| {
-                let (u, v) = ((i % 50) as f32 / 50.0, (i / 50) as f32 / 80.0);
+                let (u, v) = ((i % 50) as f32 / 50.0, (i / 50 % 80) as f32 / 80.0);
                 let o = Vec3::new(-1.5 + 3.0 * u, 1e-3, 0.5 - 2.0 * v);
                 let (phi, z) = (
                     2.0 * std::f32::consts::PI * (i as f32 * 0.618).fract(),
@@ -123,7 +124,7 @@ radiance = [{stray}, {stray}, {stray}]
                 let r = (1.0 - z * z).sqrt();
                 let ray = Ray::new(o, Vec3::new(r * phi.cos(), z, r * phi.sin()));
                 // Sample 0 of stream i: a sampler's values are set by `start_sample`.
-                let mut sampler = Sampler::new(11, i);
+                let mut sampler = Sampler::new(seed, i);
                 sampler.start_sample(0);
                 IndirectRay {
                     hit: scene.intersect_hit(&ray, f32::INFINITY),
@@ -142,12 +143,12 @@ radiance = [{stray}, {stray}, {stray}]
     #[test]
     fn a_path_that_touched_nothing_that_moved_comes_back_the_same() {
         let base = room(0.6, 0.3);
-        let traced = indirect_radiance(&PathTracer::new(&base), rays(&base));
+        let traced = indirect_radiance(&PathTracer::new(&base), rays(&base, 4000, 11));
         for (moved, what) in [
             (room(0.2, 0.3), "the wall"),
             (room(0.6, 1.3), "the stray light"),
         ] {
-            let again = indirect_radiance(&PathTracer::new(&moved), rays(&moved));
+            let again = indirect_radiance(&PathTracer::new(&moved), rays(&moved, 4000, 11));
             let wall = base.group_index("wall").unwrap();
             let (mut same, mut changed) = (0, 0);
             for ((l, t), (m, _)) in traced.iter().zip(&again) {

@@ -28,39 +28,52 @@ pub fn material_bsdf(
     texel: impl Fn(&crate::scene::texture::Texture) -> Rgb,
     variant: WardVariant,
 ) -> (Bsdf, f32) {
+    (bsdf_of(material, texel, variant), lobe_rotation(material))
+}
+
+/// The angle a material's lobe frame is turned by about the shading normal: θ of a Ward or
+/// microfacet lobe, or of a textured group's varnish; 0 for the rest.
+#[inline]
+pub fn lobe_rotation(material: &Material) -> f32 {
     match material {
-        Material::Ward { theta, .. } | Material::Microfacet { theta, .. } => (
-            uniform_bsdf(material, variant).unwrap_or(Bsdf::Black),
-            *theta,
-        ),
+        Material::Ward { theta, .. } | Material::Microfacet { theta, .. } => *theta,
+        Material::Textured {
+            varnish: Some(v), ..
+        } => v.theta,
+        _ => 0.0,
+    }
+}
+
+/// `material_bsdf`'s BSDF.
+#[inline]
+fn bsdf_of(
+    material: &Material,
+    texel: impl Fn(&crate::scene::texture::Texture) -> Rgb,
+    variant: WardVariant,
+) -> Bsdf {
+    match material {
         Material::Textured {
             texture,
             scale,
             varnish: None,
-        } => (
-            Bsdf::Diffuse {
-                rho_d: *scale * texel(texture),
-            },
-            0.0,
-        ),
+        } => Bsdf::Diffuse {
+            rho_d: *scale * texel(texture),
+        },
         Material::Textured {
             texture,
             scale,
             varnish: Some(v),
-        } => (
-            uniform_bsdf(
-                &Material::Ward {
-                    rho_d: *scale * texel(texture),
-                    rho_s: v.rho_s,
-                    alpha_x: v.alpha_x,
-                    alpha_y: v.alpha_y,
-                    theta: v.theta,
-                },
-                variant,
-            )
-            .unwrap_or(Bsdf::Black),
-            v.theta,
-        ),
+        } => uniform_bsdf(
+            &Material::Ward {
+                rho_d: *scale * texel(texture),
+                rho_s: v.rho_s,
+                alpha_x: v.alpha_x,
+                alpha_y: v.alpha_y,
+                theta: v.theta,
+            },
+            variant,
+        )
+        .unwrap_or(Bsdf::Black),
         Material::TexturedPlastic {
             texture,
             scale,
@@ -68,15 +81,12 @@ pub fn material_bsdf(
             alpha,
             eta,
             distribution,
-        } => (
-            Bsdf::Plastic {
-                rho_d: *scale * texel(texture),
-                rho_s: *rho_s,
-                coat: super::bsdf::Coat::get(*alpha, *eta, *distribution),
-            },
-            0.0,
-        ),
-        _ => (uniform_bsdf(material, variant).unwrap_or(Bsdf::Black), 0.0),
+        } => Bsdf::Plastic {
+            rho_d: *scale * texel(texture),
+            rho_s: *rho_s,
+            coat: super::bsdf::Coat::get(*alpha, *eta, *distribution),
+        },
+        _ => uniform_bsdf(material, variant).unwrap_or(Bsdf::Black),
     }
 }
 

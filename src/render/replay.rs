@@ -27,7 +27,7 @@
 
 use super::bsdf::Bsdf;
 use super::incident::IndirectRay;
-use super::integrator::{material_bsdf, PathTracer, Record, Touched};
+use super::integrator::{lobe_rotation, material_bsdf, PathTracer, Record, Touched};
 use crate::math::{Rgb, Vec2, Vec3};
 use crate::scene::{Material, Scene, SurfaceHit};
 
@@ -143,7 +143,7 @@ impl Recorder<'_, '_> {
 
     fn push_vertex(&mut self, hit: &SurfaceHit, flipped: bool, wo: Vec3, bsdf: Option<&Bsdf>) {
         let material = &self.scene.objects[hit.object as usize].material;
-        let (_, theta) = material_bsdf(material, |_| Rgb::ZERO, self.scene.render.ward_variant);
+        let theta = lobe_rotation(material);
         let point = if reads_texture(material) {
             self.bank.points.push(TexPoint {
                 uv: hit.uv,
@@ -385,8 +385,7 @@ impl Turn {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::geometry::Ray;
-    use crate::math::{Frame, Sampler};
+    use crate::math::Frame;
     use crate::render::incident::indirect_radiance;
     use crate::render::integrator::facing;
     use crate::scene::load::parse_scene;
@@ -458,29 +457,7 @@ radiance = [0.3, 0.3, 0.3]
         parse_scene(&text, std::path::Path::new("room.toml")).unwrap()
     }
 
-    /// Rays leaving the floor in directions spread over the hemisphere, their paths drawing
-    /// from samplers of `seed`.
-    fn rays(scene: &Scene, n: u64, seed: u64) -> Vec<IndirectRay> {
-        (0..n)
-            .map(|i| {
-                let (u, v) = ((i % 50) as f32 / 50.0, (i / 50 % 80) as f32 / 80.0);
-                let o = Vec3::new(-1.5 + 3.0 * u, 1e-3, 0.5 - 2.0 * v);
-                let (phi, z) = (
-                    2.0 * std::f32::consts::PI * (i as f32 * 0.618).fract(),
-                    0.05 + 0.45 * v,
-                );
-                let r = (1.0 - z * z).sqrt();
-                let ray = Ray::new(o, Vec3::new(r * phi.cos(), z, r * phi.sin()));
-                let mut sampler = Sampler::new(seed, i);
-                sampler.start_sample(0);
-                IndirectRay {
-                    hit: scene.intersect_hit(&ray, f32::INFINITY),
-                    ray,
-                    sampler,
-                }
-            })
-            .collect()
-    }
+    use crate::render::incident::tests::rays;
 
     fn close(a: Rgb, b: Rgb, rel: f32) -> bool {
         (0..3).all(|c| (a[c] - b[c]).abs() <= rel * a[c].abs().max(b[c].abs()) + 1e-7)
