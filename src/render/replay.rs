@@ -265,13 +265,8 @@ pub fn record(pt: &PathTracer, rays: Vec<IndirectRay>) -> (Vec<(Rgb, Touched)>, 
             })
             .is_some()
     };
-    let (waiting, spare) = SPARE.take();
-    let mut kept = InOrder {
-        bank: PathBank::default(),
-        waiting,
-        spare,
-    };
-    kept.bank.paths.reserve_exact(n);
+    let mut kept = SCRATCH.take().unwrap_or_default();
+    kept.bank.paths.reserve(n);
     let recorders = std::array::from_fn(|_| Recorder {
         bank: kept.spare.pop().unwrap_or_default(),
         ..Recorder::new(pt.scene)
@@ -283,20 +278,21 @@ pub fn record(pt: &PathTracer, rays: Vec<IndirectRay>) -> (Vec<(Rgb, Touched)>, 
     });
     debug_assert!(kept.waiting.is_empty());
     kept.spare.extend(lanes.map(|r| r.bank));
-    SPARE.set((kept.waiting, kept.spare));
-    (radiance, kept.bank)
+    let bank = kept.hand_over();
+    SCRATCH.set(Some(kept));
+    (radiance, bank)
 }
 
 thread_local! {
-    /// `InOrder`'s queue and empty banks, kept by `record` for its next call on the thread: a
-    /// cache records a few dozen paths a pixel, and they would otherwise be allocated anew for
-    /// each.
-    static SPARE: Cell<(VecDeque<Option<PathBank>>, Vec<PathBank>)> =
-        const { Cell::new((VecDeque::new(), Vec::new())) };
+    /// `record`'s `InOrder`, emptied and kept for its next call on the thread: a cache records
+    /// a few dozen paths a pixel, whose banks and queue would otherwise be allocated (and the
+    /// result grown) anew for each.
+    static SCRATCH: Cell<Option<InOrder>> = const { Cell::new(None) };
 }
 
 /// A bank filled in the order of the rays from paths that end in another: those that end
 /// before an earlier ray's wait for it.
+#[derive(Default)]
 struct InOrder {
     bank: PathBank,
     /// `waiting[k]`: ray `bank.len() + k`'s path, once it has ended (the first is the one
@@ -307,6 +303,24 @@ struct InOrder {
 }
 
 impl InOrder {
+    /// The bank, leaving this one empty: a copy of its size where it is small (allocated once,
+    /// while this one's room serves the next call), else the bank itself (a copy would cost
+    /// more than the room it leaves unused).
+    fn hand_over(&mut self) -> PathBank {
+        if self.bank.bytes() > 1 << 20 {
+            return std::mem::take(&mut self.bank);
+        }
+        let b = &self.bank;
+        let bank = PathBank {
+            paths: b.paths.to_vec(),
+            vertices: b.vertices.to_vec(),
+            lights: b.lights.to_vec(),
+            points: b.points.to_vec(),
+        };
+        self.bank.clear();
+        bank
+    }
+
     /// Ray `i`'s path has ended, the one path of `path`, which is left empty.
     fn ended(&mut self, i: usize, path: &mut PathBank) {
         let k = i - self.bank.len();
