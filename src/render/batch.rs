@@ -24,9 +24,14 @@
 //! straight into the eight-lane arrays (`flat_lambert`, `flat_ward`), without the hit record
 //! and `Vertex` of the general route, which saves instructions.
 //!
+//! Recording (`trace_recorded_jobs`, for `render::replay`) gives each lane a recorder, told
+//! what `PathTracer::trace_recorded` tells it at the same points with the same values; its
+//! vertices take the general route, whose hit record it is told of.
+//!
 //! Lanes that finish a path take the next job at once, so the eight lanes stay busy until the
-//! jobs run out. Two callers: `render_pixels` (a film's pixels, job = one (pixel, sample)) and
-//! the recovery's cache builds (`render::incident`, job = an indirect sample's path).
+//! jobs run out. Callers: `render_pixels` (a film's pixels, job = one (pixel, sample)), and
+//! the recovery's cache builds (`render::incident`, job = an indirect sample's path), which
+//! `render::replay::record` traces too, keeping the paths.
 //!
 //! Branches: lanes at different depths, paths that end at random and rays in random
 //! directions make per-lane tests unpredictable, and a mispredicted branch costs about as much
@@ -36,7 +41,7 @@
 //! All the lanes' rays are traced before any of them arrives (lane by lane is slower).
 
 use super::bsdf::{mirror, Bsdf, Lobes8, WardLobe};
-use super::integrator::{facing, PathState, PathTracer, Vertex};
+use super::integrator::{facing, PathState, PathTracer, Record, Vertex};
 use super::lights::{punctual_sample, LightSample, Lights};
 use crate::geometry::packet::LANES;
 use crate::geometry::{Hit, Ray};
@@ -46,24 +51,27 @@ use wide::{f32x8, CmpEq, CmpGe, CmpGt, CmpLe, CmpLt};
 
 /// A path to trace: its state before its next segment (`st.ray`), that segment's hit if the
 /// caller has already intersected it, and the sampler it draws from. A lane of `trace_jobs`
-/// is a `Job` filled in place, so a path's state is never moved while it is traced.
-pub struct Job {
+/// is a `Job` filled in place, so a path's state is never moved while it is traced; its
+/// recorder `rec` stays with the lane from job to job.
+pub struct Job<R = ()> {
     pub st: PathState,
     /// Where `st.ray` lands (`Scene::intersect_hit`), when `traced`.
     pub hit: Option<Hit>,
     /// Whether `hit` is already known (else `trace_jobs` intersects `st.ray`).
     pub traced: bool,
     pub sampler: Sampler,
+    pub rec: R,
 }
 
-impl Job {
+impl<R> Job<R> {
     /// A lane's contents before its first job.
-    fn idle() -> Job {
+    fn idle(rec: R) -> Job<R> {
         Job {
             st: PathState::new(Ray::new(Vec3::ZERO, Vec3::Z), 0, true),
             hit: None,
             traced: false,
             sampler: Sampler::new(0, 0),
+            rec,
         }
     }
 }
@@ -73,10 +81,23 @@ impl Job {
 /// radiance `st.l` is `PathTracer::trace_from`'s for the same job to the bit.
 pub fn trace_jobs(
     pt: &PathTracer,
-    mut next: impl FnMut(&mut Job) -> bool,
+    next: impl FnMut(&mut Job) -> bool,
     mut done: impl FnMut(usize, &PathState),
 ) {
-    let mut lanes: [Job; LANES] = std::array::from_fn(|_| Job::idle());
+    trace_recorded_jobs(pt, [(); LANES], next, |i, lane| done(i, &lane.st));
+}
+
+/// [`trace_jobs`], each lane telling its recorder (`Job::rec`, from `recorders`) what its path
+/// meets, as `PathTracer::trace_recorded` tells it; `done(i, lane)` gets the lane whose job i
+/// has ended, its recorder with it. Gives the recorders back. (A recorder that keeps anything
+/// has its vertices go by the general route, which builds the hit record it is told of.)
+pub(super) fn trace_recorded_jobs<R: Record>(
+    pt: &PathTracer,
+    recorders: [R; LANES],
+    mut next: impl FnMut(&mut Job<R>) -> bool,
+    mut done: impl FnMut(usize, &mut Job<R>),
+) -> [R; LANES] {
+    let mut lanes: [Job<R>; LANES] = recorders.map(Job::idle);
     // Which job each lane holds; bit i of `live`: lane i holds one.
     let mut item = [0usize; LANES];
     let mut live = 0u32;
@@ -127,14 +148,14 @@ pub fn trace_jobs(
             let i = mask.trailing_zeros() as usize;
             mask &= mask - 1;
             let lane = &mut lanes[i];
-            match (pt.arrive(&mut lane.st, lane.hit.as_ref()), lane.hit) {
+            match (pt.arrive(&mut lane.st, lane.hit.as_ref(), &mut lane.rec), lane.hit) {
                 (Some(obj), Some(hit)) => {
                     objs[i] = Some((obj, hit));
                     ward |= u32::from(matches!(obj.material, Material::Ward { .. })) << i;
                 }
                 _ => {
                     live &= !(1 << i);
-                    done(item[i], &lane.st);
+                    done(item[i], lane);
                 }
             }
         }
@@ -147,8 +168,8 @@ pub fn trace_jobs(
                 let Some((obj, ref hit)) = objs[i] else {
                     continue;
                 };
-                let alive =
-                    if let Some((ng, frame, rho_d)) = flat_lambert(pt, obj, hit, lane.st.ray.d) {
+                let d = lane.st.ray.d;
+                let alive = if let Some((ng, frame, rho_d)) = flat_lambert::<R>(pt, obj, hit, d) {
                         let p = pt.scene.hit_point(hit);
                         if !pt.mirrors.is_empty() {
                             let wo = frame.to_local(-lane.st.ray.d);
@@ -157,7 +178,7 @@ pub fn trace_jobs(
                         }
                         gathered.push(i, pt, p, ng, &frame, rho_d, lane);
                         true
-                    } else if let Some(w) = flat_ward(pt, obj, hit, lane.st.ray.d) {
+                    } else if let Some(w) = flat_ward::<R>(pt, obj, hit, d) {
                         let (p, j) = (pt.scene.hit_point(hit), gathered.n);
                         if !pt.mirrors.is_empty() {
                             let bsdf = Bsdf::Ward {
@@ -171,7 +192,7 @@ pub fn trace_jobs(
                         gathered.push_ward(j, w.wo, w.rho_s, w.lobe);
                         true
                     } else {
-                        match pt.vertex(&lane.st, hit, obj) {
+                        match pt.vertex(&lane.st, hit, obj, &mut lane.rec) {
                             None => false,
                             Some(v) => match v.bsdf {
                                 Bsdf::Diffuse { rho_d } if gathers(pt, rho_d, v.wo.z) => {
@@ -202,33 +223,46 @@ pub fn trace_jobs(
                                     gathered.push_mirror(j, mirror::reflect_local(v.wo));
                                     true
                                 }
-                                _ => pt.scatter(&mut lane.st, &v, &mut lane.sampler),
+                                _ => {
+                                    let (st, rec) = (&mut lane.st, &mut lane.rec);
+                                    pt.scatter(st, &v, &mut lane.sampler, rec)
+                                }
                             },
                         }
                     };
                 if !alive {
                     live &= !(1 << i);
-                    done(item[i], &lane.st);
+                    done(item[i], lane);
                 }
             }
         }
-        gathered.scatter(pt, &mut lanes, |i, st| {
+        gathered.scatter(pt, &mut lanes, |i, lane| {
             live &= !(1 << i);
-            done(item[i], st);
+            done(item[i], lane);
         });
     }
+    lanes.map(|lane| lane.rec)
 }
 
 /// A Lambert vertex straight from the BVH's hit, without the hit record and `Vertex` of the
 /// general route (`PathTracer::vertex`): the geometric normal and shading frame turned to the
 /// arriving side, and the reflectance, the same as that route gives to the bit. Only for
 /// triangles with a precomputed frame (flat-shaded) under a Lambert material with some
-/// reflectance, seen from the frame's side, in a scene with lights; otherwise None.
+/// reflectance, seen from the frame's side, in a scene with lights, and not for a recorder
+/// `R` that keeps anything (told of the hit record); otherwise None.
 #[inline(always)]
-fn flat_lambert(pt: &PathTracer, obj: &Object, hit: &Hit, d: Vec3) -> Option<(Vec3, Frame, Rgb)> {
+fn flat_lambert<R: Record>(
+    pt: &PathTracer,
+    obj: &Object,
+    hit: &Hit,
+    d: Vec3,
+) -> Option<(Vec3, Frame, Rgb)> {
     let Material::Diffuse { rho_d } = obj.material else {
         return None;
     };
+    if R::KEEPS {
+        return None;
+    }
     let face = &pt.scene.geometry.faces[hit.prim as usize];
     let wo = -d;
     let (frame, ng) = facing(face.frame?, face.ng, wo);
@@ -240,9 +274,10 @@ fn flat_lambert(pt: &PathTracer, obj: &Object, hit: &Hit, d: Vec3) -> Option<(Ve
 /// the shading frame (rotated by the material's θ) turned to the arriving side, ωo in that
 /// frame and the BSDF's parameters, the same as the general route gives to the bit. Only for
 /// flat-shaded triangles under a Ward material (not a textured one's varnish, whose ρd needs
-/// the hit record's UV) seen from the frame's side, in a scene with lights; otherwise None.
+/// the hit record's UV) seen from the frame's side, in a scene with lights, and not for a
+/// recorder that keeps anything; otherwise None.
 #[inline(always)]
-fn flat_ward(pt: &PathTracer, obj: &Object, hit: &Hit, d: Vec3) -> Option<FlatWard> {
+fn flat_ward<R: Record>(pt: &PathTracer, obj: &Object, hit: &Hit, d: Vec3) -> Option<FlatWard> {
     let Material::Ward {
         rho_d,
         rho_s,
@@ -253,6 +288,9 @@ fn flat_ward(pt: &PathTracer, obj: &Object, hit: &Hit, d: Vec3) -> Option<FlatWa
     else {
         return None;
     };
+    if R::KEEPS {
+        return None;
+    }
     let face = &pt.scene.geometry.faces[hit.prim as usize];
     let wo = -d;
     // `bsdf_at`'s frame, then `PathTracer::vertex`'s turn and ωo.
@@ -288,9 +326,9 @@ struct FlatWard {
 /// to draw, added to the path's radiance before `push` copies it: the order in which
 /// `PathTracer::scatter` adds them, so that the pixels stay the scalar integrator's to the bit.
 #[inline(never)]
-fn lane_mirror_lights(
+fn lane_mirror_lights<R>(
     pt: &PathTracer,
-    lane: &mut Job,
+    lane: &mut Job<R>,
     p: Vec3,
     ng: Vec3,
     frame: &Frame,
@@ -573,7 +611,7 @@ impl SmoothLanes {
     /// in a scene with lights), drawing its random numbers.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn push(
+    fn push<R>(
         &mut self,
         i: usize,
         pt: &PathTracer,
@@ -581,7 +619,7 @@ impl SmoothLanes {
         ng: Vec3,
         frame: &Frame,
         rho: Rgb,
-        lane: &mut Job,
+        lane: &mut Job<R>,
     ) {
         let j = self.n;
         self.n += 1;
@@ -641,9 +679,10 @@ impl SmoothLanes {
     /// `Lights::punctual_samples` sample (no MIS weight, pdf 1), its sample and shadow ray
     /// lane by lane, the BSDF on eight lanes.
     #[allow(clippy::too_many_arguments)]
-    fn add_punctual(
+    fn add_punctual<R: Record>(
         &self,
         pt: &PathTracer,
+        lanes: &mut [Job<R>; LANES],
         light: &Punctual,
         p: &[f32x8; 3],
         ng: &[f32x8; 3],
@@ -681,7 +720,8 @@ impl SmoothLanes {
         let wi_local = [dot(&wi, &fr[0]), dot(&wi, &fr[1]), dot(&wi, &fr[2])];
         let lit = have & wi_local[2].cmp_gt(zero) & dot(ng, &wi).cmp_gt(zero);
         let (f, _) = eval(rho, ward, wardm, &wi_local);
-        let nee = lit & max_element(&f).cmp_gt(zero);
+        let reflects = max_element(&f).cmp_gt(zero);
+        let nee = if R::EVERY_LIGHT { lit } else { lit & reflects };
         let origin = offset_origin(p, ng, &wi).map(|c| c.to_array());
         let mut visible = [0.0f32; LANES];
         let mut mask = nee.move_mask() as u32;
@@ -693,21 +733,46 @@ impl SmoothLanes {
                 visible[j] = f32::from(u8::from(pt.lights.visible(pt.scene, o, s)));
             }
         }
-        let nee = nee & f32x8::from(visible).cmp_gt(zero);
+        let seen = nee & f32x8::from(visible).cmp_gt(zero);
         // `scatter`'s β f Li (cos θi w / pdf) with w = pdf = 1.
         let li = li.map(f32x8::from);
+        if R::KEEPS {
+            self.tell_lights(lanes, seen, &wi_local, &li.map(|c| c * wi_local[2]));
+        }
+        let nee = if R::EVERY_LIGHT { seen & reflects } else { seen };
         for k in 0..3 {
             l[k] = nee.blend(l[k] + beta[k] * f[k] * li[k] * wi_local[2], l[k]);
         }
     }
 
-    /// `PathTracer::scatter` for the gathered lanes: each lane's path continues with its next
-    /// ray or ends (its radiance goes to `results`).
-    fn scatter(
+    /// Tells the recorders of the `seen` lanes their light sample: ωi in the shading frame, and
+    /// the light's radiance × cos θi × MIS weight / density (`Record::light`).
+    fn tell_lights<R: Record>(
+        &self,
+        lanes: &mut [Job<R>; LANES],
+        seen: f32x8,
+        wi: &[f32x8; 3],
+        term: &[f32x8; 3],
+    ) {
+        let (wi, term) = (wi.map(|c| c.to_array()), term.map(|c| c.to_array()));
+        let mut mask = seen.move_mask() as u32;
+        while mask != 0 {
+            let j = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            lanes[self.lane[j]].rec.light(
+                Vec3::new(wi[0][j], wi[1][j], wi[2][j]),
+                Vec3::new(term[0][j], term[1][j], term[2][j]),
+            );
+        }
+    }
+
+    /// `PathTracer::scatter` for the gathered lanes, telling their recorders what it tells:
+    /// each lane's path continues with its next ray or ends (`finish` gets its lane).
+    fn scatter<R: Record>(
         &self,
         pt: &PathTracer,
-        lanes: &mut [Job; LANES],
-        mut finish: impl FnMut(usize, &PathState),
+        lanes: &mut [Job<R>; LANES],
+        mut finish: impl FnMut(usize, &mut Job<R>),
     ) {
         if self.n == 0 {
             return;
@@ -762,7 +827,10 @@ impl SmoothLanes {
             let lit = smooth & light_ok & wi_local[2].cmp_gt(zero) & cos_g.cmp_gt(zero);
             // The Ward lobes' exp(−E) serves their density below too.
             let (f, gauss) = eval(&rho, &ward, wardm, &wi_local);
-            let mut nee = lit & max_element(&f).cmp_gt(zero);
+            let reflects = max_element(&f).cmp_gt(zero);
+            // A recorder of every light sample (`Record::EVERY_LIGHT`) has the shadow rays of
+            // those the BSDF does not reflect traced too; their radiance is left out below.
+            let mut nee = if R::EVERY_LIGHT { lit } else { lit & reflects };
             // `Lights::visible`: the shadow ray from the offset origin to the light point.
             let origin = offset_origin(&p, &ng, &wi);
             let to_light: [f32x8; 3] = std::array::from_fn(|k| q[k] - origin[k]);
@@ -791,7 +859,7 @@ impl SmoothLanes {
                     }
                 }
             }
-            let nee = nee & f32x8::from(visible).cmp_gt(zero);
+            let seen = nee & f32x8::from(visible).cmp_gt(zero);
             // Lambert's pdf (wo is above the surface) or Ward's, and the power heuristic.
             let mut bsdf_pdf = wi_local[2].max(zero) * splat(INV_PI);
             if let Some((_, lobes, pd, wo)) = &ward {
@@ -802,13 +870,17 @@ impl SmoothLanes {
             let w = (a + b).cmp_eq(zero).blend(zero, a / (a + b));
             let scale = wi_local[2] * w / light_pdf;
             let le = vec(&light, Lights::LE);
+            if R::KEEPS {
+                self.tell_lights(lanes, seen, &wi_local, &le.map(|c| c * scale));
+            }
+            let nee = if R::EVERY_LIGHT { seen & reflects } else { seen };
             for k in 0..3 {
                 l[k] = nee.blend(l[k] + beta[k] * f[k] * le[k] * scale, l[k]);
             }
         }
         for light in pt.lights.punctual() {
             self.add_punctual(
-                pt, light, &p, &ng, &fr, &rho, &beta, &mut l, smooth, &ward, wardm,
+                pt, lanes, light, &p, &ng, &fr, &rho, &beta, &mut l, smooth, &ward, wardm,
             );
         }
 
@@ -880,6 +952,21 @@ impl SmoothLanes {
             *c = rr.blend(*c / keep, *c);
         }
         let next_o = offset_origin(&p, &ng, &wi_world);
+        if R::KEEPS {
+            // `Bsdf::sample`'s density for the mirror lanes is the chance of choosing the
+            // mirror, 1 (their `diffuse_prob` is 0).
+            let pdf = mirrorm.blend(one, bsdf_pdf).to_array();
+            let rr = rr.blend(one / keep, one).to_array();
+            let wi = wi.map(|c| c.to_array());
+            let mut mask = go.move_mask() as u32;
+            while mask != 0 {
+                let j = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                let wi = Vec3::new(wi[0][j], wi[1][j], wi[2][j]);
+                let delta = self.mirror >> j & 1 != 0;
+                lanes[self.lane[j]].rec.scattered(wi, pdf[j], delta, rr[j]);
+            }
+        }
 
         let go = go.move_mask();
         let (l, beta) = (l.map(|c| c.to_array()), beta.map(|c| c.to_array()));
@@ -902,7 +989,7 @@ impl SmoothLanes {
         while ended != 0 {
             let j = ended.trailing_zeros() as usize;
             ended &= ended - 1;
-            finish(self.lane[j], &lanes[self.lane[j]].st);
+            finish(self.lane[j], &mut lanes[self.lane[j]]);
         }
     }
 }

@@ -19,6 +19,18 @@ pub struct IndirectRay {
     pub sampler: Sampler,
 }
 
+impl IndirectRay {
+    /// Makes `lane` this ray's path: one segment so far, emission at its first hit left out.
+    /// The lane's fields are written in place (`PathState::restart`), not through a new `Job`.
+    #[inline(always)]
+    pub(super) fn start<R>(self, lane: &mut Job<R>) {
+        lane.st.restart(self.ray, 1, false);
+        lane.hit = self.hit;
+        lane.traced = true;
+        lane.sampler = self.sampler;
+    }
+}
+
 /// The radiance arriving back along each ray, in order, and where its path went: the path's
 /// one segment so far is the ray, and emission at its first hit is left out (the caller
 /// weights it against light sampling). Each value is `PathTracer::trace(ray, sampler, 1,
@@ -26,17 +38,7 @@ pub struct IndirectRay {
 pub fn indirect_radiance(pt: &PathTracer, rays: Vec<IndirectRay>) -> Vec<(Rgb, Touched)> {
     let mut radiance = vec![(Rgb::ZERO, Touched::default()); rays.len()];
     let mut rays = rays.into_iter();
-    // The lane's fields are written in place (`PathState::restart`), not through a new `Job`.
-    let next = |lane: &mut Job| {
-        rays.next()
-            .map(|r| {
-                lane.st.restart(r.ray, 1, false);
-                lane.hit = r.hit;
-                lane.traced = true;
-                lane.sampler = r.sampler;
-            })
-            .is_some()
-    };
+    let next = |lane: &mut Job| rays.next().map(|r| r.start(lane)).is_some();
     trace_jobs(pt, next, |i, st| radiance[i] = (st.l, st.touched));
     radiance
 }

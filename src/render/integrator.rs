@@ -303,6 +303,12 @@ impl PathState {
 /// survival factors), and where each vertex's BSDF is to be read. `()` records nothing, which
 /// the compiler removes.
 pub trait Record {
+    /// Whether the hooks keep anything: the eight-lane loop (`batch::trace_recorded_jobs`)
+    /// skips, for `()` alone, the hit record that `vertex` is told of.
+    const KEEPS: bool = true;
+    /// Whether light samples the BSDF does not reflect (f = 0, whose shadow rays the path
+    /// tracer skips) are to be traced and told too: under other materials they may count.
+    const EVERY_LIGHT: bool = false;
     /// Emission (or the environment's radiance) found where the path arrived, times its MIS
     /// weight: the path's radiance gains it times the throughput so far.
     #[inline(always)]
@@ -318,12 +324,6 @@ pub trait Record {
     /// cos θi × MIS weight / density (the radiance gains it times f(ωo, ωi) and the throughput).
     #[inline(always)]
     fn light(&mut self, _wi: Vec3, _term: Rgb) {}
-    /// Whether light samples the BSDF does not reflect (f = 0, whose shadow rays the path
-    /// tracer skips) are to be traced and told too: under other materials they may count.
-    #[inline(always)]
-    fn every_light(&self) -> bool {
-        false
-    }
     /// The path goes on from the current vertex along ωi (in its frame), drawn with density
     /// `pdf` (for a delta lobe, the probability of choosing it), its throughput then divided
     /// by Russian roulette's survival probability (`rr`: 1 / that, or 1).
@@ -331,7 +331,9 @@ pub trait Record {
     fn scattered(&mut self, _wi: Vec3, _pdf: f32, _delta: bool, _rr: f32) {}
 }
 
-impl Record for () {}
+impl Record for () {
+    const KEEPS: bool = false;
+}
 
 /// A surface point to scatter from: the BSDF in its shading frame, both turned to the side the
 /// path arrives from, and the outgoing direction in that frame.
@@ -429,11 +431,11 @@ impl<'a> PathTracer<'a> {
     ) -> PathState {
         let mut st = PathState::new(ray, depth, count_emission);
         let mut hit = first_hit;
-        while let Some(obj) = self.arrive_with(&mut st, hit.as_ref(), rec) {
-            let Some(v) = hit.and_then(|h| self.vertex_with(&st, &h, obj, rec)) else {
+        while let Some(obj) = self.arrive(&mut st, hit.as_ref(), rec) {
+            let Some(v) = hit.and_then(|h| self.vertex(&st, &h, obj, rec)) else {
                 break;
             };
-            if !self.scatter_with(&mut st, &v, sampler, rec) {
+            if !self.scatter(&mut st, &v, sampler, rec) {
                 break;
             }
             hit = self.scene.intersect_hit(&st.ray, f32::INFINITY);
@@ -442,17 +444,11 @@ impl<'a> PathTracer<'a> {
     }
 
     /// The first half of a path segment: `hit` is where `st.ray` lands. Adds the emission seen
-    /// there (MIS-weighted against next-event estimation at the previous vertex) and returns
-    /// the object hit, or None where the path ends (no hit, maximum depth). Needs only the
-    /// BVH's hit: the rest of the hit record waits for `vertex`.
+    /// there (MIS-weighted against next-event estimation at the previous vertex), telling `rec`,
+    /// and returns the object hit, or None where the path ends (no hit, maximum depth). Needs
+    /// only the BVH's hit: the rest of the hit record waits for `vertex`.
     #[inline(always)]
-    pub(super) fn arrive(&self, st: &mut PathState, hit: Option<&Hit>) -> Option<&'a Object> {
-        self.arrive_with(st, hit, &mut ())
-    }
-
-    /// [`PathTracer::arrive`], telling `rec` the emission found.
-    #[inline(always)]
-    fn arrive_with(
+    pub(super) fn arrive(
         &self,
         st: &mut PathState,
         hit: Option<&Hit>,
@@ -524,15 +520,9 @@ impl<'a> PathTracer<'a> {
     }
 
     /// The vertex to scatter from where `st.ray` has arrived (`arrive` gave `obj`) at `hit`, or
-    /// None on a black surface.
+    /// None on a black surface; `rec` is told where it is.
     #[inline(always)]
-    pub(super) fn vertex(&self, st: &PathState, hit: &Hit, obj: &Object) -> Option<Vertex> {
-        self.vertex_with(st, hit, obj, &mut ())
-    }
-
-    /// [`PathTracer::vertex`], telling `rec` where it is.
-    #[inline(always)]
-    fn vertex_with(
+    pub(super) fn vertex(
         &self,
         st: &PathState,
         hit: &Hit,
@@ -605,20 +595,15 @@ impl<'a> PathTracer<'a> {
     /// The second half of a path segment: next-event estimation at `v`, then the BSDF-sampled
     /// direction and Russian roulette. Sets `st.ray` to the next segment and returns true, or
     /// returns false where the path ends. Draws 3 + 3 + 1 sampler dimensions (light, BSDF,
-    /// roulette) in that order; `batch.rs` relies on it.
+    /// roulette) in that order; `batch.rs` relies on it. `rec` is told the light samples and
+    /// the direction drawn.
     #[inline(always)]
-    pub(super) fn scatter(&self, st: &mut PathState, v: &Vertex, sampler: &mut Sampler) -> bool {
-        self.scatter_with(st, v, sampler, &mut ())
-    }
-
-    /// [`PathTracer::scatter`], telling `rec` the light samples and the direction drawn.
-    #[inline(always)]
-    fn scatter_with(
+    pub(super) fn scatter<R: Record>(
         &self,
         st: &mut PathState,
         v: &Vertex,
         sampler: &mut Sampler,
-        rec: &mut impl Record,
+        rec: &mut R,
     ) -> bool {
         let (bsdf, frame, ng, wo) = (&v.bsdf, &v.frame, v.ng, v.wo);
         // Next-event estimation: one point on an area light, one direction to the environment
@@ -641,7 +626,7 @@ impl<'a> PathTracer<'a> {
                 if wi.z > 0.0 && cos_g > 0.0 {
                     let f = bsdf.eval(wo, wi);
                     let reflects = f.max_element() > 0.0;
-                    if reflects || rec.every_light() {
+                    if reflects || R::EVERY_LIGHT {
                         let origin = offset_origin(v.p, ng, ls.wi);
                         if self.lights.visible(self.scene, origin, &ls) {
                             let w = if ls.delta {
