@@ -27,10 +27,6 @@ pub enum Event {
         #[serde(skip_serializing_if = "Option::is_none")]
         held_out: Option<[f32; 2]>,
         kept: bool,
-        /// The climbs (caches) whose evidence the verdict pooled, this one included
-        /// (`evidence.rs`; for the texture, its trials').
-        #[serde(skip_serializing_if = "is_one")]
-        climbs: u32,
         /// Seconds spent fitting and judging this level on the cache (the log line's `seconds`
         /// is the group's whole turn: its cache build and every fit).
         #[serde(default)]
@@ -40,10 +36,6 @@ pub enum Event {
     Moved { from: Level, to: Level },
     /// A higher level earned its place, but another group moves first this iteration.
     Deferred { to: Level },
-    /// A higher level lowered ε by the margin, but not clear of its noise (or of the held-out
-    /// test) over the climbs from `level` so far (`climbs`): the group stays analysing, and
-    /// its next climb pools one more cache's evidence (`evidence.rs`).
-    Inconclusive { level: Level, climbs: u32 },
     /// The run ended while the group was still analysing: it is confirmed at the best level
     /// it had found, and `reason` says why it had not decided earlier.
     Decided {
@@ -161,8 +153,4 @@ pub enum Event {
     /// The stray light's estimate after the iteration (`recover --stray-light`; its line's
     /// group is "stray_light").
     StrayLight(super::stray::StrayEstimate),
-}
-
-fn is_one(n: &u32) -> bool {
-    *n == 1
 }

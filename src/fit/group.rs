@@ -4,7 +4,6 @@
 //! groups are the schedule's (`schedule.rs`).
 
 use super::cache::CacheNeeds;
-use super::evidence::ClimbEvidence;
 use super::fitter::LevelFit;
 use super::level::Level;
 use super::params::GroupParams;
@@ -133,10 +132,6 @@ pub struct GroupState {
     /// the count (`hierarchy.rs`, `fit_current`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub distribution_evidence: Option<(f64, f64, u32)>,
-    /// The climbs from its current level so far, each level's fit on each climb's cache:
-    /// what a level above is judged on (`evidence.rs`).
-    #[serde(default, skip_serializing_if = "ClimbEvidence::is_empty")]
-    pub climb_evidence: ClimbEvidence,
     /// The texel-scale structure its uniform level left on its latest cache (`detail.rs`;
     /// None when textured, without an atlas, or not yet measured).
     #[serde(skip)]
@@ -178,7 +173,6 @@ impl GroupState {
             texture_evidence: None,
             alternatives: Vec::new(),
             distribution_evidence: None,
-            climb_evidence: ClimbEvidence::default(),
             detail: None,
             detail_pool: Vec::new(),
         }

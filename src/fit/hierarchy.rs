@@ -28,7 +28,6 @@
 use super::cache::GroupCache;
 use super::detail::{uniform_detail, Detail};
 use super::event::Event;
-use super::evidence::{judge, Trial, CLIMB_TRIALS};
 use super::fitter::{
     assess, embed, fit_level, fit_level_above, fit_level_as, fit_on_tiles, lowers_error,
     refit_level, refit_reflectances, LevelFit,
@@ -170,8 +169,6 @@ struct Climb {
     /// The uniform levels above `best` tried and not kept that fitted the cache at least as
     /// well ([`GroupState::alternatives`]).
     alternatives: Vec<(Level, GroupParams)>,
-    /// The uniform levels' fits on this cache, for the evidence of the climbs to come.
-    trials: Vec<Trial>,
 }
 
 impl GroupState {
@@ -258,29 +255,38 @@ impl GroupState {
         lowers_error(base, better, opts.margin, opts.noise_factor)
     }
 
-    /// A level's ε on pixels it was not fitted to, for the held-out test (`evidence::judge`,
-    /// which asks that at least half of a higher level's in-sample gain remain there, so that a
-    /// wall cannot turn glossy to absorb a neighbour's error): its reflectances fitted on the
-    /// even tiles and judged on the odd ones, then the other way round, the mean of the two.
-    /// None for a group too small to split (a half with no pixel), which is not judged.
+    /// Whether `better` (a higher level that earned its place on the whole cache) also predicts
+    /// pixels it was not fitted to, so that a wall cannot turn glossy to absorb a neighbour's
+    /// error: both levels' reflectances are fitted on the even tiles and judged on the odd
+    /// ones, then the other way round, and at least half of the in-sample gain must remain on
+    /// the held-back pixels. Returns the verdict and the held-out ε of `base` and `better`. A
+    /// group too small to split (a half with no pixel) is not judged.
     ///
-    /// The lobe keeps the shape the whole cache gave it: a narrow highlight on a small curved
+    /// The lobes keep the shape the whole cache gave them: a narrow highlight on a small curved
     /// object covers a tile or two, and a half without it has nothing to place a lobe's width
     /// by, so a width searched there can predict the other half worse than a mirror does. A
     /// lobe that only absorbs an error on a few tiles still fails: the half without them gives
     /// it no amplitude.
-    fn held_out(cache: &GroupCache, fit: &LevelFit, variant: WardVariant) -> Option<f32> {
+    fn predicts(
+        cache: &GroupCache,
+        base: &LevelFit,
+        better: &LevelFit,
+        variant: WardVariant,
+    ) -> (bool, [f32; 2]) {
         let halves = cache.split_tiles();
         if halves.iter().any(|h| h.pixels.is_empty()) {
-            return None;
+            return (true, [base.error, better.error]);
         }
-        let mut held = 0.0f32;
+        let mut held = [0.0f32; 2];
         for k in 0..2 {
             let (fit_on, judge_on) = (&halves[k], &halves[1 - k]);
-            let f = refit_reflectances(fit_on, fit.level, &fit.params, variant);
-            held += 0.5 * assess(judge_on, fit.level, &f.params, variant, 0).error;
+            let fb = refit_reflectances(fit_on, base.level, &base.params, variant);
+            let fh = refit_reflectances(fit_on, better.level, &better.params, variant);
+            held[0] += 0.5 * assess(judge_on, base.level, &fb.params, variant, 0).error;
+            held[1] += 0.5 * assess(judge_on, better.level, &fh.params, variant, 0).error;
         }
-        Some(held)
+        let gain = base.error - better.error;
+        (held[0] - held[1] >= 0.5 * gain, held)
     }
 
     /// Ends the analysis of a group the run left undecided (the iterations ran out): it is
@@ -296,12 +302,6 @@ impl GroupState {
                 "{} earned its place but was still waiting for its turn to climb after {iterations} \
                  iterations; more iterations (--max-iterations) would let it move",
                 l.name()
-            ),
-            None if self.climb_evidence.climbs_from(self.level) > 0 => format!(
-                "a level above {} lowered the error by the margin but not clear of its noise over \
-                 {} climb(s); more iterations (--max-iterations) would pool more caches",
-                self.level.name(),
-                self.climb_evidence.climbs_from(self.level)
             ),
             None if self.iterations_at_level < 2 => format!(
                 "it reached {} only {} iteration(s) before the end; more iterations \
@@ -456,7 +456,6 @@ impl GroupState {
         self.pending_texture = None;
         self.texture_evidence = None;
         self.distribution_evidence = None;
-        self.climb_evidence = Default::default();
         self.iterations_at_level = 0;
         self.moves.clear();
         self.last_step = None;
@@ -620,7 +619,6 @@ impl GroupState {
         events: &mut Vec<Event>,
     ) -> Climb {
         let mut best = fit.clone();
-        let mut trials = vec![Trial::of(&fit, Self::held_out(cache, &fit, variant))];
         let mut tried = vec![fit];
         let mut level = self.level;
         let mut texture = None;
@@ -722,7 +720,6 @@ impl GroupState {
                     gain_noise,
                     held_out: None,
                     kept,
-                    climbs: pooled.2,
                     fit_seconds: started.elapsed().as_secs_f32(),
                 });
                 if kept {
@@ -742,39 +739,28 @@ impl GroupState {
                 ..best.params
             };
             let f = fit_level_above(cache, next, &start, &tried, variant);
-            trials.push(Trial::of(&f, Self::held_out(cache, &f, variant)));
-            // Judged against the level kept below it on this cache and on the group's recent
-            // climbs (`evidence.rs`). Level 10 on this cache alone: its shape is searched on
-            // the error's tiles, which fits each cache's noise, so its gain is biased up on every
-            // cache alike, and pooling would average that gain's noise but not its bias.
-            let earlier = self.climb_evidence.trials();
-            let pooled = next != Level::AnisotropicMicrofacet;
-            let verdict = judge(
-                earlier.filter(|_| pooled),
-                &trials,
-                best.level,
-                next,
-                opts.margin,
-                opts.noise_factor,
-            );
-            let mut earned = verdict.earned;
+            let (mut earned, gain_noise) = Self::earns(&best, &f, opts);
             // Level 10 searches its shape on a plain cost on tiles (`objective::pooled`; only
             // its last few steps subtract the noise), which trades the cache's noise for bias
             // and so can lower ε as no unbiased fit does: it must also lower the unbiased
             // cross-half cost, or it only fits the noise.
-            if next == Level::AnisotropicMicrofacet && !verdict.lowers_cost {
+            if next == Level::AnisotropicMicrofacet && f.cost >= best.cost {
                 earned = false;
             }
-            let kept = earned && verdict.predicts;
+            let (kept, held_out) = if earned {
+                let (ok, held) = Self::predicts(cache, &best, &f, variant);
+                (ok, Some(held))
+            } else {
+                (false, None)
+            };
             events.push(Event::Tried {
                 level: next,
                 error_before: best.error,
                 error_after: f.error,
                 noise_floor: f.noise_floor,
-                gain_noise: verdict.gain_noise,
-                held_out: verdict.held.filter(|_| earned),
+                gain_noise,
+                held_out,
                 kept,
-                climbs: verdict.climbs,
                 fit_seconds: started.elapsed().as_secs_f32(),
             });
             level = next;
@@ -813,7 +799,6 @@ impl GroupState {
             texture_refused,
             texture_evidence,
             alternatives,
-            trials,
         }
     }
 
@@ -836,9 +821,7 @@ impl GroupState {
             texture_refused,
             texture_evidence,
             alternatives,
-            trials,
         } = climb;
-        self.climb_evidence.add(self.level, trials);
         self.alternatives = alternatives;
         self.texture_waiting = texture_waits;
         if texture_evidence.is_some() {
@@ -900,17 +883,6 @@ impl GroupState {
                     below_threshold: false,
                 });
             }
-        } else if near_miss && self.climb_evidence.climbs_from(self.level) < CLIMB_TRIALS
-            && !texture_waits
-        {
-            // A level lowered ε by the margin but not clear of its noise (or of the held-out
-            // test) on the caches so far: one more cache, pooled with them, decides.
-            self.waiting = 0;
-            self.pending = None;
-            events.push(Event::Inconclusive {
-                level: self.level,
-                climbs: self.climb_evidence.climbs_from(self.level) as u32,
-            });
         } else if !texture_waits {
             self.status = Status::Confirmed;
             self.waiting = 0;
@@ -971,65 +943,6 @@ mod tests {
         lobe.eval(wo, wi)
     }
 
-    /// A climb whose best rejected level lowered ε by the margin (a near miss) leaves the group
-    /// analysing, to climb again on a later cache, until three climbs from its level were
-    /// pooled; then it is confirmed where it is. A climb with no near miss confirms at once.
-    #[test]
-    fn a_near_miss_climbs_again_before_the_group_is_confirmed() {
-        let opts = HierarchyOptions::default();
-        let turn = Turn {
-            may_climb: true,
-            may_move: true,
-            texture_waits_for: None,
-        };
-        let fit = LevelFit {
-            level: Level::Diffuse,
-            params: GroupParams::default(),
-            error: 0.2,
-            noise_floor: 0.07,
-            halves: [0.2, 0.2],
-            cost: 0.0,
-            evals: 1,
-        };
-        let climb = |near_miss| Climb {
-            best: fit.clone(),
-            texture: None,
-            exhausted: true,
-            near_miss,
-            texture_waits: false,
-            texture_refused: false,
-            texture_evidence: None,
-            alternatives: Vec::new(),
-            trials: vec![Trial::of(&fit, None)],
-        };
-        let mut st = GroupState::new("blend", Status::Analysing, GroupParams::default());
-        let mut outcomes = Vec::new();
-        for _ in 0..CLIMB_TRIALS {
-            let mut events = Vec::new();
-            st.conclude(climb(true), 0.02, &opts, &turn, &mut events);
-            outcomes.push((st.status, events));
-        }
-        for (status, events) in &outcomes[..CLIMB_TRIALS - 1] {
-            assert!(
-                *status == Status::Analysing
-                    && matches!(events[..], [Event::Inconclusive { .. }]),
-                "{events:?}"
-            );
-        }
-        assert_eq!(outcomes[CLIMB_TRIALS - 1].0, Status::Confirmed);
-        let mut st = GroupState::new("wall", Status::Analysing, GroupParams::default());
-        st.conclude(climb(false), 0.02, &opts, &turn, &mut Vec::new());
-        assert_eq!(st.status, Status::Confirmed);
-    }
-
-    /// The held-out test on one cache: at least half of the in-sample gain remains on the
-    /// held-back tiles; with the two levels' held-out ε.
-    fn predicts(c: &GroupCache, base: &LevelFit, better: &LevelFit, v: WardVariant) -> (bool, [f32; 2]) {
-        let held = |f| GroupState::held_out(c, f, v).expect("a cache that splits");
-        let (a, b) = (held(base), held(better));
-        (a - b >= 0.5 * (base.error - better.error), [a, b])
-    }
-
     /// The held-out test (`predicts`): a Ward lobe on every tile of a group (a property of its
     /// material) predicts the tiles it was not fitted to and is kept; gloss on alternate tiles
     /// only (light a stale neighbour misses on part of a wall, not the wall's material) does
@@ -1071,7 +984,7 @@ mod tests {
         };
         let (c, opts) = (make(true), HierarchyOptions::default());
         let (f0, f1) = fits(&c);
-        let (ok, held) = predicts(&c, &f0, &f1, v);
+        let (ok, held) = GroupState::predicts(&c, &f0, &f1, v);
         assert!(
             ok && held[0] - held[1] >= 0.5 * (f0.error - f1.error),
             "{held:?} {} {}",
@@ -1092,7 +1005,7 @@ mod tests {
         let c = make(false);
         let (f0, f1) = fits(&c);
         assert!(f1.error < f0.error);
-        let (ok, held) = predicts(&c, &f0, &f1, v);
+        let (ok, held) = GroupState::predicts(&c, &f0, &f1, v);
         assert!(!ok && held[1] > held[0], "{held:?}");
     }
 
