@@ -63,7 +63,6 @@ import datetime
 import json
 import os
 import platform
-import re
 import shutil
 import subprocess
 import sys
@@ -866,14 +865,7 @@ def prepare_case(mf, d, floor, res):
 def prepare_glossy(mf, d, res):
     """scenes/glossy with its Ward sphere as GLOSSY_SPHERE, at RES, exported under D."""
     os.makedirs(d, exist_ok=True)
-    text = open(os.path.join(ROOT, "scenes", "glossy", "scene.toml")).read()
-    text, n = cc.FLOOR.subn(f"material = {GLOSSY_SPHERE}", text)
-    assert n == 1, "glossy's Ward material line changed"
-    text = re.sub(r"^width = \d+$", f"width = {res[0]}", text, count=1, flags=re.M)
-    text = re.sub(r"^height = \d+$", f"height = {res[1]}", text, count=1, flags=re.M)
-    scene = os.path.join(d, "scene.toml")
-    with open(scene, "w") as f:
-        f.write(text)
+    scene = cc.scene_variant("glossy", d, GLOSSY_SPHERE, *res)
     xml, ids, names = export_case(mf, d, scene)
     return scene, xml, ids, names
 

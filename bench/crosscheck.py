@@ -200,10 +200,17 @@ FLOOR = re.compile(r'^material = \{ type = "ward".*$', re.M)
 
 def figure6_variant(dst_dir, floor_material, width, height):
     """A copy of scenes/figure6/scene.toml with another floor material (it names no files)."""
-    text = open(os.path.join(ROOT, "scenes", "figure6", "scene.toml")).read()
-    if floor_material is not None:
-        text, n = FLOOR.subn(f"material = {floor_material}", text)
-        assert n == 1, "figure6's floor material line changed"
+    return scene_variant("figure6", dst_dir, floor_material, width, height)
+
+
+def scene_variant(name, dst_dir, ward_material, width, height):
+    """A copy of scenes/NAME/scene.toml at WIDTH x HEIGHT with its one Ward material line (the
+    figure6 floor, the glossy sphere) replaced by WARD_MATERIAL unless None. The scene must
+    name no files."""
+    text = open(os.path.join(ROOT, "scenes", name, "scene.toml")).read()
+    if ward_material is not None:
+        text, n = FLOOR.subn(f"material = {ward_material}", text)
+        assert n == 1, f"{name}'s Ward material line changed"
     text = re.sub(r"^width = \d+$", f"width = {width}", text, count=1, flags=re.M)
     text = re.sub(r"^height = \d+$", f"height = {height}", text, count=1, flags=re.M)
     path = os.path.join(dst_dir, "scene.toml")
