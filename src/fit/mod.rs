@@ -11,6 +11,7 @@ pub mod hierarchy;
 pub mod level;
 pub mod objective;
 pub mod params;
+pub mod periodic;
 pub mod pseudo;
 pub mod recovery;
 pub mod schedule;

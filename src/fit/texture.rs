@@ -24,14 +24,16 @@
 //!
 //! Texels seen by no pixel (a book's back, texels between a sub-sampled cache's pixels) are
 //! marked unseen and filled by pull–push from the seen texels of the same chart, fading to the
-//! mean of its object's seen texels away from them; a chart seen nowhere gets that mean (or the
-//! group's).
+//! mean of its object's seen texels away from them, or to the chart's own repeating print where
+//! its seen texels repeat (`periodic.rs`: a papered wall seen in a strip); a chart seen nowhere
+//! gets that mean (or the group's).
 
 use super::cache::{GroupCache, TexelRows};
 use super::error::{tiled_error, ErrorStats, PixelTerms};
 use super::fitter::{fit_level, spec_of, LevelFit};
 use super::level::Level;
 use super::objective::{pixel_specs, PixelSpec};
+use super::periodic;
 use super::params::GroupParams;
 use crate::math::{Rgb, Vec2};
 use crate::scene::atlas::Atlas;
@@ -87,6 +89,10 @@ pub struct TextureState {
     /// relative to the chosen one's (empty when the weight was kept from before).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub held_out: Vec<f32>,
+    /// Unseen texels filled from a repeating print of their chart's seen texels
+    /// (`periodic.rs`) rather than their object's mean.
+    #[serde(default)]
+    pub repeated: usize,
 }
 
 /// What a checkpoint written before the smoothing was chosen per group was solved with.
@@ -342,10 +348,11 @@ pub fn fit_textured(
         smoothing,
         smoothing_settled: previous.is_some() && !trial,
         held_out,
+        repeated: 0,
     };
     state.texels = texels;
     let mean = state.mean();
-    fill_unseen(atlas, &mut state.texels, &state.seen, mean);
+    state.repeated = fill_unseen(atlas, &mut state.texels, &state.seen, mean);
     let st = error(cache, sampled, &state.texels, &spec, &spec_half);
     let fit = LevelFit {
         level: Level::Textured,
@@ -716,13 +723,16 @@ pub fn error(
 /// Fills the unseen texels of each chart by pull–push (Gortler et al. 1996) from its seen
 /// ones, blended towards the mean m of its object's seen texels with the distance d from the
 /// nearest seen texel: m + (pull–push − m)·e^(−d/L), L = [`FILL_FADE_TEXELS`]. A chart with no
-/// seen texel gets m, or `fallback` (the group's mean) if the object has none. The gaps
-/// between charts are left as they are (the export pads them; lookups clamp to the chart).
-pub fn fill_unseen(atlas: &Atlas, texels: &mut [Rgb], seen: &[bool], fallback: Rgb) {
+/// seen texel gets m, or `fallback` (the group's mean) if the object has none. Where a chart's
+/// seen texels repeat (`periodic::find`), the repeat's tile takes m's place, with L a texel.
+/// The gaps between charts are left as they are (the export pads them; lookups clamp to the
+/// chart). Returns how many texels the repeats filled.
+pub fn fill_unseen(atlas: &Atlas, texels: &mut [Rgb], seen: &[bool], fallback: Rgb) -> usize {
     // Per object, the mean of its seen texels: a chart seen nowhere (a book's top, its sides)
     // more likely shares its own object's colours than the group's.
     let rects = atlas.chart_rects();
     let objects = atlas.chart_objects();
+    let mut repeated = 0;
     let mut object_mean: std::collections::HashMap<u32, (Rgb, usize)> = Default::default();
     for (&[x0, y0, w, h], &o) in rects.iter().zip(&objects) {
         let e = object_mean.entry(o).or_insert((Rgb::ZERO, 0));
@@ -760,20 +770,30 @@ pub fn fill_unseen(atlas: &Atlas, texels: &mut [Rgb], seen: &[bool], fallback: R
         }
         let filled = pull_push(&img, w, h);
         let d = distance_to_seen(&img, w, h);
+        // Far from the seen texels: a repeating print's own tile where the chart's seen texels
+        // repeat, else the object's mean.
+        let marked: Vec<(Rgb, bool)> = img.iter().map(|p| (p.0, p.1 > 0.0)).collect();
+        let repeat = periodic::find(&marked, w, h);
         for y in 0..h {
             for x in 0..w {
                 let i = (y0 + y) * atlas.width + x0 + x;
                 if !seen[i] {
-                    let k = (-d[y * w + x] / FILL_FADE_TEXELS).exp();
-                    texels[i] = mean + (filled[y * w + x] - mean) * k;
+                    let tile = repeat.as_ref().and_then(|r| r.fill[y * w + x]);
+                    repeated += usize::from(tile.is_some());
+                    let fade = if tile.is_some() { 1.0 } else { FILL_FADE_TEXELS };
+                    let far = tile.unwrap_or(mean);
+                    let k = (-d[y * w + x] / fade).exp();
+                    texels[i] = far + (filled[y * w + x] - far) * k;
                 }
             }
         }
     }
+    repeated
 }
 
 /// How far (in texels) an unseen texel's fill keeps the look of the nearest seen texels before
-/// it fades to its object's mean. Pull–push alone carries the seen edge's texels across a whole
+/// it fades to its object's mean (to a repeating print's tile it fades within a texel: the tile
+/// was checked against held-out texels, pull–push's smoothness was not). Pull–push alone carries the seen edge's texels across a whole
 /// hole, as streaks of whatever detail lies at the edge (the poster scene's desk). Far from every seen texel the object's mean is the estimate with the least
 /// expected error for a texture whose detail is not correlated over more than a few texels.
 const FILL_FADE_TEXELS: f32 = 4.0;

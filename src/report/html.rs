@@ -128,7 +128,7 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
         .filter_map(|g| g.texture.as_ref().map(|t| (g, t)))
     {
         textures += &format!(
-            "<figure><img src=\"{}\" alt=\"texture of {}\"><figcaption>{}: {}×{} texels of {:.4} (scene units), {} of {} seen in the photo ({:.0}%; the rest filled from their neighbours), smoothing {} (cross-validated), lobe on top: {}; linear reflectance in <a href=\"{}\">{}</a></figcaption></figure>\n",
+            "<figure><img src=\"{}\" alt=\"texture of {}\"><figcaption>{}: {}×{} texels of {:.4} (scene units), {} of {} seen in the photo ({:.0}%; the rest filled from their neighbours{}), smoothing {} (cross-validated), lobe on top: {}; linear reflectance in <a href=\"{}\">{}</a></figcaption></figure>\n",
             embedded(dir, &t.preview),
             esc(&g.name),
             esc(&g.name),
@@ -138,6 +138,14 @@ pub fn report(res: &Results, dir: &Path, plots: &[(String, String)], scale: f32)
             t.texels_seen,
             t.texels,
             100.0 * t.texels_seen as f64 / t.texels.max(1) as f64,
+            if t.texels_repeated > 0 {
+                format!(
+                    ", {} of them from the print's repeat",
+                    t.texels_repeated
+                )
+            } else {
+                String::new()
+            },
             t.smoothing,
             t.lobe,
             esc(&t.file),

@@ -102,6 +102,9 @@ pub struct TextureResult {
     /// filled by pull–push from the seen texels of their chart.
     pub texels: usize,
     pub texels_seen: usize,
+    /// Of the unseen texels, those filled from a repeating print of their chart's seen
+    /// texels (`fit::periodic`) rather than from their neighbours and their object's mean.
+    pub texels_repeated: usize,
     /// The smoothness penalty's weight the texture was solved with, chosen by cross-validation
     /// on the photo's pixels (`fit::texture::choose_smoothing`).
     pub smoothing: f32,
@@ -436,6 +439,7 @@ fn texture_result(g: usize, s: &crate::fit::GroupState) -> Option<TextureResult>
         texel_size: t.texel,
         texels: t.charted,
         texels_seen: t.seen_count(),
+        texels_repeated: t.repeated,
         smoothing: t.smoothing,
         lobe: if t.base.is_ward() {
             t.base.name()
