@@ -105,6 +105,10 @@ pub struct GroupState {
     /// analysing (`schedule::texture_waits_for`): it waits, and holds no other group back.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub texture_waiting: bool,
+    /// The climbs at its current level in which its texture waited so
+    /// (`schedule::TEXTURE_WAITS`).
+    #[serde(default)]
+    pub texture_waits: u32,
     /// The simpler level that explained the last cache as well as the confirmed one
     /// ([`Event::Doubted`]); None once the level held again.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -167,6 +171,7 @@ impl GroupState {
             recheck_texture: false,
             texture_sources: Vec::new(),
             texture_waiting: false,
+            texture_waits: 0,
             doubted: None,
             texture_refused: None,
             pending_texture: None,
@@ -326,7 +331,8 @@ impl GroupState {
     /// earlier one: at least 0.7 of the smallest; or eight iterations at the level) is
     /// `Jittering`: it moves within its own noise (a lobe the photo hardly determines) and
     /// waiting would not settle it, so it must not block the other groups' climbs either.
-    /// Otherwise it is still `Converging`. The smallest of all, not of the last two: noise
+    /// A confirmed group averaging two fits or more is `Jittering` too (below). Otherwise it is
+    /// still `Converging`. The smallest of all, not of the last two: noise
     /// makes some moves smaller than the one before by chance, and a lobe whose α jumps about
     /// at random would then count as converging every few iterations, holding the scene back
     /// until its eight iterations ran out.
@@ -335,9 +341,13 @@ impl GroupState {
         let since = self.moves.iter().rposition(|&m| m < settle).map_or(0, |k| k + 1);
         let n = self.moves.len() - since;
         let least = self.moves[since..].iter().copied().fold(f32::INFINITY, f32::min);
+        // A confirmed group's parameters are the mean of its fits since it was confirmed: that
+        // mean moves by (fit − mean)/count, less each time by construction, which is not
+        // convergence. Its fits are draws of one scene (a neighbour's climb restarts the mean).
+        let averaging = self.status == Status::Confirmed && self.average.is_some_and(|a| a.1 >= 2);
         let motion = if moved < settle {
             Motion::Steady
-        } else if n >= 2 && moved >= 0.7 * least || self.iterations_at_level >= 8 {
+        } else if averaging || n >= 2 && moved >= 0.7 * least || self.iterations_at_level >= 8 {
             Motion::Jittering
         } else {
             Motion::Converging

@@ -824,6 +824,7 @@ impl GroupState {
         } = climb;
         self.alternatives = alternatives;
         self.texture_waiting = texture_waits;
+        self.texture_waits += u32::from(texture_waits);
         if texture_evidence.is_some() {
             self.texture_evidence = texture_evidence;
         }
@@ -859,6 +860,7 @@ impl GroupState {
             self.texture = texture;
             self.pending_texture = None;
             self.texture_refused = None;
+            self.texture_waits = 0;
             self.texture_evidence = None;
             self.distribution_evidence = None;
             self.iterations_at_level = 0;
