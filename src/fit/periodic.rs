@@ -390,6 +390,32 @@ mod tests {
         assert!(fill_err < 0.3 * mean_err, "{fill_err} vs the mean's {mean_err}");
     }
 
+    /// What looking for a repeat costs on a large chart (a 4 × 3 m wall at 1-cm texels, a
+    /// third of it seen), printed: `cargo test --profile ci -p matfit --features internals --lib
+    /// periodic_costs -- --ignored --nocapture`.
+    #[test]
+    #[ignore]
+    fn periodic_costs() {
+        let (w, h) = (400usize, 300usize);
+        let img: Vec<(Rgb, bool)> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                let v = 0.5 + 0.3 * (x * 0.9).sin() * (y * 0.9).sin();
+                (Rgb::splat(v), ((x - y) as i32).abs() < 70)
+            })
+            .collect();
+        let t = std::time::Instant::now();
+        let runs = 5;
+        for _ in 0..runs {
+            assert!(find(&img, w, h).is_some());
+        }
+        eprintln!(
+            "{w}x{h} chart, {} seen: {:.1} ms per search",
+            img.iter().filter(|p| p.1).count(),
+            1e3 * t.elapsed().as_secs_f64() / runs as f64
+        );
+    }
+
     /// What does not repeat keeps today's fill: a smooth gradient, a painting-like random
     /// arrangement of blocks, and noise alone.
     #[test]
