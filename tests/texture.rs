@@ -263,6 +263,14 @@ fn score(pairs: &[(Rgb, Rgb)]) -> Score {
     }
 }
 
+/// The reference sample count of a texel wholly on the surface ([`reference`]'s counts): 90%
+/// of the median over the texels the surface reaches.
+fn full_count(count: &[u32]) -> u32 {
+    let mut counts: Vec<u32> = count.iter().copied().filter(|&c| c > 0).collect();
+    counts.sort_unstable();
+    counts[counts.len() / 2] * 9 / 10
+}
+
 /// The recovered texture's and the cut texture's scores for `group`, each as it renders (per
 /// texel the mean of its bilinear lookup over the texel's square, [`rendered_means`]) against
 /// the truth's mean over the same square: over texels seen in the photo, fully on the surface
@@ -280,9 +288,7 @@ pub(crate) fn scores(
     let (truth_texels, count) = reference(truth, g, &atlas);
     let cut = cut_from_photo(truth, photo, g, &atlas);
     let means = rendered_means(truth, g, &atlas, &texels);
-    let mut counts: Vec<u32> = count.iter().copied().filter(|&c| c > 0).collect();
-    counts.sort_unstable();
-    let full = counts[counts.len() / 2] * 9 / 10;
+    let full = full_count(&count);
     let scored: Vec<bool> = (0..texels.len())
         .map(|t| seen[t] && count[t] >= full && cut[t].is_some())
         .collect();
@@ -374,9 +380,7 @@ fn hidden_fill(truth: &Scene, rec: &matfit::fit::Recovery, name: &str) -> (f32, 
     let seen = &state(rec, name).texture.as_ref().unwrap().seen;
     let (truth_texels, count) = reference(truth, g, &atlas);
     let means = rendered_means(truth, g, &atlas, &texels);
-    let mut counts: Vec<u32> = count.iter().copied().filter(|&c| c > 0).collect();
-    counts.sort_unstable();
-    let full = counts[counts.len() / 2] * 9 / 10;
+    let full = full_count(&count);
     let (mut fill, mut flat, mut n) = (0.0f32, 0.0f32, 0usize);
     for [x0, y0, w, h] in atlas.chart_rects() {
         let chart: Vec<usize> = (0..w * h)

@@ -97,19 +97,21 @@ pub struct Repeat {
     pub fill: Vec<Option<Rgb>>,
 }
 
-/// The repeat of a w × h chart's seen texels (`img`: value and whether seen), if they repeat
-/// (module comment).
-pub fn find(img: &[(Rgb, bool)], w: usize, h: usize) -> Option<Repeat> {
-    let n_seen = img.iter().filter(|p| p.1).count();
+/// The repeat of a w × h chart's seen texels, if they repeat (module comment). `img` is the
+/// chart as `texture::fill_unseen` holds it for pull–push: each texel's value and weight, a
+/// weight above 0 where the photo saw it.
+pub fn find(img: &[(Rgb, f32)], w: usize, h: usize) -> Option<Repeat> {
+    let n_seen = img.iter().filter(|p| seen(p)).count();
     let lattice = lattice(img, w, h)?;
     if (n_seen as f32) < MIN_CELLS * lattice.area() {
         return None;
     }
-    let explained = held_out_explained(img, w, &lattice)?;
+    let bins = lattice.bins(n_seen);
+    let explained = held_out_explained(img, w, &lattice, bins)?;
     if explained < MIN_EXPLAINED {
         return None;
     }
-    let tile = Tile::of(img, w, &lattice, None);
+    let tile = Tile::of(img, w, &lattice, bins, None);
     let fill = (0..w * h)
         .map(|i| tile.at(&lattice, (i % w) as f32 + 0.5, (i / w) as f32 + 0.5))
         .collect();
@@ -120,21 +122,24 @@ pub fn find(img: &[(Rgb, bool)], w: usize, h: usize) -> Option<Repeat> {
     })
 }
 
+/// Whether a texel of a chart image (value, weight) was seen.
+fn seen(p: &(Rgb, f32)) -> bool {
+    p.1 > 0.0
+}
+
 /// The lattice of the seen texels' repeat (module comment), if two independent directions
 /// repeat.
-pub fn lattice(img: &[(Rgb, bool)], w: usize, h: usize) -> Option<Lattice> {
-    let seen: Vec<(usize, f32)> = (img.iter().enumerate())
-        .filter(|(_, p)| p.1)
-        .map(|(i, p)| (i, luminance_mean(p.0)))
+pub fn lattice(img: &[(Rgb, f32)], w: usize, h: usize) -> Option<Lattice> {
+    let lum: Vec<Option<f32>> = img
+        .iter()
+        .map(|p| seen(p).then(|| luminance_mean(p.0)))
         .collect();
-    if seen.len() < MIN_PAIRS {
+    let n_seen = lum.iter().flatten().count();
+    if n_seen < MIN_PAIRS {
         return None;
     }
-    let mean = seen.iter().map(|s| s.1 as f64).sum::<f64>() / seen.len() as f64;
-    let y: Vec<Option<f32>> = img
-        .iter()
-        .map(|p| p.1.then(|| luminance_mean(p.0) - mean as f32))
-        .collect();
+    let mean = lum.iter().flatten().map(|&l| l as f64).sum::<f64>() / n_seen as f64;
+    let y: Vec<Option<f32>> = lum.iter().map(|l| l.map(|l| l - mean as f32)).collect();
     let r = REACH.min(w as i32 - 1).min(h as i32 - 1).max(0);
     if r < 3 {
         return None;
@@ -142,7 +147,7 @@ pub fn lattice(img: &[(Rgb, bool)], w: usize, h: usize) -> Option<Lattice> {
     // C over the displacements (dx, dy), |dx|, |dy| ≤ r; C(−d) = C(d), so only dy ≥ 0 is summed.
     // On a large chart every `stride`-th row of pair origins is enough for the statistic and
     // bounds the cost (each displacement sums over the chart).
-    let stride = seen.len().div_ceil(MAX_ORIGINS).max(1);
+    let stride = n_seen.div_ceil(MAX_ORIGINS).max(1);
     let side = (2 * r + 1) as usize;
     let mut c = vec![f32::NAN; side * side];
     let at = |dx: i32, dy: i32| ((dy + r) as usize) * side + (dx + r) as usize;
@@ -239,10 +244,9 @@ fn by_multiples(d: [f32; 2], peaks: &[[f32; 2]]) -> [f32; 2] {
     let (mut sx, mut sy, mut kk) = (0.0f32, 0.0f32, 0.0f32);
     for k in 1..=8 {
         let target = [k as f32 * d[0], k as f32 * d[1]];
-        let near = peaks
-            .iter()
-            .chain(peaks.iter().map(|p| [-p[0], -p[1]]).collect::<Vec<_>>().iter())
-            .map(|p| (*p, (p[0] - target[0]).hypot(p[1] - target[1])))
+        let near = (peaks.iter().copied())
+            .chain(peaks.iter().map(|p| [-p[0], -p[1]]))
+            .map(|p| (p, (p[0] - target[0]).hypot(p[1] - target[1])))
             .filter(|(_, e)| *e < 1.0)
             .min_by(|a, b| a.1.total_cmp(&b.1));
         if let Some((p, _)) = near {
@@ -265,12 +269,18 @@ struct Tile {
 }
 
 impl Tile {
-    /// From the seen texels of the cells of parity `parity` (all cells: None).
-    fn of(img: &[(Rgb, bool)], w: usize, lattice: &Lattice, parity: Option<i64>) -> Tile {
-        let bins = lattice.bins(img.iter().filter(|p| p.1).count());
+    /// From the seen texels of the cells of parity `parity` (all cells: None), in `bins`
+    /// (`Lattice::bins`).
+    fn of(
+        img: &[(Rgb, f32)],
+        w: usize,
+        lattice: &Lattice,
+        bins: [usize; 2],
+        parity: Option<i64>,
+    ) -> Tile {
         let mut sums = vec![(Rgb::ZERO, 0u32); bins[0] * bins[1]];
         for (i, p) in img.iter().enumerate() {
-            if !p.1 {
+            if !seen(p) {
                 continue;
             }
             let (f, cell) = lattice.coords((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
@@ -298,16 +308,21 @@ impl Tile {
 
 /// The share of the seen texels' variance about their mean that tiles built from the other
 /// parity's cells explain (module comment). None if too few texels are predicted.
-fn held_out_explained(img: &[(Rgb, bool)], w: usize, lattice: &Lattice) -> Option<f32> {
-    let seen: Vec<Rgb> = img.iter().filter(|p| p.1).map(|p| p.0).collect();
-    let mean = seen.iter().fold(Rgb::ZERO, |a, &b| a + b) / seen.len() as f32;
+fn held_out_explained(
+    img: &[(Rgb, f32)],
+    w: usize,
+    lattice: &Lattice,
+    bins: [usize; 2],
+) -> Option<f32> {
+    let values: Vec<Rgb> = img.iter().filter(|p| seen(p)).map(|p| p.0).collect();
+    let mean = values.iter().fold(Rgb::ZERO, |a, &b| a + b) / values.len() as f32;
     let tiles = [
-        Tile::of(img, w, lattice, Some(0)),
-        Tile::of(img, w, lattice, Some(1)),
+        Tile::of(img, w, lattice, bins, Some(0)),
+        Tile::of(img, w, lattice, bins, Some(1)),
     ];
     let (mut res, mut tot, mut n) = (0.0f64, 0.0f64, 0usize);
     for (i, p) in img.iter().enumerate() {
-        if !p.1 {
+        if !seen(p) {
             continue;
         }
         let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
@@ -321,12 +336,17 @@ fn held_out_explained(img: &[(Rgb, bool)], w: usize, lattice: &Lattice) -> Optio
         tot += sq(p.0 - mean);
         n += 1;
     }
-    (n * 2 >= seen.len() && tot > 0.0).then(|| (1.0 - res / tot) as f32)
+    (n * 2 >= values.len() && tot > 0.0).then(|| (1.0 - res / tot) as f32)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A chart image with seen texels weighed 1 and unseen 0, as `fill_unseen` holds it.
+    fn weighed(img: &[(Rgb, bool)]) -> Vec<(Rgb, f32)> {
+        img.iter().map(|&(v, s)| (v, f32::from(u8::from(s)))).collect()
+    }
 
     /// A print of diamonds on a skewed lattice, seen in a band: its lattice is found to a tenth
     /// of a texel, the check passes, and the fill reproduces the unseen texels.
@@ -357,7 +377,7 @@ mod tests {
                 (truth(x, y) + Rgb::splat(noise()), seen)
             })
             .collect();
-        let rep = find(&img, w, h).expect("a repeat");
+        let rep = find(&weighed(&img), w, h).expect("a repeat");
         let l = rep.lattice;
         // Any basis of the same lattice will do: both vectors are lattice points to a tenth
         // of a texel, and they span a cell of the true area.
@@ -404,6 +424,7 @@ mod tests {
                 (Rgb::splat(v), ((x - y) as i32).abs() < 70)
             })
             .collect();
+        let img = weighed(&img);
         let t = std::time::Instant::now();
         let runs = 5;
         for _ in 0..runs {
@@ -411,7 +432,7 @@ mod tests {
         }
         eprintln!(
             "{w}x{h} chart, {} seen: {:.1} ms per search",
-            img.iter().filter(|p| p.1).count(),
+            img.iter().filter(|p| seen(p)).count(),
             1e3 * t.elapsed().as_secs_f64() / runs as f64
         );
     }
@@ -429,7 +450,7 @@ mod tests {
         let gradient: Vec<(Rgb, bool)> = (0..w * h)
             .map(|i| (Rgb::splat((i % w) as f32 / w as f32), i % w < 40))
             .collect();
-        assert!(find(&gradient, w, h).is_none());
+        assert!(find(&weighed(&gradient), w, h).is_none());
         let blocks: Vec<[f32; 5]> = (0..12)
             .map(|_| [next() * 56.0, next() * 40.0, 3.0 + 10.0 * next(), 3.0 + 10.0 * next(), next()])
             .collect();
@@ -442,8 +463,8 @@ mod tests {
                 (Rgb::new(v, 0.5 * v, 1.0 - v), y < 30.0)
             })
             .collect();
-        assert!(find(&painting, w, h).is_none());
+        assert!(find(&weighed(&painting), w, h).is_none());
         let noise: Vec<(Rgb, bool)> = (0..w * h).map(|_| (Rgb::splat(next()), true)).collect();
-        assert!(find(&noise, w, h).is_none());
+        assert!(find(&weighed(&noise), w, h).is_none());
     }
 }

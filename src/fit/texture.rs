@@ -771,9 +771,12 @@ pub fn fill_unseen(atlas: &Atlas, texels: &mut [Rgb], seen: &[bool], fallback: R
         let filled = pull_push(&img, w, h);
         let d = distance_to_seen(&img, w, h);
         // Far from the seen texels: a repeating print's own tile where the chart's seen texels
-        // repeat, else the object's mean.
-        let marked: Vec<(Rgb, bool)> = img.iter().map(|p| (p.0, p.1 > 0.0)).collect();
-        let repeat = periodic::find(&marked, w, h);
+        // repeat, else the object's mean. (A chart seen whole has nothing to fill.)
+        let repeat = img
+            .iter()
+            .any(|p| p.1 == 0.0)
+            .then(|| periodic::find(&img, w, h))
+            .flatten();
         for y in 0..h {
             for x in 0..w {
                 let i = (y0 + y) * atlas.width + x0 + x;
@@ -793,9 +796,11 @@ pub fn fill_unseen(atlas: &Atlas, texels: &mut [Rgb], seen: &[bool], fallback: R
 
 /// How far (in texels) an unseen texel's fill keeps the look of the nearest seen texels before
 /// it fades to its object's mean (to a repeating print's tile it fades within a texel: the tile
-/// was checked against held-out texels, pull–push's smoothness was not). Pull–push alone carries the seen edge's texels across a whole
-/// hole, as streaks of whatever detail lies at the edge (the poster scene's desk). Far from every seen texel the object's mean is the estimate with the least
-/// expected error for a texture whose detail is not correlated over more than a few texels.
+/// was checked against held-out texels, pull–push's smoothness was not). Pull–push alone
+/// carries the seen edge's texels across a whole hole, as streaks of whatever detail lies at
+/// the edge (the poster scene's desk). Far from every seen texel the object's mean is the
+/// estimate with the least expected error for a texture whose detail is not correlated over
+/// more than a few texels.
 const FILL_FADE_TEXELS: f32 = 4.0;
 
 /// Per pixel of a w × h weighted image, the distance in pixels to the nearest pixel of weight
