@@ -125,9 +125,10 @@ pub struct GroupState {
     /// the sum of their gains' noise variances, and their count (`hierarchy.rs`, `climb`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub texture_evidence: Option<(f32, f32, u32)>,
-    /// The fits of its last climb at levels above the one it kept that fitted its cache at
-    /// least as well (ε no higher) but did not earn their place: models its photo could not
-    /// tell from its own. A trial that fitted worse is rejected by the photo, not untold. Its
+    /// The fits of its last climb at levels above the one it kept that did not earn their
+    /// place and fitted its cache no worse than the kept level by more than the gain test's
+    /// own margin (`noise_factor` times the gain's noise): models its photo could not tell
+    /// from its own. Only a trial worse beyond that margin is rejected by the photo. Its
     /// albedo's 1σ holds their spread (`uncertainty::albedo`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub alternatives: Vec<(Level, GroupParams)>,

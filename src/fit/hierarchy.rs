@@ -166,8 +166,8 @@ struct Climb {
     texture_refused: bool,
     /// The texture trials' pooled evidence, this one included (None: no trial).
     texture_evidence: Option<(f32, f32, u32)>,
-    /// The uniform levels above `best` tried and not kept that fitted the cache at least as
-    /// well ([`GroupState::alternatives`]).
+    /// The uniform levels above `best` tried and not kept that the photo could not tell from
+    /// it ([`GroupState::alternatives`]).
     alternatives: Vec<(Level, GroupParams)>,
 }
 
@@ -620,6 +620,9 @@ impl GroupState {
     ) -> Climb {
         let mut best = fit.clone();
         let mut tried = vec![fit];
+        // Per fit in `tried`, the noise of its gain over the level kept below it (0: the
+        // current level's own fit).
+        let mut tried_noise = vec![0.0f32];
         let mut level = self.level;
         let mut texture = None;
         // Whether every level above the one kept was tried (or ruled out) on this cache.
@@ -780,15 +783,20 @@ impl GroupState {
                 rejected = rejected.min(f.error);
             }
             tried.push(f);
+            tried_noise.push(gain_noise);
         }
         // A level that lowered ε by the margin but failed another test (its gain's noise, level
         // 10's unbiased cost, the held-out tiles) is a near miss, which a later climb on a
         // settled cache may pass.
         let near_miss = rejected < (1.0 - opts.margin) * best.error;
-        let alternatives = (tried.iter())
-            .filter(|f| f.level.number() > best.level.number() && f.level != Level::Textured)
-            .filter(|f| f.error <= best.error)
-            .map(|f| (f.level, f.params))
+        // Levels above the kept one that the photo cannot tell from it: those that fit at
+        // least as well, and those that fit worse by no more than the margin the kept level's
+        // test demands of a gain (`noise_factor` times the gain's noise), for the test that
+        // would reject them cannot reject them either.
+        let alternatives = (tried.iter().zip(&tried_noise))
+            .filter(|(f, _)| f.level.number() > best.level.number() && f.level != Level::Textured)
+            .filter(|(f, &n)| f.error <= best.error + opts.noise_factor * n)
+            .map(|(f, _)| (f.level, f.params))
             .collect();
         Climb {
             best,
@@ -1288,6 +1296,45 @@ mod tests {
         assert!(st.error >= opts.thresholds.of(st.level), "{events:?}");
         assert!(tried.contains(&Level::Plastic), "{tried:?}");
         assert_eq!(st.status, Status::Analysing, "{events:?}");
+    }
+
+    /// The levels a climb tried and did not keep are the kept level's alternatives (its
+    /// albedo's model uncertainty) exactly when the gain test could not reject them either:
+    /// they fitted no worse than the kept level by more than `noise_factor` times their gain's
+    /// noise. A forced coat (plastic) on a matte wall fits slightly worse and is one of them.
+    #[test]
+    fn alternatives_are_the_levels_the_gain_test_cannot_tell_apart() {
+        let opts = HierarchyOptions::default();
+        // A matte wall with ±8% tile-to-tile scatter no model explains: ε stays above the
+        // diffuse threshold and no level above earns its place.
+        let cache = synthetic_cache(240, 16, 24, 1, |p: &CachePixel, s| {
+            diffuse(s) * (0.5 * (1.0 + 0.08 * (p.tile as f32 * 12.9898).sin()))
+        });
+        let (st, events, tried) = climb("wall", &cache, &opts);
+        assert_eq!((st.level, st.status), (Level::Diffuse, Status::Confirmed), "{events:?}");
+        assert!(tried.contains(&Level::Plastic), "{tried:?}");
+        let mut expected = Vec::new();
+        let mut worse = 0;
+        for e in &events {
+            if let Event::Tried {
+                level,
+                error_before,
+                error_after,
+                gain_noise,
+                kept: false,
+                ..
+            } = *e
+            {
+                assert_eq!(error_before, st.error, "{events:?}");
+                if error_after <= error_before + opts.noise_factor * gain_noise {
+                    expected.push(level);
+                    worse += usize::from(error_after > error_before);
+                }
+            }
+        }
+        let got: Vec<Level> = st.alternatives.iter().map(|a| a.0).collect();
+        assert_eq!(got, expected, "{events:?}");
+        assert!(worse >= 1, "no alternative fitted worse than the kept level: {events:?}");
     }
 
     /// A group still analysing when the iterations run out is confirmed at its level, and the
