@@ -101,6 +101,25 @@ pub fn climbers(states: &[GroupState], settled: bool, opts: &HierarchyOptions) -
     chosen
 }
 
+/// Whether group `g`, not among the iteration's [`climbers`], may take a turn they leave
+/// unused. The climbers are chosen before their climbs, and a climb may find nothing to move
+/// to, or a texture, which needs no turn: on the test interior a wood floor that had waited
+/// held the turn and moved to its texture, and a table that had waited held it and was
+/// confirmed where it was, while the white paint, whose climb had earned a level, was
+/// deferred until the iterations ran out. The turn keeps two groups that light each other
+/// from changing their light at once; that holds as long as `g` is independent of every group
+/// that `moved` this iteration so far and of every climber that has not yet had its turn
+/// (`climbers_ahead`, which keep theirs; the recovery visits the climbers first, so there is
+/// none). Only once the scene has settled: before, only the gross groups climb.
+pub fn takes_unused_turn(
+    states: &[GroupState],
+    g: usize,
+    climbers_ahead: &[usize],
+    moved: &[usize],
+) -> bool {
+    (climbers_ahead.iter().chain(moved)).all(|&c| c != g && independent(states, g, c))
+}
+
 /// What the schedule allows one group in a global iteration.
 #[derive(Clone, Debug, Default)]
 pub struct Turn {
@@ -319,6 +338,35 @@ mod tests {
         assert_eq!(climbers(&states, false, &opts), [0]);
         states[0].lit_by[1] = 0.2;
         assert!(climbers(&states, false, &opts).is_empty());
+    }
+
+    /// A turn the climbers leave unused passes on, to a group independent of every group
+    /// that moved so far and of every climber still to come; never to one that either lights.
+    #[test]
+    fn a_turn_left_unused_passes_to_an_independent_group() {
+        let opts = HierarchyOptions::default();
+        let mut states = [
+            group(Status::Analysing, Level::Diffuse, 0.3, 3),
+            group(Status::Analysing, Level::Diffuse, 0.2, 3),
+            group(Status::Analysing, Level::Diffuse, 0.1, 3),
+            group(Status::Analysing, Level::Diffuse, 0.1, 3),
+        ];
+        // 1 lights 0 and 2; 3 lights 2; 0 and 3 are independent of each other.
+        states[0].lit_by = vec![0.0, 0.10, 0.0, 0.0];
+        states[1].lit_by = vec![0.10, 0.0, 0.10, 0.0];
+        states[2].lit_by = vec![0.0, 0.10, 0.0, 0.10];
+        states[3].lit_by = vec![0.0, 0.0, 0.10, 0.0];
+        assert_eq!(climbers(&states, true, &opts), [0, 3]);
+        // 1 and 2, not climbers, step in order; 0 before them found no level (its turn is
+        // unused), 3 after them keeps its own.
+        assert!(!takes_unused_turn(&states, 1, &[], &[0]), "0 moved and 1 lights it");
+        assert!(takes_unused_turn(&states, 1, &[3], &[]), "0 did not move");
+        assert!(!takes_unused_turn(&states, 2, &[3], &[]), "3, still to come, lights 2");
+        assert!(!takes_unused_turn(&states, 2, &[], &[1]), "1 took the turn and lights 2");
+        assert!(!takes_unused_turn(&states, 0, &[], &[0]), "a group is not its own neighbour");
+        // Without a cache, nothing is known: dependent.
+        states[1].lit_by.clear();
+        assert!(!takes_unused_turn(&states, 1, &[3], &[]));
     }
 
     /// Before the scene settles, a group climbs only if its ε is at least `GROSS` thresholds

@@ -33,8 +33,16 @@ struct Plan {
     /// Each group's level and parameters as the iteration found them.
     levels_before: Vec<Level>,
     before: Vec<GroupParams>,
-    /// The groups that may climb before the scene settles (`schedule::climbers`).
+    /// The groups that may climb before the scene settles, and whose turn it is to move once
+    /// it has (`schedule::climbers`).
     climbers: Vec<usize>,
+    /// The order the groups are visited in: once the scene has settled, the climbers first,
+    /// so that a turn one of them leaves unused can pass on to any later group
+    /// (`schedule::takes_unused_turn`); then the others by index.
+    order: Vec<usize>,
+    /// The groups that changed to a level other than the texture so far this iteration:
+    /// those a turn left unused must not light.
+    moved: Vec<usize>,
     /// Unseen groups whose light every cache tracks (the stray light last).
     tracked: Vec<usize>,
     /// Whether no group may try level 7 yet (the stray light is not determined).
@@ -54,17 +62,17 @@ impl RecoveryLoop<'_> {
     /// the recovery with an error naming the group and the iteration (the state is then that of
     /// the failed iteration; the last checkpoint is the one to resume from).
     pub fn iterate(&mut self, log: &mut dyn FnMut(&LogLine)) -> Result<(), RecoverError> {
-        let plan = self.plan();
+        let mut plan = self.plan();
         let mut shares = Vec::new();
         let mut sums = ExposureSums::new(self.exposures.len());
-        for g in 0..self.states.len() {
+        for g in plan.order.clone() {
             if !self.states[g].is_fitted() {
                 continue;
             }
             let tg = Instant::now();
             let cache = self.group_cache(g, &plan, log);
             let cache_secs = tg.elapsed().as_secs_f64();
-            self.fit_group(g, cache, &plan, (tg, cache_secs), &mut shares, &mut sums, log)?;
+            self.fit_group(g, cache, &mut plan, (tg, cache_secs), &mut shares, &mut sums, log)?;
         }
         let exposure_moved = self.update_exposures(&sums, plan.it);
         let unseen = self.update_unseen(&plan, &shares, log);
@@ -85,6 +93,10 @@ impl RecoveryLoop<'_> {
         self.iterations = it + 1;
         let before: Vec<GroupParams> = self.states.iter().map(|s| s.params).collect();
         let climbers = schedule::climbers(&self.states, self.settled, &opts.hierarchy);
+        let first: &[usize] = if self.settled { &climbers } else { &[] };
+        let order: Vec<usize> = (first.iter().copied())
+            .chain((0..self.states.len()).filter(|g| !first.contains(g)))
+            .collect();
         // Unseen groups whose light every cache tracks, and the seen groups' shares of it.
         let mut tracked = if opts.unseen.enabled {
             unseen::unseen_groups(&self.states)
@@ -105,7 +117,9 @@ impl RecoveryLoop<'_> {
             it,
             levels_before,
             before,
+            order,
             climbers,
+            moved: Vec::new(),
             tracked,
             hold_textures,
         }
@@ -322,7 +336,7 @@ impl RecoveryLoop<'_> {
         &mut self,
         g: usize,
         mut cache: GroupCache,
-        plan: &Plan,
+        plan: &mut Plan,
         (tg, cache_secs): (Instant, f64),
         shares: &mut Vec<GroupShares>,
         sums: &mut ExposureSums,
@@ -344,7 +358,14 @@ impl RecoveryLoop<'_> {
         let held = plan.hold_textures.then(|| STRAY_LIGHT.to_string());
         let turn = schedule::Turn {
             may_climb: self.may_climb(g, plan),
-            may_move: plan.climbers.contains(&g),
+            may_move: plan.climbers.contains(&g)
+                || self.settled && {
+                    let at = plan.order.iter().position(|&h| h == g).unwrap_or(0);
+                    let ahead: Vec<usize> = (plan.order[at..].iter().copied())
+                        .filter(|c| plan.climbers.contains(c))
+                        .collect();
+                    schedule::takes_unused_turn(&self.states, g, &ahead, &plan.moved)
+                },
             // The neighbours first: the texture's pixels need the index buffers.
             texture_waits_for: held.or_else(|| {
                 schedule::texture_waits_for(&self.states, g, &opts.hierarchy)
@@ -369,6 +390,9 @@ impl RecoveryLoop<'_> {
         self.states[g].open = cache.open;
         self.note_texture_sources(g);
         if self.states[g].level != level_before {
+            if self.states[g].level != Level::Textured {
+                plan.moved.push(g);
+            }
             for (h, st) in self.states.iter_mut().enumerate() {
                 if h != g
                     && st.level == Level::Textured
