@@ -55,7 +55,9 @@ pub enum Event {
     },
     /// A simpler level explained this cache as well as the confirmed one: the group keeps its
     /// level and its mean of earlier fits (this cache's fit does not join it), and is demoted
-    /// if the next cache says the same ([`GroupState::doubted`]).
+    /// if the next cache says the same ([`GroupState::doubted`]). For a textured group
+    /// re-asked Algorithm 1's gate: its best uniform level passed the gate on this cache; it
+    /// keeps its texture and is asked again on the next ([`GroupState::texture_doubt`]).
     Doubted {
         level: Level,
         lower: Level,

@@ -95,6 +95,12 @@ pub struct GroupState {
     /// its next step asks Algorithm 1's gate again ([`GroupState::untexture`]).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub recheck_texture: bool,
+    /// The structure its best uniform model left when a re-ask of Algorithm 1's gate
+    /// ([`GroupState::untexture`]) last found no texture: the next re-ask, on the next cache,
+    /// pools it, and demotes the texture only if it finds none either. None once the gate
+    /// kept the texture.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub texture_doubt: Option<super::detail::Detail>,
     /// Per group of the scene, its level when this group's texture was taken or last re-asked
     /// (empty when not textured): the recovery loop re-asks the gate when a group that gives
     /// this one more than 2% of its light is now at another level, measured on this group's
@@ -170,6 +176,7 @@ impl GroupState {
             open: 0.0,
             sigma: None,
             recheck_texture: false,
+            texture_doubt: None,
             texture_sources: Vec::new(),
             texture_waiting: false,
             texture_waits: 0,
