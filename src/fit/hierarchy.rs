@@ -377,9 +377,8 @@ impl GroupState {
     /// second judged with the first's structure pooled, the group goes back to it and is
     /// analysed again from there; otherwise it says what kept the texture. After the first
     /// such cache it is doubted and asked again on the next: a faint print's structure sits
-    /// near the gate's threshold on one cache (the test interior's ±10% wallpaper, z 3.5–10),
-    /// and one cache that missed it undid a texture that lowered ε from 0.036 to 0.010, each
-    /// time a neighbour moved.
+    /// near the gate's threshold on any one cache, and one cache must not undo a texture that
+    /// several caches earned.
     fn untexture(
         &mut self,
         cache: &GroupCache,

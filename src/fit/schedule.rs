@@ -103,14 +103,13 @@ pub fn climbers(states: &[GroupState], settled: bool, opts: &HierarchyOptions) -
 
 /// Whether group `g`, not among the iteration's [`climbers`], may take a turn they leave
 /// unused. The climbers are chosen before their climbs, and a climb may find nothing to move
-/// to, or a texture, which needs no turn: on the test interior a wood floor that had waited
-/// held the turn and moved to its texture, and a table that had waited held it and was
-/// confirmed where it was, while the white paint, whose climb had earned a level, was
-/// deferred until the iterations ran out. The turn keeps two groups that light each other
-/// from changing their light at once; that holds as long as `g` is independent of every group
-/// that `moved` this iteration so far and of every climber that has not yet had its turn
-/// (`climbers_ahead`, which keep theirs; the recovery visits the climbers first, so there is
-/// none). Only once the scene has settled: before, only the gross groups climb.
+/// to, or a texture, which needs no turn; a group whose climb earned a level would otherwise
+/// wait behind them, possibly until the iterations run out. The turn keeps two groups that
+/// light each other from changing their light at once; that holds as long as `g` is
+/// independent of every group that `moved` this iteration so far and of every climber that
+/// has not yet had its turn (`climbers_ahead`, which keep theirs; the recovery visits the
+/// climbers first, so there is none). Only once the scene has settled: before, only the gross
+/// groups climb.
 pub fn takes_unused_turn(
     states: &[GroupState],
     g: usize,
