@@ -362,6 +362,8 @@ def run_scene(name, a, matfit, mi):
     with open(os.path.join(work, "floor.json"), "w") as f:
         json.dump({"floor": floor, "photo_s": photo_s, "novel_s": novel_s}, f)
     seeds = []
+    r = {"name": name, "truth": truth, "floor": floor, "seeds": seeds, "photo_s": photo_s,
+         "novel_s": novel_s, "total_s": time.perf_counter() - t0}  # --seeds 0: photos only
     for s in range(1, a.seeds + 1):
         out = os.path.join(work, f"seed{s}")
         cmd = [matfit, "recover", scene, photo, "-o", out, "--seed", str(s), "--force"]
