@@ -438,9 +438,10 @@ def rescore(name, a, matfit):
     if os.path.exists(os.path.join(work, "floor.json")):
         meta = json.load(open(os.path.join(work, "floor.json")))
     seeds = []
-    for s in range(1, 100):
+    found = [int(m.group(1)) for d in os.listdir(work) if (m := re.fullmatch(r"seed(\d+)", d))]
+    for s in sorted(found):
         if not os.path.exists(os.path.join(work, f"seed{s}", "results.json")):
-            break
+            continue
         wall = json.load(open(os.path.join(work, f"seed{s}", "results.json")))["timing"]["total_s"]
         seeds.append(score_seed(matfit, work, s, wall, truth, names, ids, true_albedo, nov1, a))
     r = {"name": name, "truth": truth, "seeds": seeds, "total_s": 0.0, **meta}
