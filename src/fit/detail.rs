@@ -25,7 +25,11 @@
 //! less), while a texture's strokes span neighbouring pixels. It is taken over the pixels where
 //! the model's diffuse term is at least its specular one: a print is a diffuse reflectance,
 //! and where a glossy surface shows a bright reflection its residual is that reflection's
-//! misfit. Reported are √c₁ as a fraction of those pixels' mean radiance, and c₁'s z-score
+//! misfit. Unless the lobe is too broad to show its surroundings at all (α ≥ [`BROAD_ALPHA`]):
+//! such a lobe spreads each reflection over more than a radian, so the residual at the texel
+//! scale is the surface's own wherever it is, and a diffuse print under a coat fitted that
+//! rough (a broad coat standing in for part of the diffuse light) is judged on every pixel.
+//! Reported are √c₁ as a fraction of those pixels' mean radiance, and c₁'s z-score
 //! against its own standard error, so a texture is tried only where the structure is both large
 //! and certain.
 //!
@@ -40,6 +44,15 @@ use crate::scene::WardVariant;
 
 /// Below this z-score the structure is not told from noise.
 pub const MIN_Z: f32 = 4.0;
+
+/// The fewest cached pixels (in the group's first view) on which texel-scale structure is
+/// judged, and a texture tried at all (`hierarchy::texture_gate`): a texture on fewer has
+/// about as many free texels as pixels, and fits whatever the pixels show.
+pub const MIN_PIXELS: usize = 16;
+
+/// A lobe at least this rough (its smaller α) reflects nothing of its surroundings at the
+/// texel scale: a GGX or Beckmann lobe of α 0.5 spreads a reflected ray over ±50°.
+pub const BROAD_ALPHA: f32 = 0.5;
 
 /// The texel-scale structure a uniform model leaves ([`uniform_detail`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -76,7 +89,8 @@ impl Detail {
     }
 }
 
-/// The detail a uniform level's model with `params` leaves on `cache`. Zero at level 7.
+/// The detail a uniform level's model with `params` leaves on `cache`. Zero at level 7, and
+/// where a texture could only paint reflections ([`reflection_holds_the_light`]).
 pub fn uniform_detail(
     cache: &GroupCache,
     level: Level,
@@ -87,14 +101,60 @@ pub fn uniform_detail(
         return Detail::default();
     }
     let (model, spec) = super::texture::uniform_parts(cache, level, params, variant);
-    detail(cache, &model, &spec, cache.width)
+    if reflection_holds_the_light(level, params, &model, &spec) {
+        return Detail::default();
+    }
+    detail(cache, &model, &spec, cache.width, broad_lobe(level, params))
 }
 
-/// The module's statistic for `model` (and its specular part `spec`) per cached pixel.
-pub fn detail(cache: &GroupCache, model: &[Rgb], spec: &[Rgb], width: usize) -> Detail {
+/// Whether the level's lobe is at least [`BROAD_ALPHA`] rough on both axes.
+fn broad_lobe(level: Level, params: &GroupParams) -> bool {
+    level.has_lobe() && params.alpha_x.min(params.alpha_y) >= BROAD_ALPHA
+}
+
+/// A uniform model whose reflection (its mirror or its lobe, `spec`) carries at least this
+/// share of the group's light in the photo is mostly reflection.
+pub const MOSTLY_REFLECTION: f32 = 0.5;
+
+/// Whether a texture could hold this uniform model's light only by painting its reflections:
+/// level 7 puts a diffuse texture under a lobe only where a Ward level earned its place
+/// (`hierarchy::climb`'s varnish); on every other level the texture is bare, and so takes the
+/// place of the model's mirror, metal lobe or coat. Where that reflection carries at least
+/// [`MOSTLY_REFLECTION`] of the group's light (`model`, `spec` per cached pixel), a bare
+/// texture fits the photo by freezing what the group reflects from this one viewpoint into
+/// reflectance: right in the photo, wrong from every other (at full resolution the interior's
+/// mirror, diffuse 0.16 under a mirror of 0.63, was replaced by a texture of the room it
+/// showed). Its residual's structure is the reflection's, and it is no texture's evidence.
+/// A lobe too broad to reflect anything at the texel scale ([`BROAD_ALPHA`]) is not such a
+/// reflection.
+pub fn reflection_holds_the_light(
+    level: Level,
+    params: &GroupParams,
+    model: &[Rgb],
+    spec: &[Rgb],
+) -> bool {
+    if level.is_ward() || !(level.is_mirror() || level.has_lobe()) || broad_lobe(level, params) {
+        return false;
+    }
+    let lum = |c: &Rgb| (c.x + c.y + c.z) as f64;
+    let total: f64 = model.iter().map(lum).sum();
+    let reflected: f64 = spec.iter().map(lum).sum();
+    total > 0.0 && reflected >= MOSTLY_REFLECTION as f64 * total
+}
+
+/// The module's statistic for `model` (and its specular part `spec`) per cached pixel;
+/// `broad_lobe`: the specular part is a lobe too rough to reflect texel-scale detail, and
+/// every pixel is judged.
+pub fn detail(
+    cache: &GroupCache,
+    model: &[Rgb],
+    spec: &[Rgb],
+    width: usize,
+    broad_lobe: bool,
+) -> Detail {
     // Neighbours are those of one image: a cache of several photos is judged on its first.
     let n = cache.first_view().len();
-    if n < 16 || width == 0 {
+    if n < MIN_PIXELS || width == 0 {
         return Detail::default();
     }
     let grid = PixelGrid::new(cache.first_view(), width);
@@ -164,7 +224,7 @@ pub fn detail(cache: &GroupCache, model: &[Rgb], spec: &[Rgb], width: usize) -> 
     // A print is a diffuse reflectance: it is judged where the diffuse term dominates. Where a
     // glossy group shows a reflection brighter than its own diffuse light, the residual is the
     // reflection's misfit (a neighbour's edge, the lobe's exact shape), whatever its scale.
-    let diffuse = |k: usize| s[k] <= m[k] - s[k];
+    let diffuse = |k: usize| broad_lobe || s[k] <= m[k] - s[k];
     let (mut cov, mut cov2, mut pairs) = (0.0f64, 0.0f64, 0usize);
     let (mut sum, mut count) = (0.0f64, 0usize);
     for k in (0..n).filter(|&k| diffuse(k)) {
@@ -319,7 +379,7 @@ mod tests {
                 (Rgb::splat(m), Rgb::splat(s))
             })
             .unzip();
-        detail(&cache_of(&photo, w), &model, &spec, w)
+        detail(&cache_of(&photo, w), &model, &spec, w, false)
     }
 
     #[test]
@@ -352,7 +412,7 @@ mod tests {
         let photo: Vec<f32> = (0..w * h)
             .map(|i| model[i].x * face(i / w).1 + 0.003 * noise(i, 5))
             .collect();
-        let d = detail(&cache_of(&photo, w), &model, &vec![Rgb::splat(0.0); w * h], w);
+        let d = detail(&cache_of(&photo, w), &model, &vec![Rgb::splat(0.0); w * h], w, false);
         assert!(!d.is_texture(0.02), "{d:?}");
     }
 
@@ -370,6 +430,65 @@ mod tests {
             m * (1.0 + 0.3 * border(x, y)) + 0.003 * noise(i, 6)
         });
         assert!(rug.is_texture(0.02), "{rug:?}");
+    }
+
+    /// A printed wall under a coat fitted at the roughest α, whose smooth sheen carries most of
+    /// the light: no pixel's diffuse term dominates, but the lobe reflects nothing at the
+    /// texel scale, so the print is judged (and found) on every pixel; a sharp lobe's
+    /// reflection keeps its pixels out.
+    #[test]
+    fn a_print_under_a_broad_dominant_coat_is_texture() {
+        let w = 64;
+        let parts = |x: f32, y: f32| {
+            let d = 0.1 + 0.001 * x;
+            (d, 0.3 + 0.002 * (x + y))
+        };
+        let print = |x: f32, y: f32| {
+            (((x + y) / 6.0 * std::f32::consts::TAU).sin()
+                * ((x - y) / 6.0 * std::f32::consts::TAU).sin())
+            .signum()
+        };
+        let (mut model, mut spec, mut photo) = (Vec::new(), Vec::new(), Vec::new());
+        for i in 0..w * w {
+            let (x, y) = ((i % w) as f32, (i / w) as f32);
+            let (d, s) = parts(x, y);
+            model.push(Rgb::splat(d + s));
+            spec.push(Rgb::splat(s));
+            photo.push(d * (1.0 + 0.3 * print(x, y)) + s + 0.002 * noise(i, 7));
+        }
+        let cache = cache_of(&photo, w);
+        let broad = detail(&cache, &model, &spec, w, true);
+        assert!(broad.is_texture(0.02), "{broad:?}");
+        let sharp = detail(&cache, &model, &spec, w, false);
+        assert!(!sharp.is_texture(0.02), "{sharp:?}");
+    }
+
+    /// A bare texture would replace a mirror's or a metal lobe's reflection, not a Ward lobe's
+    /// (level 7 varnishes the texture with it), and only where the reflection carries most of
+    /// the light.
+    #[test]
+    fn a_texture_is_no_answer_where_a_bare_one_would_paint_the_reflection() {
+        let model = vec![Rgb::splat(1.0); 8];
+        let mostly = vec![Rgb::splat(0.8); 8];
+        let little = vec![Rgb::splat(0.1); 8];
+        let p = GroupParams {
+            alpha_x: 0.1,
+            alpha_y: 0.1,
+            ..GroupParams::default()
+        };
+        for level in [Level::DiffuseSpecular, Level::Microfacet, Level::Plastic] {
+            assert!(reflection_holds_the_light(level, &p, &model, &mostly), "{level:?}");
+            assert!(!reflection_holds_the_light(level, &p, &model, &little), "{level:?}");
+        }
+        assert!(!reflection_holds_the_light(Level::Isotropic, &p, &model, &mostly));
+        assert!(!reflection_holds_the_light(Level::Diffuse, &p, &model, &mostly));
+        // A coat at the roughest α reflects nothing in particular: a print may lie under it.
+        let broad = GroupParams {
+            alpha_x: 1.0,
+            alpha_y: 1.0,
+            ..p
+        };
+        assert!(!reflection_holds_the_light(Level::Plastic, &broad, &model, &mostly));
     }
 
     #[test]

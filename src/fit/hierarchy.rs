@@ -94,7 +94,11 @@ fn restart_from_nested(
 /// texture threshold beyond its noise floor (gross: a small group's ε can reach the threshold
 /// on its cache's noise alone), or leaves texel-scale structure that only a texture explains
 /// ([`judged_detail`], this cache's with `earlier`, the same model's on the earlier caches).
-/// Returns whether, the detail judged, and whether gross.
+/// Neither where the model is mostly reflection, which a texture would only paint
+/// (`detail::reflection_holds_the_light`), nor on a group of fewer pixels than a texture
+/// could be told from a per-pixel fit on (`detail::MIN_PIXELS`; the interior's gold at half
+/// resolution, 8 pixels, missed gross and took a texture). Returns whether, the detail judged, and whether
+/// gross.
 fn texture_gate(
     cache: &GroupCache,
     best: &LevelFit,
@@ -102,7 +106,10 @@ fn texture_gate(
     variant: WardVariant,
     opts: &HierarchyOptions,
 ) -> (bool, Detail, bool) {
-    let gross = best.error - best.noise_floor >= opts.thresholds.texture_error;
+    let (model, spec) = super::texture::uniform_parts(cache, best.level, &best.params, variant);
+    let gross = best.error - best.noise_floor >= opts.thresholds.texture_error
+        && cache.first_view().len() >= super::detail::MIN_PIXELS
+        && !super::detail::reflection_holds_the_light(best.level, &best.params, &model, &spec);
     let this = uniform_detail(cache, best.level, &best.params, variant);
     let thr = opts.thresholds.texture_detail;
     let detail = judged_detail(this, earlier, best.error, best.noise_floor, thr);
@@ -1263,6 +1270,46 @@ mod tests {
             .any(|e| matches!(e, Event::TextureWaits { .. })));
         assert_eq!(st.status, Status::Confirmed, "{events:?}");
         assert!(!st.texture_waiting);
+    }
+
+    /// A group of fewer pixels than a texture can be told from a per-pixel fit on does not try
+    /// one, however far its uniform levels miss: the same patchy group with 12 pixels, gross,
+    /// keeps the gate shut.
+    #[test]
+    fn a_group_of_a_few_pixels_is_never_textured() {
+        let patchy = |n| {
+            synthetic_cache(n, 16, n.min(24), 5, |p, s| {
+                if p.tile % 2 == 0 {
+                    0.1 * diffuse(s)
+                } else {
+                    0.8 * diffuse(s)
+                }
+            })
+        };
+        let opts = HierarchyOptions::default();
+        let turn = Turn {
+            may_climb: true,
+            may_move: true,
+            texture_waits_for: Some("mirror".to_string()),
+        };
+        let gate = |n: usize| {
+            let mut st = GroupState::new("handle", Status::Analysing, GroupParams::default());
+            st.iterations_at_level = 2;
+            let events = st.step(&patchy(n), None, WardVariant::Ward1992, &opts, &turn);
+            assert!(
+                st.error - st.noise_floor >= opts.thresholds.texture_error,
+                "{n}: {events:?}"
+            );
+            events
+                .iter()
+                .find_map(|e| match e {
+                    Event::TextureGate { open, gross, .. } => Some((*open, *gross)),
+                    _ => None,
+                })
+                .expect("the gate was asked")
+        };
+        assert_eq!(gate(480), (true, true));
+        assert_eq!(gate(12), (false, false));
     }
 
     /// A climb that tried every level above the one it moved to (none earned its place) ends
