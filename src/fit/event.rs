@@ -47,6 +47,10 @@ pub enum Event {
     /// converge (their steps stopped shrinking): they move within their own noise and no
     /// longer hold the other groups back from climbing.
     Jitter { moved: f32 },
+    /// The group's parameters moved by more than the settle tolerance, and clearly less than
+    /// ever before at the level: they still converge, and the other groups wait for them
+    /// before they try higher levels (`schedule::settled`).
+    Converging { moved: f32 },
     /// The group's level is decided.
     Confirmed {
         level: Level,

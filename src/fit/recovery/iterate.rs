@@ -539,8 +539,10 @@ impl RecoveryLoop<'_> {
         for (g, m) in moves.iter().enumerate() {
             let Some(m) = *m else { continue };
             let motion = self.states[g].record_move(m, opts.settle);
-            if motion == Motion::Jittering {
-                log(&self.line(it, g, Event::Jitter { moved: m }, 0.0));
+            match motion {
+                Motion::Jittering => log(&self.line(it, g, Event::Jitter { moved: m }, 0.0)),
+                Motion::Converging => log(&self.line(it, g, Event::Converging { moved: m }, 0.0)),
+                Motion::Steady => {}
             }
             // Only its own: the light it sends the others barely changes on the way.
             if self.states[g].restarts_its_average(motion, opts.settle) {
