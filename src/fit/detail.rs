@@ -101,10 +101,22 @@ pub fn uniform_detail(
         return Detail::default();
     }
     let (model, spec) = super::texture::uniform_parts(cache, level, params, variant);
-    if reflection_holds_the_light(level, params, &model, &spec) {
+    parts_detail(cache, level, params, &model, &spec)
+}
+
+/// [`uniform_detail`] of the model's radiance `model` and its specular part `spec` per cached
+/// pixel, already computed (`texture::uniform_parts`).
+pub fn parts_detail(
+    cache: &GroupCache,
+    level: Level,
+    params: &GroupParams,
+    model: &[Rgb],
+    spec: &[Rgb],
+) -> Detail {
+    if reflection_holds_the_light(level, params, model, spec) {
         return Detail::default();
     }
-    detail(cache, &model, &spec, cache.width, broad_lobe(level, params))
+    detail(cache, model, spec, cache.width, broad_lobe(level, params))
 }
 
 /// Whether the level's lobe is at least [`BROAD_ALPHA`] rough on both axes.

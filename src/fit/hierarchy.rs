@@ -96,9 +96,8 @@ fn restart_from_nested(
 /// ([`judged_detail`], this cache's with `earlier`, the same model's on the earlier caches).
 /// Neither where the model is mostly reflection, which a texture would only paint
 /// (`detail::reflection_holds_the_light`), nor on a group of fewer pixels than a texture
-/// could be told from a per-pixel fit on (`detail::MIN_PIXELS`; the interior's gold at half
-/// resolution, 8 pixels, missed gross and took a texture). Returns whether, the detail judged, and whether
-/// gross.
+/// could be told from a per-pixel fit on (`detail::MIN_PIXELS`). Returns whether, the detail
+/// judged, and whether gross.
 fn texture_gate(
     cache: &GroupCache,
     best: &LevelFit,
@@ -110,7 +109,7 @@ fn texture_gate(
     let gross = best.error - best.noise_floor >= opts.thresholds.texture_error
         && cache.first_view().len() >= super::detail::MIN_PIXELS
         && !super::detail::reflection_holds_the_light(best.level, &best.params, &model, &spec);
-    let this = uniform_detail(cache, best.level, &best.params, variant);
+    let this = super::detail::parts_detail(cache, best.level, &best.params, &model, &spec);
     let thr = opts.thresholds.texture_detail;
     let detail = judged_detail(this, earlier, best.error, best.noise_floor, thr);
     (gross || detail.is_texture(thr), detail, gross)
