@@ -388,7 +388,15 @@ impl RunFiles {
                     ck_path.display()
                 ))
             })?;
-            if c.version != CHECKPOINT_VERSION || c.fingerprint != print {
+            if c.version != CHECKPOINT_VERSION {
+                return Err(Error::recover(format!(
+                    "cannot resume: {} was written by another version of matfit (checkpoint \
+                     format {}, this one reads {CHECKPOINT_VERSION}); run again without --resume",
+                    ck_path.display(),
+                    c.version
+                )));
+            }
+            if c.fingerprint != print {
                 return Err(Error::recover(format!(
                     "cannot resume: {} was written for another scene, photo or set of options",
                     ck_path.display()
