@@ -27,11 +27,18 @@ pub enum Event {
         #[serde(skip_serializing_if = "Option::is_none")]
         held_out: Option<[f32; 2]>,
         kept: bool,
+        /// How many caches the test pooled: this one and the earlier climbs' at the group's
+        /// level (`evidence.rs`; the texture's trials, for level 7).
+        caches: u32,
         /// Seconds spent fitting and judging this level on the cache (the log line's `seconds`
         /// is the group's whole turn: its cache build and every fit).
         #[serde(default)]
         fit_seconds: f32,
     },
+    /// No level above the current one earned its place on the caches of the group's climbs
+    /// so far, fewer than [`crate::fit::evidence::CONFIRMING_CLIMBS`]: it climbs again on the
+    /// next cache, pooled with these, before it is confirmed.
+    Inconclusive { level: Level, caches: u32 },
     /// The group moved to a new level.
     Moved { from: Level, to: Level },
     /// A higher level earned its place, but another group moves first this iteration.

@@ -143,6 +143,10 @@ pub struct GroupState {
     /// the count (`hierarchy.rs`, `fit_current`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub distribution_evidence: Option<(f64, f64, u32)>,
+    /// Every level's fit on the caches of its climbs at the current level
+    /// (`evidence::ClimbPool`): a higher level is kept or refused by their pooled evidence.
+    #[serde(default, skip_serializing_if = "super::evidence::ClimbPool::is_empty")]
+    pub climb_pool: super::evidence::ClimbPool,
     /// The texel-scale structure its uniform level left on its latest cache (`detail.rs`;
     /// None when textured, without an atlas, or not yet measured).
     #[serde(skip)]
@@ -186,6 +190,7 @@ impl GroupState {
             texture_evidence: None,
             alternatives: Vec::new(),
             distribution_evidence: None,
+            climb_pool: Default::default(),
             detail: None,
             detail_pool: Vec::new(),
         }

@@ -17,11 +17,13 @@
 //!   evaluated on the same samples, so the gain's noise is measured by evaluating it on each
 //!   half of the samples alone: |gain₀ − gain₁| / 2; and it must lower the cross-half
 //!   least-squares cost too, which Monte Carlo noise does not inflate (so a near-mirror Ward
-//!   lobe cannot beat the mirror model merely by being evaluated with less noise). Climbing
+//!   lobe cannot beat the mirror model merely by being evaluated with less noise). Both tests
+//!   pool this cache with those of the group's earlier climbs at ℓ (`evidence.rs`). Climbing
 //!   stops at the first kept level below its threshold; levels 8 and 10, which reshape a lobe,
 //!   are skipped while no specular level has been kept.
 //!        kept a higher level ──► move to it (Analysing; confirmed when its refit passes)
-//!        none earned its place ──► Confirmed at ℓ, the simplest level with the lowest error
+//!        none earned its place on 2 climbs' caches ──► Confirmed at ℓ, the simplest level with
+//!        the lowest error (on fewer: inconclusive, climb again on the next cache)
 //! ```
 //! Every fit and every level tried becomes an [`Event`] for the log.
 
@@ -175,6 +177,8 @@ struct Climb {
     /// The uniform levels above `best` tried and not kept that the photo could not tell from
     /// it ([`GroupState::alternatives`]).
     alternatives: Vec<(Level, GroupParams)>,
+    /// The climbs' evidence, this climb's fits added ([`GroupState::climb_pool`]).
+    pool: super::evidence::ClimbPool,
 }
 
 impl GroupState {
@@ -314,6 +318,13 @@ impl GroupState {
                  (--max-iterations) would let it confirm or climb",
                 self.level.name(),
                 self.iterations_at_level
+            ),
+            None if self.climb_pool.climbs > 0 => format!(
+                "no level above it earned its place on the {} cache(s) it climbed on, fewer than \
+                 the {} a refusal is pooled over; more iterations (--max-iterations) would let \
+                 it confirm or climb",
+                self.climb_pool.climbs,
+                super::evidence::CONFIRMING_CLIMBS
             ),
             None => "the rest of the scene never settled long enough for it to try the higher \
                  levels"
@@ -480,6 +491,7 @@ impl GroupState {
         self.pending_texture = None;
         self.texture_evidence = None;
         self.distribution_evidence = None;
+        self.climb_pool = Default::default();
         self.iterations_at_level = 0;
         self.moves.clear();
         self.last_step = None;
@@ -642,6 +654,8 @@ impl GroupState {
         turn: &Turn,
         events: &mut Vec<Event>,
     ) -> Climb {
+        let mut pool = self.climb_pool.clone();
+        pool.record(&fit);
         let mut best = fit.clone();
         let mut tried = vec![fit];
         // Per fit in `tried`, the noise of its gain over the level kept below it (0: the
@@ -747,6 +761,7 @@ impl GroupState {
                     gain_noise,
                     held_out: None,
                     kept,
+                    caches: pooled.2,
                     fit_seconds: started.elapsed().as_secs_f32(),
                 });
                 if kept {
@@ -766,16 +781,24 @@ impl GroupState {
                 ..best.params
             };
             let f = fit_level_above(cache, next, &start, &tried, variant);
-            let (mut earned, gain_noise) = Self::earns(&best, &f, opts);
+            // Judged on this cache pooled with the earlier climbs' at this level
+            // (`evidence.rs`): one cache's noise no longer decides.
+            pool.record(&f);
+            let p = pool
+                .gain(best.level, next)
+                .expect("both levels fitted on this cache");
+            let (mut earned, gain_noise) = (p.clear(opts.margin, opts.noise_factor), p.noise);
             // Level 10 searches its shape on a plain cost on tiles (`objective::pooled`; only
             // its last few steps subtract the noise), which trades the cache's noise for bias
             // and so can lower ε as no unbiased fit does: it must also lower the unbiased
             // cross-half cost, or it only fits the noise.
-            if next == Level::AnisotropicMicrofacet && f.cost >= best.cost {
+            if next == Level::AnisotropicMicrofacet && p.cost <= 0.0 {
                 earned = false;
             }
             let (kept, held_out) = if earned {
-                let (ok, held) = Self::predicts(cache, &best, &f, variant);
+                let (_, held) = Self::predicts(cache, &best, &f, variant);
+                pool.record_held(best.level, next, held);
+                let ok = pool.predicts(best.level, next).unwrap_or(true);
                 (ok, Some(held))
             } else {
                 (false, None)
@@ -788,6 +811,7 @@ impl GroupState {
                 gain_noise,
                 held_out,
                 kept,
+                caches: p.caches,
                 fit_seconds: started.elapsed().as_secs_f32(),
             });
             level = next;
@@ -831,6 +855,7 @@ impl GroupState {
             texture_refused,
             texture_evidence,
             alternatives,
+            pool,
         }
     }
 
@@ -853,7 +878,10 @@ impl GroupState {
             texture_refused,
             texture_evidence,
             alternatives,
+            mut pool,
         } = climb;
+        pool.finish_climb();
+        self.climb_pool = pool;
         self.alternatives = alternatives;
         self.texture_waiting = texture_waits;
         self.texture_waits += u32::from(texture_waits);
@@ -895,6 +923,7 @@ impl GroupState {
             self.texture_waits = 0;
             self.texture_evidence = None;
             self.distribution_evidence = None;
+            self.climb_pool = Default::default();
             self.iterations_at_level = 0;
             self.moves.clear();
             self.last_step = None;
@@ -917,6 +946,13 @@ impl GroupState {
                     below_threshold: false,
                 });
             }
+        } else if !texture_waits && self.climb_pool.climbs < super::evidence::CONFIRMING_CLIMBS {
+            self.waiting = 0;
+            self.pending = None;
+            events.push(Event::Inconclusive {
+                level: self.level,
+                caches: self.climb_pool.climbs,
+            });
         } else if !texture_waits {
             self.status = Status::Confirmed;
             self.waiting = 0;
@@ -1229,7 +1265,8 @@ mod tests {
     /// A group whose reflectance changes from tile to tile (no uniform level comes within the
     /// texture threshold) passes Algorithm 1's gate. Told to wait for a neighbour, it does not
     /// try level 7 and is not confirmed: it stays analysing, marked as waiting, and holds no
-    /// one back. Not told to wait, the same climb ends it (here without an atlas, confirmed).
+    /// one back. Not told to wait, the same climb ends it (here without an atlas, nothing
+    /// earns its place: inconclusive, to be confirmed by the next cache's climb).
     #[test]
     fn a_group_that_waits_for_a_neighbour_does_not_try_a_texture() {
         let patchy = synthetic_cache(480, 16, 24, 5, |p, s| {
@@ -1267,7 +1304,7 @@ mod tests {
         assert!(!events
             .iter()
             .any(|e| matches!(e, Event::TextureWaits { .. })));
-        assert_eq!(st.status, Status::Confirmed, "{events:?}");
+        assert!(events.iter().any(|e| matches!(e, Event::Inconclusive { .. })));
         assert!(!st.texture_waiting);
     }
 
@@ -1362,7 +1399,9 @@ mod tests {
         assert_eq!(st.status, Status::Analysing, "{events:?}");
     }
 
-    /// The levels a climb tried and did not keep are the kept level's alternatives (its
+    /// A climb that finds no level above is inconclusive: the group is confirmed only by a
+    /// second climb on another cache, pooled with the first (`evidence::CONFIRMING_CLIMBS`).
+    /// The levels that climb tried and did not keep are the kept level's alternatives (its
     /// albedo's model uncertainty) exactly when the gain test could not reject them either:
     /// they fitted no worse than the kept level by more than `noise_factor` times their gain's
     /// noise. A forced coat (plastic) on a matte wall fits slightly worse and is one of them.
@@ -1371,10 +1410,29 @@ mod tests {
         let opts = HierarchyOptions::default();
         // A matte wall with ±8% tile-to-tile scatter no model explains: ε stays above the
         // diffuse threshold and no level above earns its place.
-        let cache = synthetic_cache(240, 16, 24, 1, |p: &CachePixel, s| {
-            diffuse(s) * (0.5 * (1.0 + 0.08 * (p.tile as f32 * 12.9898).sin()))
-        });
-        let (st, events, tried) = climb("wall", &cache, &opts);
+        let wall = |seed: u64| {
+            synthetic_cache(240, 16, 24, seed, |p: &CachePixel, s| {
+                diffuse(s) * (0.5 * (1.0 + 0.08 * (p.tile as f32 * 12.9898).sin()))
+            })
+        };
+        let (mut st, events, _) = climb("wall", &wall(1), &opts);
+        assert_eq!((st.level, st.status), (Level::Diffuse, Status::Analysing), "{events:?}");
+        assert!(events.iter().any(|e| matches!(e, Event::Inconclusive { caches: 1, .. })));
+        let turn = Turn {
+            may_climb: true,
+            may_move: true,
+            texture_waits_for: None,
+        };
+        let events = st.step(&wall(2), None, WardVariant::Ward1992, &opts, &turn);
+        let tried: Vec<Level> = (events.iter())
+            .filter_map(|e| match e {
+                Event::Tried { level, caches, .. } => {
+                    assert_eq!(*caches, 2, "{events:?}");
+                    Some(*level)
+                }
+                _ => None,
+            })
+            .collect();
         assert_eq!((st.level, st.status), (Level::Diffuse, Status::Confirmed), "{events:?}");
         assert!(tried.contains(&Level::Plastic), "{tried:?}");
         let mut expected = Vec::new();

@@ -5,6 +5,7 @@ pub mod cache;
 pub mod detail;
 pub mod error;
 pub mod event;
+pub mod evidence;
 pub mod fitter;
 pub mod group;
 pub mod hierarchy;
