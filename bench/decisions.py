@@ -42,7 +42,9 @@ Per scene:
     uniform group's directional albedo at 0° and 60° (results.json's `albedo`, with its 1σ)
     against the true BSDF's (truth.json, from Mitsuba: `generate.py --albedos-only DIR` adds
     it to an older folder) -- the quantity every model has, matfit's or not;
-  * (e) the recovery's wall time (and results.json's timing).
+  * (e) the recovery's wall time (and results.json's timing);
+  * (f) each group's points of the novel view's L1 (its pixels in the novel camera's group
+    buffer; they add up to (a)), where any seed gives it 0.1 or more.
 Prints a markdown table per scene and writes it to --md (default OUT/DECISIONS.md).
 """
 import argparse
@@ -381,6 +383,24 @@ def run_scene(name, a, matfit, mi):
     return r
 
 
+def novel_by_group(matfit, work, img, ref, names):
+    """Each group's points of the novel view's L1: Σ|a − b| over the pixels the novel camera
+    sees it in, over Σ b of the whole image (so they add up to the novel L1). The novel
+    camera's group buffer is rendered once per scene folder. {} without gen/scene_novel.toml."""
+    scene = os.path.join(work, "gen", "scene_novel.toml")
+    if not os.path.exists(scene):
+        return {}
+    buf = os.path.join(work, "novel_group.pfm")
+    if not os.path.exists(buf):
+        run([matfit, "render", scene, "--aov", "group", "-o", buf, "--spp", "1"])
+    ids = read_pfm(buf)[..., 0].round().astype(int)
+    err = np.abs(img[..., :3] - ref[..., :3]).sum(-1)
+    total = max(float(np.abs(ref[..., :3]).sum()), 1e-30)
+    out = {g: 100.0 * float(err[ids == i].sum()) / total for i, g in enumerate(names)}
+    out["(background)"] = 100.0 * float(err[(ids < 0) | (ids >= len(names))].sum()) / total
+    return out
+
+
 def score_seed(matfit, work, s, wall, truth, names, ids, true_albedo, nov1, a):
     """Scores the recovery in work/seedS: novel view, textures, levels, coverage."""
     out = os.path.join(work, f"seed{s}")
@@ -394,6 +414,7 @@ def score_seed(matfit, work, s, wall, truth, names, ids, true_albedo, nov1, a):
              "--look-from=" + ",".join(map(str, cam["eye"])),
              "--look-at=" + ",".join(map(str, cam["target"])), "--fov", str(cam["fov"])])
     novel_l1 = l1(read_pfm(nov).astype(np.float64), nov1)
+    by_group = novel_by_group(matfit, work, read_pfm(nov).astype(np.float64), nov1, names)
     tex = {}
     for g in true_albedo:
         mask = eroded(ids == names.index(g))
@@ -408,6 +429,7 @@ def score_seed(matfit, work, s, wall, truth, names, ids, true_albedo, nov1, a):
         tex[g] = (psnr(r_, t_), psnr(r_ * gain, t_), int(mask.sum()),
                   groups.get(g, {}).get("level"), psnr(t_.mean(0), t_))
     return {"seed": s, "wall": wall, "timing": res.get("timing"), "novel": novel_l1,
+            "novel_by_group": by_group,
             "levels": {g: groups[g].get("level") for g in groups},
             "status": {g: groups[g].get("status") for g in groups},
             "tex": tex, "coverage": coverage(truth["groups"], groups),
@@ -519,6 +541,17 @@ def report(r, a):
                 cells.append("–" if v is None else f"{v[0]:.1f} / {v[1]:.1f} dB ({v[3]})")
             L.append(f"| {g} | {px} | " + ("–" if flat is None else f"{flat:.1f} dB") + " | "
                      + " | ".join(cells) + " |")
+        L.append("")
+    by_group = [s.get("novel_by_group") or {} for s in seeds]
+    worst = sorted({g for b in by_group for g in b}, key=lambda g: -max(b.get(g, 0) for b in by_group))
+    worst = [g for g in worst if max(b.get(g, 0) for b in by_group) >= 0.1]
+    if worst:
+        L.append("| novel view's L1 by group (points) | " + " | ".join(
+            f"seed {s['seed']}" for s in seeds) + " |")
+        L.append("|---|" + "---|" * n)
+        for g in worst:
+            L.append(f"| {g} | " + " | ".join(
+                f"{b[g]:.2f}" if g in b else "–" for b in by_group) + " |")
         L.append("")
     return "\n".join(L)
 
