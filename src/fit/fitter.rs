@@ -495,21 +495,54 @@ pub fn refit_level(
 }
 
 /// The minimum in ln α of a cost that is smooth and unimodal near its best point on a coarse
-/// grid: the grid, then Brent's method (parabolic steps through the three best points so far,
-/// golden-section steps where a parabola would not shrink the bracket; Brent 1973, "Algorithms
-/// for Minimization without Derivatives", ch. 5) between the best point's neighbours, to 0.01
-/// in ln α. Its first parabola passes through the grid's three points around the best. Returns
-/// ln α and the number of evaluations.
+/// grid: the grid, then Brent's method between the best point's neighbours ([`brent_about`]).
+/// Returns ln α and the number of evaluations.
+#[cfg(test)]
 fn scan_then_brent(cost: impl Fn(f64) -> f64) -> (f64, u32) {
-    let grid: Vec<f64> = [0.01f64, 0.02, 0.04, 0.07, 0.12, 0.2, 0.35, 0.6, 1.0]
-        .iter()
-        .map(|a| a.ln())
-        .collect();
-    let costs: Vec<f64> = grid.iter().map(|&x| cost(x)).collect();
+    let (ends, evals) = scan_then_brent_ends(|x| {
+        let c = cost(x);
+        (c, c as f32)
+    });
+    (ends[0], evals)
+}
+
+/// The roughness grid of the one-α searches.
+const ALPHA_GRID: [f64; 9] = [0.01, 0.02, 0.04, 0.07, 0.12, 0.2, 0.35, 0.6, 1.0];
+
+/// [`scan_then_brent`] of `cost_and_error(ln α) = (cost, ε)`: the cost's minimum about the
+/// grid point of least cost and, where another grid point has the least ε, its minimum about
+/// that one too (the caller keeps the end of lower ε; see the one-α levels in [`fit_shape`]).
+fn scan_then_brent_ends(cost_and_error: impl Fn(f64) -> (f64, f32)) -> (Vec<f64>, u32) {
+    let grid: Vec<f64> = ALPHA_GRID.iter().map(|a| a.ln()).collect();
+    let scanned: Vec<(f64, f32)> = grid.iter().map(|&x| cost_and_error(x)).collect();
+    let costs: Vec<f64> = scanned.iter().map(|c| c.0).collect();
     let mut evals = grid.len() as u32;
-    let k = (0..grid.len())
-        .min_by(|&i, &j| costs[i].total_cmp(&costs[j]))
-        .unwrap_or(0);
+    let least = |key: &dyn Fn(usize) -> f64| {
+        (0..grid.len())
+            .min_by(|&i, &j| key(i).total_cmp(&key(j)))
+            .unwrap_or(0)
+    };
+    let by_cost = least(&|i| costs[i]);
+    let by_error = least(&|i| scanned[i].1 as f64);
+    let mut ends = Vec::new();
+    for k in [by_cost, by_error] {
+        if k == by_cost && !ends.is_empty() {
+            break;
+        }
+        let (x, n) = brent_about(|x| cost_and_error(x).0, &grid, &costs, k);
+        evals += n;
+        ends.push(x);
+    }
+    (ends, evals)
+}
+
+/// Brent's method (parabolic steps through the three best points so far, golden-section steps
+/// where a parabola would not shrink the bracket; Brent 1973, "Algorithms for Minimization
+/// without Derivatives", ch. 5) on `cost` between grid point `k`'s neighbours, to 0.01 in ln α,
+/// `costs` the grid's. Its first parabola passes through the grid's three points around `k`.
+/// Returns ln α and the number of evaluations.
+fn brent_about(cost: impl Fn(f64) -> f64, grid: &[f64], costs: &[f64], k: usize) -> (f64, u32) {
+    let mut evals = 0;
     let (lo, hi) = (k.saturating_sub(1), (k + 1).min(grid.len() - 1));
     let (mut a, mut b) = (grid[lo], grid[hi]);
     // x the best point so far, w the second best, v the previous w: here the neighbours.
@@ -738,12 +771,20 @@ fn fit_shape(
             // isotropic Ward lobe's ∂S/∂ln α is the sum of its two axes'; the microfacet
             // lobe's is its only one. The microfacet level tries both distributions (the same
             // parameters) and keeps the one of lower cost.
+            //
+            // LM descends from the scan's best point by the cross-half cost and, where another
+            // point is best by ε, from that one too; ε chooses between the two ends. The
+            // per-pixel cost of a lobe much narrower than the cache's directions are spaced is
+            // biased low (a few spiky samples carry it: `objective::pooled`), so on a
+            // near-mirror its lowest point on the scan can lie in a basin of its own at the
+            // sharp end, far from the photo's lobe, and a climb that descended only from there
+            // found the level worse than the mirror below it.
             let distributions = match level {
                 Level::Microfacet => distributions,
                 _ => &[Distribution::Ggx],
             };
             let mut evals = 0;
-            let mut fitted: Option<(Spec, f64)> = None;
+            let mut fitted: Option<(LevelFit, f64)> = None;
             for &distribution in distributions {
                 let lobe = |a: f32| match level {
                     Level::Isotropic => Spec::Lobe {
@@ -756,46 +797,67 @@ fn fit_shape(
                         distribution,
                     },
                 };
-                let mut best = (f64::INFINITY, start.alpha_x.clamp(alpha.min, alpha.max));
+                let first = start.alpha_x.clamp(alpha.min, alpha.max);
+                let mut by_cost = (f64::INFINITY, first);
+                let mut by_error = (f32::INFINITY, first);
                 for a in [start.alpha_x, 0.01, 0.02, 0.04, 0.07, 0.12, 0.2, 0.35, 0.6] {
                     let a = a.clamp(alpha.min, alpha.max);
                     let specs = pixel_specs(cache, lobe(a), variant, false);
-                    let cost = project_rho(cache, &specs, free).2;
+                    let (rd, rs, cost) = project_rho(cache, &specs, free);
                     evals += 1;
-                    if cost < best.0 {
-                        best = (cost, a);
+                    if cost < by_cost.0 {
+                        by_cost = (cost, a);
+                    }
+                    let e = error(cache, &specs, rd, rs).error;
+                    if e < by_error.0 {
+                        by_error = (e, a);
                     }
                 }
-                let (x, cost, n) = levenberg_marquardt(
-                    [(best.1 as f64).ln()],
-                    |x| {
-                        linearise(
-                            cache,
-                            variant,
-                            x,
-                            |x| lobe(x[0].exp() as f32),
-                            |d| match level {
-                                Level::Isotropic => [d[0] + d[1]],
-                                _ => [d[0]],
-                            },
-                            Pool::Pixels,
-                            free,
-                        )
-                    },
-                    |x| [x[0].clamp(ln_lo, ln_hi)],
-                    40,
-                );
-                evals += n;
-                if fitted.is_none_or(|f| cost < f.1) {
-                    fitted = Some((lobe(x[0].exp() as f32), cost));
+                // This distribution's end of lower ε.
+                let mut ends: Option<(LevelFit, f64)> = None;
+                for a0 in [by_cost.1, by_error.1] {
+                    if ends.is_some() && a0 == by_cost.1 {
+                        break;
+                    }
+                    let (x, cost, n) = levenberg_marquardt(
+                        [(a0 as f64).ln()],
+                        |x| {
+                            linearise(
+                                cache,
+                                variant,
+                                x,
+                                |x| lobe(x[0].exp() as f32),
+                                |d| match level {
+                                    Level::Isotropic => [d[0] + d[1]],
+                                    _ => [d[0]],
+                                },
+                                Pool::Pixels,
+                                free,
+                            )
+                        },
+                        |x| [x[0].clamp(ln_lo, ln_hi)],
+                        40,
+                    );
+                    evals += n + 1;
+                    let f = finish(cache, level, lobe(x[0].exp() as f32), free, *start, variant, 0);
+                    if ends.as_ref().is_none_or(|(b, _)| f.error < b.error) {
+                        ends = Some((f, cost));
+                    }
+                }
+                // Of the two distributions, the one of lower cost.
+                let end = ends.expect("one start");
+                if fitted.as_ref().is_none_or(|(_, c)| end.1 < *c) {
+                    fitted = Some(end);
                 }
             }
-            let spec = fitted.expect("a distribution").0;
-            finish(cache, level, spec, free, *start, variant, evals)
+            let mut f = fitted.expect("a distribution").0;
+            f.evals = evals;
+            f
         }
         Level::Plastic => {
             // The coat's α moves its diffuse term too (through the transmittance), which the
-            // Ward-style Jacobian does not carry: [`scan_then_brent`] of the cost. Both
+            // Ward-style Jacobian does not carry: [`scan_then_brent_ends`] of the cost, from
+            // the scan's points of least cost and of least ε, as level 8's two starts. Both
             // distributions, as level 8, but the one of lower ε is kept, not of lower cost: a
             // nearly smooth coat's α can collapse to the bound, where the per-pixel cost is
             // biased low (see `objective::pooled`), and a second distribution gives it a second
@@ -809,23 +871,19 @@ fn fit_shape(
                     eta,
                     distribution,
                 };
-                let (x, n) = scan_then_brent(|ln_a| {
+                let free = Free::Both(level.rho_bound());
+                let (ends, n) = scan_then_brent_ends(|ln_a| {
                     let specs = pixel_specs(cache, coat(ln_a), variant, false);
-                    project_rho(cache, &specs, Free::Both(level.rho_bound())).2
+                    let (rd, rs, cost) = project_rho(cache, &specs, free);
+                    (cost, error(cache, &specs, rd, rs).error)
                 });
                 evals += n;
-                let f = finish(
-                    cache,
-                    level,
-                    coat(x),
-                    Free::Both(level.rho_bound()),
-                    *start,
-                    variant,
-                    evals + 1,
-                );
-                evals = f.evals;
-                if fitted.as_ref().is_none_or(|b| f.error < b.error) {
-                    fitted = Some(f);
+                for x in ends {
+                    let f = finish(cache, level, coat(x), free, *start, variant, evals + 1);
+                    evals = f.evals;
+                    if fitted.as_ref().is_none_or(|b| f.error < b.error) {
+                        fitted = Some(f);
+                    }
                 }
             }
             let mut f = fitted.expect("a distribution");
@@ -1021,6 +1079,29 @@ mod tests {
             assert!((x - t).abs() < 0.01, "{truth}: {} vs {t}", x);
             assert!(evals <= max_evals, "{truth}: {evals} evaluations");
         }
+    }
+
+    /// Where the grid's point of least cost and its point of least ε lie in different basins
+    /// of the cost (a spike basin at the sharp end, the photo's lobe further up), both basins'
+    /// minima are returned, the cost's first; where they agree, one.
+    #[test]
+    fn scan_then_brent_ends_returns_the_minimum_of_each_basin_the_scan_points_to() {
+        let (spike, lobe) = (0.012f64.ln(), 0.15f64.ln());
+        // Two wells: a narrow deep one at the spike and a broad one at the lobe.
+        let cost = |x: f64| {
+            let w1 = -3.0 * (-((x - spike) / 0.4).powi(2)).exp();
+            let w2 = -2.0 * (-((x - lobe) / 0.8).powi(2)).exp();
+            w1 + w2
+        };
+        let error = |x: f64| ((x - lobe).powi(2) * 0.1 + 0.05) as f32;
+        let (ends, evals) = scan_then_brent_ends(|x| (cost(x), error(x)));
+        assert_eq!(ends.len(), 2, "{ends:?}");
+        assert!((ends[0] - spike).abs() < 0.05, "{ends:?} vs {spike}");
+        assert!((ends[1] - lobe).abs() < 0.05, "{ends:?} vs {lobe}");
+        assert!(evals <= 40, "{evals}");
+        let (one, _) = scan_then_brent_ends(|x| (cost(x), cost(x) as f32));
+        assert_eq!(one.len(), 1);
+        assert!((one[0] - spike).abs() < 0.05, "{one:?}");
     }
 
     /// Every pair of nested levels: the lower level's optimum written as the higher level's
