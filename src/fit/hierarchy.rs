@@ -1132,7 +1132,7 @@ mod tests {
         };
         assert_eq!(fit.level, Level::Anisotropic);
         let at_truth = assess(&c, Level::Anisotropic, &truth, v, 0).error;
-        assert!(at_truth < 0.5 * iso.error, "{at_truth} vs {}", iso.error);
+        assert!(at_truth < 0.7 * iso.error, "{at_truth} vs {}", iso.error);
         // The previous answer is kept unless the restarted search fits better still.
         assert!(fit.error <= at_truth, "{} vs {at_truth}", fit.error);
         assert_eq!(previous_kept, fit.error == at_truth);
@@ -1156,7 +1156,7 @@ mod tests {
         );
         assert_eq!(refit.level, Level::Anisotropic);
         assert!(
-            refit.error < 0.5 * iso.error,
+            refit.error < 0.7 * iso.error,
             "{} vs {}",
             refit.error,
             iso.error
