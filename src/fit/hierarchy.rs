@@ -897,8 +897,10 @@ impl GroupState {
         // (its neighbours see nearly the same light), while the neighbours whose missing light
         // it could take have been waited for already (`Turn::texture_waits_for`). Among many
         // groups that light each other the turn came too rarely for a printed wall to get it.
-        let waits_for_turn = best.level != Level::Textured;
-        if best.level != self.level && !turn.may_move && waits_for_turn {
+        // In the run's last iterations no group moves to a uniform level
+        // (`schedule::CLOSING`).
+        let waits = (!turn.may_move || turn.closing) && best.level != Level::Textured;
+        if best.level != self.level && waits {
             self.waiting += 1;
             self.pending = Some(best.level);
             if texture.is_some() {
@@ -991,6 +993,7 @@ mod tests {
             may_climb: true,
             may_move: true,
             texture_waits_for: None,
+            closing: false,
         };
         let events = st.step(c, None, WardVariant::Ward1992, opts, &turn);
         let tried = events
@@ -1221,6 +1224,7 @@ mod tests {
             may_climb: true,
             may_move: true,
             texture_waits_for: None,
+            closing: false,
         };
         let step = |st: &mut GroupState, c: &GroupCache| st.step(c, None, v, &opts, &turn);
         let doubted = |e: &[Event]| e.iter().any(|e| matches!(e, Event::Doubted { .. }));
@@ -1284,6 +1288,7 @@ mod tests {
                 may_climb: true,
                 may_move: true,
                 texture_waits_for: waits.map(str::to_string),
+                closing: false,
             };
             let events = st.step(&patchy, None, WardVariant::Ward1992, &opts, &turn);
             (st, events)
@@ -1327,6 +1332,7 @@ mod tests {
             may_climb: true,
             may_move: true,
             texture_waits_for: Some("mirror".to_string()),
+            closing: false,
         };
         let gate = |n: usize| {
             let mut st = GroupState::new("handle", Status::Analysing, GroupParams::default());
@@ -1382,6 +1388,38 @@ mod tests {
         assert_eq!(st.status, Status::Analysing, "{events:?}");
     }
 
+    /// In a run's last iterations (`schedule::CLOSING`) a climb that finds a better uniform
+    /// level does not move there, even in its turn: the group waits with the level pending, and
+    /// is decided at the end with a reason that says so. Before them, the same climb moves.
+    #[test]
+    fn no_group_moves_in_the_closing_iterations() {
+        let opts = HierarchyOptions::default();
+        let c = synthetic_cache(480, 384, 24, 7, |_, s: &[(Vec3, Vec3, Rgb)]| {
+            let lobe: Rgb = (s.iter())
+                .map(|&(wo, wi, c)| c * ward(wo, wi, 0.2))
+                .fold(Rgb::ZERO, |a, b| a + b);
+            0.5 * diffuse(s) + 0.4 * lobe
+        });
+        let (open, events, _) = climb("block", &c, &opts);
+        assert_eq!(open.level, Level::Isotropic, "{events:?}");
+        let mut st = GroupState::new("block", Status::Analysing, GroupParams::default());
+        st.iterations_at_level = 2;
+        let turn = Turn {
+            may_climb: true,
+            may_move: true,
+            texture_waits_for: None,
+            closing: true,
+        };
+        let events = st.step(&c, None, WardVariant::Ward1992, &opts, &turn);
+        assert_eq!(st.level, Level::Diffuse, "{events:?}");
+        assert!(events.iter().any(|e| matches!(e, Event::Deferred { to: Level::Isotropic })));
+        let decided = st.decide_at_end(&opts, 16);
+        let Some(Event::Decided { reason, .. }) = decided else {
+            panic!("{decided:?}");
+        };
+        assert!(reason.contains("isotropic") && reason.contains("--max-iterations"), "{reason}");
+    }
+
     /// A mirror is not confirmed at its move, even by a climb that tried every level above:
     /// a confirmed mirror lends its ρs to the textures it shows, so the ρs must settle first.
     #[test]
@@ -1422,6 +1460,7 @@ mod tests {
             may_climb: true,
             may_move: true,
             texture_waits_for: None,
+            closing: false,
         };
         let events = st.step(&wall(2), None, WardVariant::Ward1992, &opts, &turn);
         let tried: Vec<Level> = (events.iter())

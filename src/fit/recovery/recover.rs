@@ -241,6 +241,7 @@ emission = 5.0
                         may_climb: true,
                         may_move: true,
                         texture_waits_for: None,
+                        closing: false,
                     },
                 );
                 let p = st.params;
