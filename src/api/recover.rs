@@ -601,6 +601,7 @@ fn quick_fit_poses(
     quick.first_pixels = quick.first_pixels.min(QUICK_PIXELS);
     quick.final_spp = Some(2);
     quick.hierarchy.gross_climbs = false;
+    quick.closing = 0;
     let rec = crate::fit::recover_resumable(
         &through[0],
         &prepared[0].photo,

@@ -356,7 +356,7 @@ impl RecoveryLoop<'_> {
         // A held group waits as for a neighbour: it is neither textured nor confirmed at a
         // uniform level that Algorithm 1's gate says is not enough.
         let held = plan.hold_textures.then(|| STRAY_LIGHT.to_string());
-        let closing = it + schedule::CLOSING >= opts.max_iterations;
+        let closing = it + opts.closing >= opts.max_iterations;
         let turn = schedule::Turn {
             may_climb: self.may_climb(g, plan),
             may_move: plan.climbers.contains(&g)

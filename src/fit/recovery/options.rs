@@ -66,6 +66,11 @@ pub struct RecoverOptions {
     pub settle: f32,
     /// Do not stop before every confirmed group has averaged this many independent fits.
     pub min_average: u32,
+    /// No group moves to a uniform level in this many last iterations
+    /// ([`crate::fit::schedule::CLOSING`]); 0 for the quick fits that shade the model for the
+    /// pose's refinement, whose materials are not an answer.
+    #[serde(default = "closing")]
+    pub closing: u32,
     /// Diffuse reflectance given to groups with no usable pixels when `unseen.enabled` is false
     /// (the notes: white).
     pub default_rho_d: f32,
@@ -113,6 +118,10 @@ fn yes() -> bool {
     true
 }
 
+fn closing() -> u32 {
+    crate::fit::schedule::CLOSING
+}
+
 impl Default for RecoverOptions {
     fn default() -> Self {
         RecoverOptions {
@@ -122,6 +131,7 @@ impl Default for RecoverOptions {
             tolerance: 5e-3,
             settle: 0.03,
             min_average: 4,
+            closing: closing(),
             default_rho_d: 1.0,
             unseen: Default::default(),
             first_pixels: 1500,
