@@ -987,13 +987,23 @@ mod tests {
         c: &GroupCache,
         opts: &HierarchyOptions,
     ) -> (GroupState, Vec<Event>, Vec<Level>) {
+        climb_in(name, c, opts, false)
+    }
+
+    /// [`climb`], in a run's closing iterations if `closing`.
+    fn climb_in(
+        name: &str,
+        c: &GroupCache,
+        opts: &HierarchyOptions,
+        closing: bool,
+    ) -> (GroupState, Vec<Event>, Vec<Level>) {
         let mut st = GroupState::new(name, Status::Analysing, GroupParams::default());
         st.iterations_at_level = 2;
         let turn = Turn {
             may_climb: true,
             may_move: true,
             texture_waits_for: None,
-            closing: false,
+            closing,
         };
         let events = st.step(c, None, WardVariant::Ward1992, opts, &turn);
         let tried = events
@@ -1402,15 +1412,7 @@ mod tests {
         });
         let (open, events, _) = climb("block", &c, &opts);
         assert_eq!(open.level, Level::Isotropic, "{events:?}");
-        let mut st = GroupState::new("block", Status::Analysing, GroupParams::default());
-        st.iterations_at_level = 2;
-        let turn = Turn {
-            may_climb: true,
-            may_move: true,
-            texture_waits_for: None,
-            closing: true,
-        };
-        let events = st.step(&c, None, WardVariant::Ward1992, &opts, &turn);
+        let (mut st, events, _) = climb_in("block", &c, &opts, true);
         assert_eq!(st.level, Level::Diffuse, "{events:?}");
         assert!(events.iter().any(|e| matches!(e, Event::Deferred { to: Level::Isotropic })));
         let decided = st.decide_at_end(&opts, 16);

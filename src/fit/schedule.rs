@@ -135,13 +135,10 @@ pub struct Turn {
 /// The last iterations of a run, in which no group moves to a uniform level. A move is checked
 /// on the caches after it: a confirmed level is demoted when two caches in a row find a simpler
 /// one as good, and its parameters are the mean of its fits. A move in the last two iterations
-/// is checked by neither, and its one or two fits become the answer: on the measured-BRDF room a
-/// blended sphere that had been diffuse + mirror for four iterations took a plastic coat of
-/// ρs 0.5 at iteration 14 of 16, on one cache. A texture still may: it keeps its group's mean
-/// reflectance, so the light its neighbours see, and its trial pools the evidence of the
-/// earlier ones (on the test interior the wood floor's texture, found that late in two seeds
-/// of five, was worth a point of the new view's error). Where a group found a level too late,
-/// `decided` says so and that more iterations would let it move.
+/// is checked by neither, and its one or two fits would become the answer. A texture still may:
+/// it keeps its group's mean reflectance, so the light its neighbours see, and its trial pools
+/// the evidence of the earlier ones. Where a group found a level too late, `decided` says so
+/// and that more iterations would let it move.
 pub const CLOSING: u32 = 2;
 
 /// How many climbs a group's texture waits for its neighbours at most ([`texture_waits_for`])
