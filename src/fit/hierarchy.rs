@@ -689,11 +689,25 @@ impl GroupState {
                 continue;
             }
             if next == Level::Textured {
-                let (open, d, gross) =
-                    texture_gate(cache, &best, &self.detail_at(best.level), variant, opts);
+                // Judged against the uniform fit of least ε the climb made, kept or not: what
+                // a uniform model explains is misfit, not a print. (A rough paint whose plastic
+                // fit missed significance by a little leaves no structure; the Ward lobe kept
+                // below it leaves its shading misfit, which a texture would absorb.)
+                let closest = std::iter::once(&best)
+                    .chain(&tried)
+                    .min_by(|a, b| a.error.total_cmp(&b.error))
+                    .expect("the current level's fit")
+                    .clone();
+                let (open, d, gross) = texture_gate(
+                    cache,
+                    &closest,
+                    &self.detail_at(closest.level),
+                    variant,
+                    opts,
+                );
                 events.push(Event::TextureGate {
                     open,
-                    level: best.level,
+                    level: closest.level,
                     gross,
                     detail: d.rms,
                     z: d.z,
@@ -745,17 +759,17 @@ impl GroupState {
                 };
                 // Pooled with the earlier trials from this level: a faint print's gain can
                 // sit just under its noise on one cache and clear it on two together.
-                let (single, gain_noise) = Self::earns(&best, &f, opts);
-                let gain = best.error - f.error;
+                let (single, gain_noise) = Self::earns(&closest, &f, opts);
+                let gain = closest.error - f.error;
                 let (g, v, n) = self.texture_evidence.unwrap_or((0.0, 0.0, 0));
                 let pooled = (g + gain, v + gain_noise * gain_noise, n + 1);
                 let kept = single
-                    || gain > opts.margin * best.error
+                    || gain > opts.margin * closest.error
                         && pooled.0 > opts.noise_factor * pooled.1.sqrt();
                 texture_evidence = Some(pooled);
                 events.push(Event::Tried {
                     level: next,
-                    error_before: best.error,
+                    error_before: closest.error,
                     error_after: f.error,
                     noise_floor: f.noise_floor,
                     gain_noise,
@@ -767,7 +781,7 @@ impl GroupState {
                 if kept {
                     best = f;
                     texture = Some(t);
-                } else if gain <= opts.margin * best.error || pooled.2 >= TEXTURE_TRIALS {
+                } else if gain <= opts.margin * closest.error || pooled.2 >= TEXTURE_TRIALS {
                     texture_refused = true;
                 }
                 break;
@@ -1321,6 +1335,41 @@ mod tests {
             .any(|e| matches!(e, Event::TextureWaits { .. })));
         assert!(events.iter().any(|e| matches!(e, Event::Inconclusive { .. })));
         assert!(!st.texture_waiting);
+    }
+
+    /// The texture gate judges the uniform fit of least ε the climb made, not the level it
+    /// kept: on the patchy group the levels above Lambert lower ε by less than their bars
+    /// and are not kept, and the gate is asked of the best of them.
+    #[test]
+    fn the_texture_gate_judges_the_closest_uniform_fit() {
+        let patchy = synthetic_cache(480, 16, 24, 5, |p, s| {
+            if p.tile % 2 == 0 {
+                0.1 * diffuse(s)
+            } else {
+                0.8 * diffuse(s)
+            }
+        });
+        let (st, events, _) = climb("poster", &patchy, &HierarchyOptions::default());
+        let mut fits: Vec<(Level, f32)> = events
+            .iter()
+            .filter_map(|e| match e {
+                Event::Fit { level, error, .. } => Some((*level, *error)),
+                Event::Tried {
+                    level, error_after, ..
+                } => Some((*level, *error_after)),
+                _ => None,
+            })
+            .collect();
+        fits.sort_by(|a, b| a.1.total_cmp(&b.1));
+        let gate = events
+            .iter()
+            .find_map(|e| match e {
+                Event::TextureGate { level, .. } => Some(*level),
+                _ => None,
+            })
+            .expect("the gate was asked");
+        assert_ne!(fits[0].0, st.level, "premise: a level not kept fits best: {fits:?}");
+        assert_eq!(gate, fits[0].0, "{events:?}");
     }
 
     /// A group of fewer pixels than a texture can be told from a per-pixel fit on does not try
