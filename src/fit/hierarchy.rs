@@ -95,9 +95,9 @@ fn restart_from_nested(
 /// Algorithm 1's gate on a group's best uniform model: it tries a texture if it misses by the
 /// texture threshold beyond its noise floor (gross: a small group's ε can reach the threshold
 /// on its cache's noise alone), or leaves texel-scale structure that only a texture explains
-/// ([`judged_detail`], this cache's with `earlier`, the same model's on the earlier caches)
-/// while it misses by more than its noise ([`DETAIL_GATE_NOISE`]). Neither where the model is mostly reflection, which a texture would only paint
-/// (`detail::reflection_holds_the_light`), nor on a group of fewer pixels than a texture
+/// ([`judged_detail`], this cache's with `earlier`, the same model's on the earlier caches;
+/// [`detail_opens`]). Neither where the model is mostly reflection, which a texture would only
+/// paint (`detail::reflection_holds_the_light`), nor on a group of fewer pixels than a texture
 /// could be told from a per-pixel fit on (`detail::MIN_PIXELS`). Returns whether, the detail
 /// judged, and whether gross.
 fn texture_gate(
@@ -114,26 +114,24 @@ fn texture_gate(
     let this = super::detail::parts_detail(cache, best.level, &best.params, &model, &spec);
     let thr = opts.thresholds.texture_detail;
     let detail = judged_detail(this, earlier, best.error, best.noise_floor, thr);
-    let counts = detail_counts(&detail, best.error, best.noise_floor);
-    (gross || counts && detail.is_texture(thr), detail, gross)
+    let opens = detail_opens(&detail, best.error, best.noise_floor, thr);
+    (gross || opens, detail, gross)
 }
 
-/// Whether texel-scale structure `d` may open the gate (or reopen a confirmed group) for a
-/// uniform fit of ε `error` over `noise_floor`: where the fit misses by more than its noise
-/// ([`DETAIL_GATE_NOISE`]), or where the structure is twice as certain as the gate asks
-/// elsewhere (z ≥ 2 × `detail::MIN_Z`).
-fn detail_counts(d: &Detail, error: f32, noise_floor: f32) -> bool {
-    error >= DETAIL_GATE_NOISE * noise_floor || d.z >= 2.0 * super::detail::MIN_Z
+/// Whether texel-scale structure `d` opens the gate (or reopens a confirmed group) for a
+/// uniform fit of ε `error` over `noise_floor`: it is a texture's (`threshold`), and the fit
+/// misses by more than its noise ([`DETAIL_GATE_NOISE`]) or the structure is twice as certain
+/// as the gate asks elsewhere (z ≥ 2 × `detail::MIN_Z`).
+fn detail_opens(d: &Detail, error: f32, noise_floor: f32, threshold: f32) -> bool {
+    d.is_texture(threshold)
+        && (error >= DETAIL_GATE_NOISE * noise_floor || d.z >= 2.0 * super::detail::MIN_Z)
 }
 
 /// How far above its noise floor a uniform fit's ε must be for structure of the usual
-/// certainty to open the gate ([`detail_counts`]). At its noise floor the residual is mostly
+/// certainty to open the gate ([`detail_opens`]). At its noise floor the residual is mostly
 /// the caches' noise, whose heavy tails (a few bright samples) the z-score's standard error
-/// understates: a measured plastic fitted by level 9 at ε 0.81–1.22 × its floor showed
-/// structure of z 4.0–5.1, then took a texture of three texels per pixel that fitted below
-/// the floor. A real print there is far more certain (the ±10% wallpaper of
-/// `tests/texture.rs`, whose tiled ε hardly sees it: z 21); the test interior's prints, the
-/// faintest a ±10% paper at half resolution, miss by 1.8 × their floor or more.
+/// understates, and a texture fitted there takes that noise for a print. A real print seen
+/// at the floor (one the tiled ε hardly sees) is far more certain than the usual bar.
 const DETAIL_GATE_NOISE: f32 = 1.5;
 
 /// The texel-scale structure a uniform model's texture decisions go by (the gate, a confirmed
@@ -480,8 +478,7 @@ impl GroupState {
         if self.status != Status::Confirmed
             || self.level == Level::Textured
             || self.texture_refused == Some(self.level)
-            || !d.is_texture(opts.thresholds.texture_detail)
-            || !detail_counts(&d, self.error, self.noise_floor)
+            || !detail_opens(&d, self.error, self.noise_floor, thr)
         {
             return None;
         }
