@@ -22,7 +22,11 @@
 //! part of it (a rug's border). The statistic is the covariance c₁ of neighbouring pixels'
 //! remaining residuals (horizontal and vertical pairs):
 //! independent per-pixel noise (the photo's, the cache's) contributes nothing to it (slightly
-//! less), while a texture's strokes span neighbouring pixels. It is taken over the pixels where
+//! less), while a texture's strokes span neighbouring pixels. A pixel whose cache holds a
+//! spike (a few bright samples in one half of its paths) is judged on its other half
+//! ([`despike`]). Before the model's features, what the surface's shape explains is regressed
+//! out over the whole group: its normal, how far the normal turns from its neighbours' and
+//! within the pixel, alone and times the model's light (a bevel, a groove between faces). It is taken over the pixels where
 //! the model's diffuse term is at least its specular one: a print is a diffuse reflectance,
 //! and where a glossy surface shows a bright reflection its residual is that reflection's
 //! misfit. Unless the lobe is too broad to show its surroundings at all (α ≥ [`BROAD_ALPHA`]):
@@ -39,6 +43,7 @@
 use super::cache::{GroupCache, PixelGrid};
 use super::level::Level;
 use super::params::GroupParams;
+use super::texture::UniformParts;
 use crate::math::Rgb;
 use crate::scene::WardVariant;
 
@@ -100,23 +105,24 @@ pub fn uniform_detail(
     if level == Level::Textured {
         return Detail::default();
     }
-    let (model, spec) = super::texture::uniform_parts(cache, level, params, variant);
-    parts_detail(cache, level, params, &model, &spec)
+    let parts = super::texture::uniform_parts(cache, level, params, variant);
+    parts_detail(cache, level, params, &parts)
 }
 
-/// [`uniform_detail`] of the model's radiance `model` and its specular part `spec` per cached
-/// pixel, already computed (`texture::uniform_parts`).
+/// [`uniform_detail`] of the model's parts per cached pixel, already computed
+/// (`texture::uniform_parts`).
 pub fn parts_detail(
     cache: &GroupCache,
     level: Level,
     params: &GroupParams,
-    model: &[Rgb],
-    spec: &[Rgb],
+    parts: &UniformParts,
 ) -> Detail {
-    if reflection_holds_the_light(level, params, model, spec) {
+    if reflection_holds_the_light(level, params, &parts.model, &parts.spec) {
         return Detail::default();
     }
-    detail(cache, model, spec, cache.width, broad_lobe(level, params))
+    let halves = [&parts.halves[0][..], &parts.halves[1][..]];
+    let broad = broad_lobe(level, params);
+    detail(cache, &parts.model, halves, &parts.spec, cache.width, broad)
 }
 
 /// Whether the level's lobe is at least [`BROAD_ALPHA`] rough on both axes.
@@ -154,12 +160,14 @@ pub fn reflection_holds_the_light(
     total > 0.0 && reflected >= MOSTLY_REFLECTION as f64 * total
 }
 
-/// The module's statistic for `model` (and its specular part `spec`) per cached pixel;
-/// `broad_lobe`: the specular part is a lobe too rough to reflect texel-scale detail, and
-/// every pixel is judged.
+/// The module's statistic for `model` (and its specular part `spec`) per cached pixel, whose
+/// estimates from each half of the pixel's samples alone are `halves` (for [`despike`]);
+/// `broad_lobe`: the specular part is a lobe too rough to reflect texel-scale detail, and every
+/// pixel is judged.
 pub fn detail(
     cache: &GroupCache,
     model: &[Rgb],
+    halves: [&[Rgb]; 2],
     spec: &[Rgb],
     width: usize,
     broad_lobe: bool,
@@ -171,11 +179,15 @@ pub fn detail(
     }
     let grid = PixelGrid::new(cache.first_view(), width);
     let lum = |c: Rgb| (c.x + c.y + c.z) / 3.0;
-    let e: Vec<f32> = (0..n)
-        .map(|k| lum(cache.pixels[k].photo - model[k]))
-        .collect();
-    let m: Vec<f32> = model[..n].iter().map(|&c| lum(c)).collect();
-    let s: Vec<f32> = spec[..n].iter().map(|&c| lum(c)).collect();
+    let mut m: Vec<f32> = model[..n].iter().map(|&c| lum(c)).collect();
+    let mut s: Vec<f32> = spec[..n].iter().map(|&c| lum(c)).collect();
+    let mut h = halves.map(|h| h[..n].iter().map(|&c| lum(c)).collect::<Vec<f32>>());
+    despike(&mut m, &mut s, &mut h);
+    let residual = |model: &[f32]| -> Vec<f32> {
+        (0..n)
+            .map(|k| lum(cache.pixels[k].photo) - model[k])
+            .collect()
+    };
     let high_pass = |v: &[f32]| -> Vec<f32> {
         (0..n)
             .map(|k| {
@@ -205,7 +217,6 @@ pub fn detail(
             )
             .collect()
     };
-    let y = high_pass(&e);
     // A feature's shifts (first derivatives) and its blur or sharpening (second derivatives:
     // a lobe's roughness, a penumbra's width, a little off).
     let shapes = |v: &[f32]| -> Vec<Vec<f32>> {
@@ -223,6 +234,55 @@ pub fn detail(
     if s.iter().any(|&v| v != 0.0) {
         features.extend(shapes(&s));
     }
+    // The surface's orientation: a misfit of any shading (the light a face receives, the
+    // angle it is seen at) is a function of the normal, and so steps where the faces of a box
+    // or a stair meet, whether the model steps there or not. On a flat group these are zero
+    // and left out; on a curved one they are smooth, and the high pass leaves little of them.
+    let normals: Vec<[f32; 3]> = cache.pixels[..n]
+        .iter()
+        .map(|p| p.normal.to_array())
+        .collect();
+    let axes: Vec<Vec<f32>> = (0..3)
+        .map(|a| normals.iter().map(|v| v[a]).collect())
+        .collect();
+    let local: Vec<Vec<f32>> = axes
+        .iter()
+        .map(|v| v.iter().zip(high_pass(v)).map(|(x, h)| x - h).collect())
+        .collect();
+    // How far the normal turns from its neighbourhood's mean, |n − n̄|², and within the pixel,
+    // 1 − |n| of the pixel's mean normal: a bevel or a groove between two faces, wider or
+    // narrower than a pixel, where a misfit of the shading is the same on both of its sides.
+    let turn: Vec<f32> = (0..n)
+        .map(|k| (0..3).map(|a| (axes[a][k] - local[a][k]).powi(2)).sum())
+        .collect();
+    let within: Vec<f32> = normals
+        .iter()
+        .map(|v| 1.0 - (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+        .collect();
+    // These are regressed out over the whole group first (one coefficient each: one material's
+    // misfit on one kind of bevel), leaving each window's few pixels to the model's features.
+    // A misfit of the light there is in proportion to the light, and so is the bevel's share.
+    let lit_within: Vec<f32> = (0..n).map(|k| m[k] * within[k]).collect();
+    let geometry: Vec<Vec<f32>> = axes
+        .iter()
+        .chain([&turn, &within, &lit_within])
+        .map(|v| high_pass(v))
+        .filter(|hp| hp.iter().any(|&x| x.abs() > 1e-4))
+        .collect();
+    let all: Vec<usize> = (0..n).collect();
+    let shaded = |y: Vec<f32>| -> Vec<f32> {
+        match least_squares(&y, &geometry, &all).filter(|_| !geometry.is_empty()) {
+            Some(beta) => (0..n)
+                .map(|k| {
+                    y[k] - (0..geometry.len())
+                        .map(|i| beta[i] * geometry[i][k] as f64)
+                        .sum::<f64>() as f32
+                })
+                .collect(),
+            None => y,
+        }
+    };
+    let y = shaded(high_pass(&residual(&m)));
     let r = regress_out_locally(&y, &features, &grid);
     let var = |v: &[f32]| v.iter().map(|&x| (x as f64).powi(2)).sum::<f64>();
     let explained = {
@@ -263,6 +323,39 @@ pub fn detail(
         rms: (c1.max(0.0).sqrt() as f32) / mean,
         z: if se > 0.0 { (c1 / se) as f32 } else { 0.0 },
         explained,
+    }
+}
+
+/// A pixel whose two halves differ by more than this many times the group's median
+/// difference (relative to the model) holds a spike: a few bright samples in one half.
+const SPIKE: f32 = 6.0;
+
+/// Replaces each spiked pixel's model `m`, specular part `s` and halves `h` (luminance) by its
+/// lower half, the one without the spike. A spike is noise, but it is one pixel's: the high
+/// pass spreads it over its 24 neighbours, and a window's regression on the model's features
+/// (which hold half of it) is fitted to it and adds the model's own structure to the
+/// residual, which the photo's own structure then matches.
+fn despike(m: &mut [f32], s: &mut [f32], h: &mut [Vec<f32>; 2]) {
+    let relative: Vec<f32> = (0..m.len())
+        .map(|k| (h[0][k] - h[1][k]).abs() / m[k].max(1e-6))
+        .collect();
+    let mut sorted: Vec<f32> = relative.iter().copied().filter(|q| q.is_finite()).collect();
+    if sorted.is_empty() {
+        return;
+    }
+    let mid = sorted.len() / 2;
+    let median = *sorted.select_nth_unstable_by(mid, f32::total_cmp).1;
+    if !(median > 0.0) {
+        return;
+    }
+    for (k, &q) in relative.iter().enumerate() {
+        if q > SPIKE * median && m[k] > 0.0 {
+            let low = h[0][k].min(h[1][k]).max(0.0);
+            s[k] *= low / m[k];
+            m[k] = low;
+            h[0][k] = low;
+            h[1][k] = low;
+        }
     }
 }
 
@@ -391,7 +484,7 @@ mod tests {
                 (Rgb::splat(m), Rgb::splat(s))
             })
             .unzip();
-        detail(&cache_of(&photo, w), &model, &spec, w, false)
+        detail(&cache_of(&photo, w), &model, [&model, &model], &spec, w, false)
     }
 
     #[test]
@@ -424,7 +517,8 @@ mod tests {
         let photo: Vec<f32> = (0..w * h)
             .map(|i| model[i].x * face(i / w).1 + 0.003 * noise(i, 5))
             .collect();
-        let d = detail(&cache_of(&photo, w), &model, &vec![Rgb::splat(0.0); w * h], w, false);
+        let zero = vec![Rgb::splat(0.0); w * h];
+        let d = detail(&cache_of(&photo, w), &model, [&model, &model], &zero, w, false);
         assert!(!d.is_texture(0.02), "{d:?}");
     }
 
@@ -469,9 +563,9 @@ mod tests {
             photo.push(d * (1.0 + 0.3 * print(x, y)) + s + 0.002 * noise(i, 7));
         }
         let cache = cache_of(&photo, w);
-        let broad = detail(&cache, &model, &spec, w, true);
+        let broad = detail(&cache, &model, [&model, &model], &spec, w, true);
         assert!(broad.is_texture(0.02), "{broad:?}");
-        let sharp = detail(&cache, &model, &spec, w, false);
+        let sharp = detail(&cache, &model, [&model, &model], &spec, w, false);
         assert!(!sharp.is_texture(0.02), "{sharp:?}");
     }
 
@@ -501,6 +595,44 @@ mod tests {
             ..p
         };
         assert!(!reflection_holds_the_light(Level::Plastic, &broad, &model, &mostly));
+    }
+
+    /// Stepped faces (a stair's side: a groove every 6 pixels, in the model and in the photo
+    /// alike) whose cache holds a few spikes, one half's bright samples 10× the pixel's light:
+    /// no texture. The model is right; the spikes are noise.
+    #[test]
+    fn a_few_bright_samples_on_a_structured_surface_are_not_texture() {
+        let w = 64;
+        let shade = |i: usize| {
+            let (x, y) = ((i % w) as f32, (i / w) as f32);
+            let groove = if (x as usize).is_multiple_of(6) { 0.6 } else { 1.0 };
+            (0.3 + 0.002 * y) * groove
+        };
+        let halves: [Vec<Rgb>; 2] = [11u64, 12].map(|seed| {
+            (0..w * w)
+                .map(|i| {
+                    let spike = crate::math::sampler::mix64(i as u64 ^ seed).is_multiple_of(97);
+                    let v = shade(i) * (1.0 + 0.2 * noise(i, seed));
+                    Rgb::splat(if spike { 10.0 * v } else { v })
+                })
+                .collect()
+        });
+        let model: Vec<Rgb> = (0..w * w)
+            .map(|i| (halves[0][i] + halves[1][i]) * 0.5)
+            .collect();
+        let spec = vec![Rgb::ZERO; w * w];
+        let photo: Vec<f32> = (0..w * w)
+            .map(|i| shade(i) * (1.0 + 0.05 * noise(i, 13)))
+            .collect();
+        let d = detail(
+            &cache_of(&photo, w),
+            &model,
+            [&halves[0], &halves[1]],
+            &spec,
+            w,
+            false,
+        );
+        assert!(!d.is_texture(0.02), "{d:?}");
     }
 
     #[test]

@@ -107,11 +107,16 @@ fn texture_gate(
     variant: WardVariant,
     opts: &HierarchyOptions,
 ) -> (bool, Detail, bool) {
-    let (model, spec) = super::texture::uniform_parts(cache, best.level, &best.params, variant);
+    let parts = super::texture::uniform_parts(cache, best.level, &best.params, variant);
     let gross = best.error - best.noise_floor >= opts.thresholds.texture_error
         && cache.first_view().len() >= super::detail::MIN_PIXELS
-        && !super::detail::reflection_holds_the_light(best.level, &best.params, &model, &spec);
-    let this = super::detail::parts_detail(cache, best.level, &best.params, &model, &spec);
+        && !super::detail::reflection_holds_the_light(
+            best.level,
+            &best.params,
+            &parts.model,
+            &parts.spec,
+        );
+    let this = super::detail::parts_detail(cache, best.level, &best.params, &parts);
     let thr = opts.thresholds.texture_detail;
     let detail = judged_detail(this, earlier, best.error, best.noise_floor, thr);
     let opens = detail_opens(&detail, best.error, best.noise_floor, thr);

@@ -206,6 +206,7 @@ pub fn pooled(
             mid: 0,
             end: 0,
             tile: t,
+            normal: crate::math::Vec3::ZERO,
         })
         .collect();
     let mut out = vec![PixelSpec::default(); n];
@@ -377,6 +378,7 @@ mod tests {
                     mid: 0,
                     end: 0,
                     tile: t as u32,
+                    normal: crate::math::Vec3::ZERO,
                 });
                 specs.push(PixelSpec {
                     s: (s_half[0] + s_half[1]) * 0.5,

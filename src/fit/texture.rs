@@ -164,27 +164,47 @@ pub fn uniform_model(
     params: &GroupParams,
     variant: WardVariant,
 ) -> Vec<Rgb> {
-    uniform_parts(cache, level, params, variant).0
+    uniform_parts(cache, level, params, variant).model
 }
 
-/// [`uniform_model`] and, per cached pixel, its specular part ρs·S.
+/// A uniform level's model per cached pixel ([`uniform_parts`]).
+pub struct UniformParts {
+    /// The model's radiance.
+    pub model: Vec<Rgb>,
+    /// Its specular part ρs·S.
+    pub spec: Vec<Rgb>,
+    /// The radiance on each half of the pixel's samples alone (each an estimate of the whole):
+    /// two estimates whose noise is independent.
+    pub halves: [Vec<Rgb>; 2],
+}
+
+/// [`uniform_model`] with its specular part and its halves.
 pub fn uniform_parts(
     cache: &GroupCache,
     level: Level,
     params: &GroupParams,
     variant: WardVariant,
-) -> (Vec<Rgb>, Vec<Rgb>) {
+) -> UniformParts {
     let specs = pixel_specs(cache, spec_of(level, params), variant, false);
     let (rho_d, rho_s) = match level {
         Level::PerfectSpecular => (Rgb::ZERO, Rgb::ONE),
         _ => (params.rho_d, params.rho_s),
     };
-    cache
-        .pixels
-        .iter()
-        .zip(&specs)
-        .map(|(p, s)| (rho_d * s.diffuse(p).0 + rho_s * s.s, rho_s * s.s))
-        .unzip()
+    let n = cache.pixels.len();
+    let mut out = UniformParts {
+        model: Vec::with_capacity(n),
+        spec: Vec::with_capacity(n),
+        halves: [Vec::with_capacity(n), Vec::with_capacity(n)],
+    };
+    for (p, s) in cache.pixels.iter().zip(&specs) {
+        let (d, d_half) = s.diffuse(p);
+        out.model.push(rho_d * d + rho_s * s.s);
+        out.spec.push(rho_s * s.s);
+        for h in 0..2 {
+            out.halves[h].push(rho_d * d_half[h] + rho_s * s.s_half[h]);
+        }
+    }
+    out
 }
 
 /// The radiance of `texture` (with its lobe `lobe` on top) per cached pixel; None if the cache

@@ -518,6 +518,8 @@ fn trace_pixel(t: &PixelTrace, i: usize, p: usize, tile: u32) -> BuiltPixel {
 #[derive(Clone)]
 struct Drawn {
     entries: Vec<Entry>,
+    /// The mean of the primary hits' shading normals (not normalized).
+    normal: Vec3,
     stray: usize,
     tapped: [f32; 2],
     open: f32,
@@ -561,6 +563,7 @@ fn draw_pixel(t: &PixelTrace, p: usize) -> (Drawn, Vec<IndirectRay>) {
     let mut open = 0.0f32;
     // Primary hits per half that read the atlas (the share of the pixel on the group).
     let mut tapped = [0u32; 2];
+    let (mut normal, mut hits) = (Vec3::ZERO, 0u32);
     // Each half's stream, scrambled once per pixel (`Sampler::new` hashes its Owen
     // scrambles; a copy whose sample is started anew draws the same numbers).
     let streams: [Sampler; 2] = std::array::from_fn(|half| {
@@ -578,6 +581,8 @@ fn draw_pixel(t: &PixelTrace, p: usize) -> (Drawn, Vec<IndirectRay>) {
         let taps = atlas.and_then(|a| a.taps(hit.object, hit.p, hit.ng));
         tapped[half] += taps.is_some() as u32;
         let (frame, ng) = facing(hit.frame, hit.ng, wo_world);
+        normal += frame.n;
+        hits += 1;
         let wo = frame.to_local(wo_world);
         let mix = super::mixture::Mixture::at(cw, images, hit.p, frame);
         if k < hl {
@@ -668,6 +673,7 @@ fn draw_pixel(t: &PixelTrace, p: usize) -> (Drawn, Vec<IndirectRay>) {
     (
         Drawn {
             entries,
+            normal: normal / hits.max(1) as f32,
             stray,
             tapped: tapped.map(|t| t as f32 / (hl + hi) as f32),
             open: open * INV_PI,
@@ -871,6 +877,7 @@ fn finish_pixel(
         mid: 0,
         end: 0,
         tile,
+        normal: drawn.normal,
     };
     let shares = shares.into_iter().map(|h| [h[0] * 2.0, h[1] * 2.0]);
     (

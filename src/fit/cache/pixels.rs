@@ -3,9 +3,9 @@
 //! The model it gives for any BSDF parameters is the one `build.rs` opens with.
 
 use super::pseudo_textures::PseudoMirror;
-use crate::math::Rgb;
+use crate::math::{Rgb, Vec3};
 #[cfg(test)]
-use crate::math::{Vec2, Vec3};
+use crate::math::Vec2;
 #[cfg(test)]
 use crate::math::{INV_PI, PI};
 use std::sync::Arc;
@@ -61,6 +61,11 @@ pub struct CachePixel {
     pub end: u32,
     /// Tile for error aggregation.
     pub tile: u32,
+    /// The mean of the shading normals (world space) of the pixel's primary hits, not
+    /// normalized: shorter than 1 where they face different ways within the pixel (a bevel, a
+    /// groove). For the texture gate's test of misfit that follows the surface's shape
+    /// (`detail.rs`); zero where unknown.
+    pub normal: Vec3,
 }
 
 impl CachePixel {
@@ -79,6 +84,7 @@ impl CachePixel {
             mid: 0,
             end: 0,
             tile: 0,
+            normal: Vec3::ZERO,
         }
     }
 }
@@ -458,6 +464,7 @@ pub(crate) fn synthetic_cache(
             mid: start + per_half as u32,
             end: start + 2 * per_half as u32,
             tile: (i * tiles / n) as u32,
+            normal: Vec3::ZERO,
         };
         let reference = draw(&mut rng, wo, 128 * per_half);
         p.photo = photo(&p, &reference);

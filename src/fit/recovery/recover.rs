@@ -204,6 +204,7 @@ emission = 5.0
             mid: 2 * i + 1,
             end: 2 * i + 2,
             tile: i % 4,
+            normal: Vec3::ZERO,
         };
         let sample = Sample::new(
             Vec3::new(0.1, 0.2, 0.97).normalize(),
