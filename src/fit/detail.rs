@@ -26,10 +26,10 @@
 //! spike (a few bright samples in one half of its paths) is judged on its other half
 //! ([`despike`]). Before the model's features, what the surface's shape explains is regressed
 //! out over the whole group: its normal, how far the normal turns from its neighbours' and
-//! within the pixel, alone and times the model's light (a bevel, a groove between faces). It is taken over the pixels where
-//! the model's diffuse term is at least its specular one: a print is a diffuse reflectance,
-//! and where a glossy surface shows a bright reflection its residual is that reflection's
-//! misfit. Unless the lobe is too broad to show its surroundings at all (α ≥ [`BROAD_ALPHA`]):
+//! within the pixel, alone and times the model's light (a bevel, a groove between faces).
+//! The statistic is taken over the pixels where the model's diffuse term is at least its
+//! specular one: a print is a diffuse reflectance, and where a glossy surface shows a bright
+//! reflection its residual is that reflection's misfit. Unless the lobe is too broad to show its surroundings at all (α ≥ [`BROAD_ALPHA`]):
 //! such a lobe spreads each reflection over more than a radian, so the residual at the texel
 //! scale is the surface's own wherever it is, and a diffuse print under a coat fitted that
 //! rough (a broad coat standing in for part of the diffuse light) is judged on every pixel.
@@ -271,14 +271,11 @@ pub fn detail(
         .collect();
     let all: Vec<usize> = (0..n).collect();
     let shaded = |y: Vec<f32>| -> Vec<f32> {
-        match least_squares(&y, &geometry, &all).filter(|_| !geometry.is_empty()) {
-            Some(beta) => (0..n)
-                .map(|k| {
-                    y[k] - (0..geometry.len())
-                        .map(|i| beta[i] * geometry[i][k] as f64)
-                        .sum::<f64>() as f32
-                })
-                .collect(),
+        if geometry.is_empty() {
+            return y;
+        }
+        match least_squares(&y, &geometry, &all) {
+            Some(beta) => (0..n).map(|k| y[k] - fitted(&beta, &geometry, k)).collect(),
             None => y,
         }
     };
@@ -403,14 +400,18 @@ fn regress_out_locally(y: &[f32], features: &[Vec<f32>], grid: &PixelGrid) -> Ve
             .flatten();
         if let Some(beta) = local.as_ref().or(group.as_ref()) {
             for &k in core {
-                r[k] = y[k]
-                    - (0..features.len())
-                        .map(|i| beta[i] * features[i][k] as f64)
-                        .sum::<f64>() as f32;
+                r[k] = y[k] - fitted(beta, features, k);
             }
         }
     }
     r
+}
+
+/// Σᵢ βᵢ featureᵢ at pixel `k`: what the regression explains there.
+fn fitted(beta: &[f64], features: &[Vec<f32>], k: usize) -> f32 {
+    (0..features.len())
+        .map(|i| beta[i] * features[i][k] as f64)
+        .sum::<f64>() as f32
 }
 
 /// The least-squares coefficients of `y` on `features` over the pixels `rows` (a tiny ridge
