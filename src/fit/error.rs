@@ -100,6 +100,44 @@ pub fn tiled_error(
     })
 }
 
+/// The photo's own noise in ε's units: the ε a model free of misfit would still leave from the
+/// photo's noise alone, which the noise floor (the synthetic image's) does not hold. Residual
+/// differences of neighbouring pixels `pairs` (indices into `pixels`), taken against each half
+/// of the samples, Δr₀ = Δ(photo − half₀) and Δr₁ = Δ(photo − half₁), have the expected product
+/// 2σ² + (Δmisfit)²: the halves' noise is independent and drops out, a smooth misfit barely
+/// differs between neighbours, and what remains is the photo's per-pixel variance σ². Pooled
+/// over the group as a variance per unit of the photo's value (shot noise's law; a tile's own
+/// few products are too noisy to take a root of), a tile of photo sum P has variance κP, and as
+/// for the floor, Gaussian noise of variance V adds √(2V/π) to Σ|r|. None without pairs or
+/// light.
+pub fn photo_noise(
+    n_tiles: usize,
+    pixels: &[(usize, PixelTerms)],
+    pairs: &[(usize, usize)],
+) -> Option<f32> {
+    let total: f32 = pixels.iter().map(|(_, p)| p.photo.x + p.photo.y + p.photo.z).sum();
+    if pairs.is_empty() || !(total > 0.0) || !total.is_finite() {
+        return None;
+    }
+    let (mut variance, mut light) = (Rgb::ZERO, Rgb::ZERO);
+    for &(a, b) in pairs {
+        let (p, q) = (&pixels[a].1, &pixels[b].1);
+        let d = |h: usize| (p.photo - p.halves[h]) - (q.photo - q.halves[h]);
+        variance += d(0) * d(1);
+        light += p.photo + q.photo;
+    }
+    let kappa = variance / light;
+    let mut tile_light = vec![Rgb::ZERO; n_tiles];
+    for (t, p) in pixels {
+        tile_light[*t] += p.photo;
+    }
+    let root = |v: f32| (2.0 * v.max(0.0) / std::f32::consts::PI).sqrt();
+    let noise: f32 = (tile_light.iter().map(|&l| l * kappa))
+        .map(|v| root(v.x) + root(v.y) + root(v.z))
+        .sum();
+    noise.is_finite().then_some(noise / total)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -110,6 +148,61 @@ mod tests {
             photo: Rgb::splat(photo),
             halves: [Rgb::splat(h0), Rgb::splat(h1)],
         }
+    }
+
+    /// A 64×64 group in 8×8 tiles whose model misses by a smooth 0–5% ramp, with noise of
+    /// its own in each half: the photo's noise is measured as the ε it alone adds, and a
+    /// photo without noise has next to none beside the floor, whatever the model's noise and
+    /// misfit.
+    #[test]
+    fn the_photo_noise_is_what_its_own_noise_adds_and_not_the_models() {
+        use crate::math::sampler::{mix64, unit_f32};
+        let (side, tile) = (64usize, 8usize);
+        let run = |noise: f32| {
+            let mut key = 7u64;
+            let mut uniform = |a: f32| {
+                key += 1;
+                a * (2.0 * unit_f32(mix64(key)) - 1.0)
+            };
+            let mut pixels = Vec::new();
+            let mut pairs = Vec::new();
+            for y in 0..side {
+                for x in 0..side {
+                    let truth = 1.0 + 0.3 * (x as f32 / 9.0).sin() * (y as f32 / 13.0).cos();
+                    let model = truth * (1.0 + 0.05 * x as f32 / side as f32);
+                    let halves = [model + uniform(0.3), model + uniform(0.3)];
+                    let p = px(
+                        0.5 * (halves[0] + halves[1]),
+                        truth + uniform(noise),
+                        halves[0],
+                        halves[1],
+                    );
+                    let k = pixels.len();
+                    pixels.push(((y / tile) * (side / tile) + x / tile, p));
+                    if x + 1 < side {
+                        pairs.push((k, k + 1));
+                    }
+                    if y + 1 < side {
+                        pairs.push((k, k + side));
+                    }
+                }
+            }
+            let tiles = side * side / (tile * tile);
+            let total: f32 = pixels.iter().map(|(_, p)| 3.0 * p.photo.x).sum();
+            let floor = tiled_error(tiles, pixels.iter().copied()).unwrap().noise_floor;
+            (photo_noise(tiles, &pixels, &pairs).unwrap(), total, floor)
+        };
+        // Uniform noise of half-width a has variance a²/3; a tile sums 64 pixels.
+        let a = 0.2f32;
+        let (noisy, total, _) = run(a);
+        let tiles = (side * side / (tile * tile)) as f32;
+        let want = 3.0 * tiles * (2.0 * 64.0 * a * a / 3.0 / std::f32::consts::PI).sqrt() / total;
+        assert!((noisy / want - 1.0).abs() < 0.1, "{noisy} for {want}");
+        // Without noise in the photo, what the estimate's own noise leaves adds under 5% to
+        // the noise that ε is judged against (in quadrature with the floor).
+        let (quiet, _, floor) = run(0.0);
+        assert!(quiet * quiet < 0.05 * floor * floor, "{quiet} for none (floor {floor})");
+        assert_eq!(photo_noise(1, &[], &[]), None);
     }
 
     #[test]

@@ -352,6 +352,18 @@ pub fn assess(
     assess_with(cache, level, params, &specs, evals)
 }
 
+/// The photo's own noise in ε's units on the cache under `params` at `level`
+/// ([`super::objective::photo_noise`]).
+pub fn photo_noise(
+    cache: &GroupCache,
+    level: Level,
+    params: &GroupParams,
+    variant: WardVariant,
+) -> Option<f32> {
+    let specs = pixel_specs(cache, spec_of(level, params), variant, false);
+    super::objective::photo_noise(cache, &specs, params.rho_d, params.rho_s)
+}
+
 fn assess_with(
     cache: &GroupCache,
     level: Level,

@@ -91,6 +91,10 @@ pub struct GroupState {
     /// The 1σ of its parameters at its level, from its latest cache (`uncertainty.rs`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sigma: Option<GroupParams>,
+    /// The photo's own noise in ε's units on its latest cache, at its level
+    /// (`objective::photo_noise`): what ε holds beyond the noise floor without any misfit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub photo_noise: Option<f32>,
     /// Set (by the recovery loop) when a group that lights this textured group changed level:
     /// its next step asks Algorithm 1's gate again ([`GroupState::untexture`]).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
@@ -179,6 +183,7 @@ impl GroupState {
             lit_by: Vec::new(),
             open: 0.0,
             sigma: None,
+            photo_noise: None,
             recheck_texture: false,
             texture_doubt: None,
             texture_sources: Vec::new(),

@@ -397,6 +397,9 @@ impl GroupState {
             _ => 1,
         };
         self.sigma = super::uncertainty::sigma(cache, self.level, &self.params, variant, fits);
+        self.photo_noise = (self.level != Level::Textured)
+            .then(|| super::fitter::photo_noise(cache, self.level, &self.params, variant))
+            .flatten();
         let scatter = self.fit_scatter();
         if let (Some(sd), Some((scatter, n)), Status::Confirmed) =
             (&mut self.sigma, scatter, self.status)

@@ -312,21 +312,43 @@ pub fn moments(cache: &GroupCache, specs: &[PixelSpec]) -> [super::solve::Moment
     m
 }
 
+/// What pixel `p` contributes to the error of the model ρd, ρs with its specular term `s`.
+fn terms(p: &CachePixel, s: &PixelSpec, rho_d: Rgb, rho_s: Rgb) -> PixelTerms {
+    let (d, d_half) = s.diffuse(p);
+    PixelTerms {
+        syn: rho_d * d + rho_s * s.s,
+        photo: p.photo,
+        halves: [
+            rho_d * d_half[0] + rho_s * s.s_half[0],
+            rho_d * d_half[1] + rho_s * s.s_half[1],
+        ],
+    }
+}
+
 /// ε and the noise floor of the model ρd, ρs with the given specular terms.
 pub fn error(cache: &GroupCache, specs: &[PixelSpec], rho_d: Rgb, rho_s: Rgb) -> ErrorStats {
-    let pixels = cache.pixels.iter().zip(specs).map(|(p, s)| {
-        let (d, d_half) = s.diffuse(p);
-        let terms = PixelTerms {
-            syn: rho_d * d + rho_s * s.s,
-            photo: p.photo,
-            halves: [
-                rho_d * d_half[0] + rho_s * s.s_half[0],
-                rho_d * d_half[1] + rho_s * s.s_half[1],
-            ],
-        };
-        (p.tile as usize, terms)
-    });
+    let pixels = (cache.pixels.iter().zip(specs))
+        .map(|(p, s)| (p.tile as usize, terms(p, s, rho_d, rho_s)));
     tiled_error(cache.tiles.max(1), pixels).unwrap_or_default()
+}
+
+/// The photo's own noise in ε's units under the model ρd, ρs with the given specular terms
+/// ([`super::error::photo_noise`]), from neighbouring pixels of the cache's first photo. None
+/// without an image width or neighbouring pixels.
+pub fn photo_noise(cache: &GroupCache, specs: &[PixelSpec], rho_d: Rgb, rho_s: Rgb) -> Option<f32> {
+    let n = cache.views.first().copied().unwrap_or(cache.pixels.len());
+    if cache.width == 0 || n == 0 {
+        return None;
+    }
+    let pixels: Vec<(usize, PixelTerms)> = (cache.pixels[..n].iter().zip(specs))
+        .map(|(p, s)| (p.tile as usize, terms(p, s, rho_d, rho_s)))
+        .collect();
+    let grid = super::cache::PixelGrid::new(&cache.pixels[..n], cache.width);
+    let pairs: Vec<(usize, usize)> = (0..n)
+        .flat_map(|k| [(1, 0), (0, 1)].map(|(dx, dy)| grid.neighbour(k, dx, dy).map(|j| (k, j))))
+        .flatten()
+        .collect();
+    super::error::photo_noise(cache.tiles.max(1), &pixels, &pairs)
 }
 
 #[cfg(test)]

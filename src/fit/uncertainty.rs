@@ -301,6 +301,20 @@ pub fn model_misfit(error: f32, noise: f32) -> f32 {
     (error - NOISE_TOLERANCE * noise).max(0.0)
 }
 
+/// The same misfit read from the group's cache (`error`, `noise_floor` of its last fit there,
+/// `photo_noise` the photo's own share, [`super::objective::photo_noise`]). A cache pools
+/// several iterations' paths, so its floor is lower than the final render's and a misfit of
+/// a few tenths of a percent that hides under the final floor's tolerance shows: ε² beyond
+/// the tolerance times the noise of both images, cache and photo, in quadrature. 0 where the
+/// photo's noise is not known: without it the photo's noise would pass for misfit.
+pub fn cache_misfit(error: f32, noise_floor: f32, photo_noise: Option<f32>) -> f32 {
+    let Some(photo) = photo_noise else {
+        return 0.0;
+    };
+    let noise = NOISE_TOLERANCE * noise_floor.hypot(photo);
+    (error * error - noise * noise).max(0.0).sqrt()
+}
+
 /// The relative 1σ of an unseen group's reflectance, and so of the light it sends: its
 /// photo's 1σ where the photo gave one, per channel the worst; where it did not (σ < 0, or
 /// at the cap of 1), that of a reflectance known only to lie in [0, 1], 1/√12.
@@ -479,7 +493,8 @@ pub fn albedo(
     Some(Albedo { value, sigma })
 }
 
-/// `sigma` widened by the group's own misfit `misfit` ([`model_misfit`] of its final ε):
+/// `sigma` widened by the group's own misfit `misfit` (the larger of [`model_misfit`] of its
+/// final ε and [`cache_misfit`] of its last cache's):
 /// where its model leaves its pixels off by m (relative, beyond the noise), a reflectance
 /// fitted to them is known no better than that. A least-squares ρ is a weighted mean of
 /// per-pixel ratios, and a misfit that does not average out over the group (a shading the

@@ -33,6 +33,10 @@ pub struct GroupResult {
     /// ε and noise floor on the cache at the last fit (what the hierarchy decided on).
     pub fit_error: f32,
     pub fit_noise_floor: f32,
+    /// The photo's own noise in ε's units on that cache (`fit::error::photo_noise`): the part
+    /// of `fit_error` that is neither the cache's noise nor misfit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fit_photo_noise: Option<f32>,
     pub visible_pixels: usize,
     pub usable_pixels: usize,
     pub rejected_pixels: usize,
@@ -356,6 +360,7 @@ pub fn results(rec: &Recovery) -> Results {
                 noise_floor: fe.map(|e| e.1),
                 fit_error: s.error,
                 fit_noise_floor: s.noise_floor,
+                fit_photo_noise: s.photo_noise,
                 visible_pixels: st.visible,
                 usable_pixels: st.usable,
                 rejected_pixels: st.rejected,

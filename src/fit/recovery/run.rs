@@ -605,11 +605,12 @@ impl<'a> RecoveryLoop<'a> {
         // trusted: a fitted group's model as far as its photo shows, an unseen one's
         // reflectance as far as it is known.
         use crate::fit::uncertainty::{
-            model_misfit, unseen_misfit, with_neighbours, with_own_misfit,
+            cache_misfit, model_misfit, unseen_misfit, with_neighbours, with_own_misfit,
         };
         let mut misfit: Vec<f32> = (states.iter().zip(&final_error))
             .map(|(st, e)| match (st.is_fitted(), e) {
-                (true, Some((error, noise))) => model_misfit(*error, *noise),
+                (true, Some((error, noise))) => model_misfit(*error, *noise)
+                    .max(cache_misfit(st.error, st.noise_floor, st.photo_noise)),
                 _ => 0.0,
             })
             .collect();
