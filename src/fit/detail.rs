@@ -29,10 +29,13 @@
 //! within the pixel, alone and times the model's light (a bevel, a groove between faces).
 //! The statistic is taken over the pixels where the model's diffuse term is at least its
 //! specular one: a print is a diffuse reflectance, and where a glossy surface shows a bright
-//! reflection its residual is that reflection's misfit. Unless the lobe is too broad to show its surroundings at all (α ≥ [`BROAD_ALPHA`]):
+//! reflection its residual is that reflection's misfit. Unless the lobe is too broad to show
+//! its surroundings at all (α ≥ [`BROAD_ALPHA`]):
 //! such a lobe spreads each reflection over more than a radian, so the residual at the texel
 //! scale is the surface's own wherever it is, and a diffuse print under a coat fitted that
 //! rough (a broad coat standing in for part of the diffuse light) is judged on every pixel.
+//! Either way, pixels within the high pass's reach of a shape feature ([`SHAPE_FEATURE`]) are
+//! left out: there the shading's misfit runs along the groove or the edge as a streak.
 //! Reported are √c₁ as a fraction of those pixels' mean radiance, and c₁'s z-score
 //! against its own standard error, so a texture is tried only where the structure is both large
 //! and certain.
@@ -259,6 +262,20 @@ pub fn detail(
         .iter()
         .map(|v| 1.0 - (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
         .collect();
+    // Near such a feature (within the high pass's reach of one) the residual is mostly the
+    // shading's misfit there, which no regression removes whole: it runs along a groove as a
+    // streak, which neighbouring pairs take for a print's stroke. The statistic is judged
+    // where the surface is smooth; a print covers the faces between the features too.
+    let feature: Vec<bool> = (0..n)
+        .map(|k| turn[k] > SHAPE_FEATURE || (within[k] > SHAPE_FEATURE && within[k] < 1.0))
+        .collect();
+    let smooth: Vec<bool> = (0..n)
+        .map(|k| {
+            !(-2..=2).any(|dy| {
+                (-2..=2).any(|dx| grid.neighbour(k, dx, dy).is_some_and(|j| feature[j]))
+            })
+        })
+        .collect();
     // These are regressed out over the whole group first (one coefficient each: one material's
     // misfit on one kind of bevel), leaving each window's few pixels to the model's features.
     // A misfit of the light there is in proportion to the light, and so is the bevel's share.
@@ -293,7 +310,7 @@ pub fn detail(
     // A print is a diffuse reflectance: it is judged where the diffuse term dominates. Where a
     // glossy group shows a reflection brighter than its own diffuse light, the residual is the
     // reflection's misfit (a neighbour's edge, the lobe's exact shape), whatever its scale.
-    let diffuse = |k: usize| broad_lobe || s[k] <= m[k] - s[k];
+    let diffuse = |k: usize| smooth[k] && (broad_lobe || s[k] <= m[k] - s[k]);
     let (mut cov, mut cov2, mut pairs) = (0.0f64, 0.0f64, 0usize);
     let (mut sum, mut count) = (0.0f64, 0usize);
     for k in (0..n).filter(|&k| diffuse(k)) {
@@ -322,6 +339,12 @@ pub fn detail(
         explained,
     }
 }
+
+/// A pixel whose normal turns from its neighbourhood's mean by more than this (|n − n̄|²), or
+/// whose mean normal is shorter than 1 by more (its normals spread by some 8° within it), is
+/// on a shape feature: a bevel, a groove, an edge. A curved surface of 10 pixels' radius
+/// reaches a twentieth of either.
+const SHAPE_FEATURE: f32 = 0.01;
 
 /// A pixel whose two halves differ by more than this many times the group's median
 /// difference (relative to the model) holds a spike: a few bright samples in one half.
@@ -445,6 +468,7 @@ fn least_squares(y: &[f32], features: &[Vec<f32>], rows: &[usize]) -> Option<Vec
 mod tests {
     use super::*;
     use crate::fit::cache::CachePixel;
+    use crate::math::Vec3;
 
     /// A cache of a `w`×`h` image, every pixel cached (the model is given directly).
     fn cache_of(photo: &[f32], w: usize) -> GroupCache {
@@ -601,6 +625,53 @@ mod tests {
     /// Stepped faces (a stair's side: a groove every 6 pixels, in the model and in the photo
     /// alike) whose cache holds a few spikes, one half's bright samples 10× the pixel's light:
     /// no texture. The model is right; the spikes are noise.
+    /// A grooved face (a stair's side): in each one-pixel groove the normals within the pixel
+    /// spread, and the model misses the groove's light by an amount that changes along it, so
+    /// the residual runs in streaks down the grooves. That is the shading's misfit, not a
+    /// print; a print on the same face is one.
+    #[test]
+    fn streaks_along_grooves_are_not_texture_and_a_print_across_them_is() {
+        let w = 64;
+        let groove = |i: usize| (i % w).is_multiple_of(6);
+        let run = |print: f32| {
+            let shade = |i: usize| 0.3 + 0.002 * (i / w) as f32;
+            let model: Vec<Rgb> = (0..w * w)
+                .map(|i| Rgb::splat(shade(i) * if groove(i) { 0.6 } else { 1.0 }))
+                .collect();
+            let halves = [0u64, 1].map(|h| {
+                (0..w * w)
+                    .map(|i| model[i] * (1.0 + 0.02 * noise(i, 20 + h)))
+                    .collect::<Vec<Rgb>>()
+            });
+            let photo: Vec<f32> = (0..w * w)
+                .map(|i| {
+                    let (x, y) = (i % w, i / w);
+                    let misfit = if groove(i) {
+                        0.85 + 0.8 * noise(x * 1000 + y / 8, 21)
+                    } else {
+                        1.0
+                    };
+                    let p = if (x / 3 + y / 3) % 2 == 0 { 1.0 + print } else { 1.0 - print };
+                    model[i].x * misfit * p * (1.0 + 0.02 * noise(i, 22))
+                })
+                .collect();
+            let mut cache = cache_of(&photo, w);
+            for (i, p) in cache.pixels.iter_mut().enumerate() {
+                p.normal = if groove(i) {
+                    Vec3::new(0.3, 0.0, 0.85)
+                } else {
+                    Vec3::new(0.0, 0.0, 1.0)
+                };
+            }
+            let spec = vec![Rgb::ZERO; w * w];
+            detail(&cache, &model, [&halves[0], &halves[1]], &spec, w, false)
+        };
+        let streaks = run(0.0);
+        assert!(!streaks.is_texture(0.02), "{streaks:?}");
+        let print = run(0.1);
+        assert!(print.is_texture(0.02), "{print:?}");
+    }
+
     #[test]
     fn a_few_bright_samples_on_a_structured_surface_are_not_texture() {
         let w = 64;
