@@ -622,9 +622,6 @@ mod tests {
         assert!(!reflection_holds_the_light(Level::Plastic, &broad, &model, &mostly));
     }
 
-    /// Stepped faces (a stair's side: a groove every 6 pixels, in the model and in the photo
-    /// alike) whose cache holds a few spikes, one half's bright samples 10× the pixel's light:
-    /// no texture. The model is right; the spikes are noise.
     /// A grooved face (a stair's side): in each one-pixel groove the normals within the pixel
     /// spread, and the model misses the groove's light by an amount that changes along it, so
     /// the residual runs in streaks down the grooves. That is the shading's misfit, not a
@@ -672,6 +669,9 @@ mod tests {
         assert!(print.is_texture(0.02), "{print:?}");
     }
 
+    /// Stepped faces (a stair's side: a groove every 6 pixels, in the model and in the photo
+    /// alike) whose cache holds a few spikes, one half's bright samples 10× the pixel's light:
+    /// no texture. The model is right; the spikes are noise.
     #[test]
     fn a_few_bright_samples_on_a_structured_surface_are_not_texture() {
         let w = 64;

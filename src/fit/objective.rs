@@ -313,7 +313,7 @@ pub fn moments(cache: &GroupCache, specs: &[PixelSpec]) -> [super::solve::Moment
 }
 
 /// What pixel `p` contributes to the error of the model ρd, ρs with its specular term `s`.
-fn terms(p: &CachePixel, s: &PixelSpec, rho_d: Rgb, rho_s: Rgb) -> PixelTerms {
+pub fn terms(p: &CachePixel, s: &PixelSpec, rho_d: Rgb, rho_s: Rgb) -> PixelTerms {
     let (d, d_half) = s.diffuse(p);
     PixelTerms {
         syn: rho_d * d + rho_s * s.s,
@@ -336,14 +336,15 @@ pub fn error(cache: &GroupCache, specs: &[PixelSpec], rho_d: Rgb, rho_s: Rgb) ->
 /// ([`super::error::photo_noise`]), from neighbouring pixels of the cache's first photo. None
 /// without an image width or neighbouring pixels.
 pub fn photo_noise(cache: &GroupCache, specs: &[PixelSpec], rho_d: Rgb, rho_s: Rgb) -> Option<f32> {
-    let n = cache.views.first().copied().unwrap_or(cache.pixels.len());
+    let first = cache.first_view();
+    let n = first.len();
     if cache.width == 0 || n == 0 {
         return None;
     }
-    let pixels: Vec<(usize, PixelTerms)> = (cache.pixels[..n].iter().zip(specs))
+    let pixels: Vec<(usize, PixelTerms)> = (first.iter().zip(specs))
         .map(|(p, s)| (p.tile as usize, terms(p, s, rho_d, rho_s)))
         .collect();
-    let grid = super::cache::PixelGrid::new(&cache.pixels[..n], cache.width);
+    let grid = super::cache::PixelGrid::new(first, cache.width);
     let pairs: Vec<(usize, usize)> = (0..n)
         .flat_map(|k| [(1, 0), (0, 1)].map(|(dx, dy)| grid.neighbour(k, dx, dy).map(|j| (k, j))))
         .flatten()

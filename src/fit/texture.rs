@@ -197,11 +197,11 @@ pub fn uniform_parts(
         halves: [Vec::with_capacity(n), Vec::with_capacity(n)],
     };
     for (p, s) in cache.pixels.iter().zip(&specs) {
-        let (d, d_half) = s.diffuse(p);
-        out.model.push(rho_d * d + rho_s * s.s);
+        let t = super::objective::terms(p, s, rho_d, rho_s);
+        out.model.push(t.syn);
         out.spec.push(rho_s * s.s);
         for h in 0..2 {
-            out.halves[h].push(rho_d * d_half[h] + rho_s * s.s_half[h]);
+            out.halves[h].push(t.halves[h]);
         }
     }
     out
